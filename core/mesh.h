@@ -1,0 +1,46 @@
+// core::Mesh: the triangle mesh value type every stage passes around.
+#pragma once
+
+#include <Eigen/Core>
+
+#include "core/error.h"
+
+namespace core {
+
+using RowMatrixX3d = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+
+// A triangle mesh (or a point cloud when `triangles` has no rows).
+// Degenerate triangles (repeated index or zero area) are kept so that triangle
+// indices stay those of the file (landmarks refer to them); algorithms skip them.
+struct Mesh {
+  Eigen::MatrixX3d positions;  // #V by 3 vertex positions, model units (glTF: metres)
+  Eigen::MatrixX3i triangles;  // #F by 3 vertex indices, counter-clockwise = front face
+  Eigen::MatrixX3d normals;    // #V by 3 unit vertex normals, or 0 rows when absent
+  Eigen::MatrixX2d uvs;        // #V by 2 texture coordinates (glTF convention, v down), or 0 rows
+
+  Eigen::Index vertexCount() const { return positions.rows(); }
+  Eigen::Index triangleCount() const { return triangles.rows(); }
+};
+
+// #F by 3 unit face normals (zero rows for degenerate triangles).
+Eigen::MatrixX3d computeFaceNormals(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles);
+
+// #V by 3 area-weighted unit vertex normals; vertices on no valid triangle get (0,0,0).
+Eigen::MatrixX3d computeVertexNormals(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles);
+
+// #F twice-areas (|cross product|); 0 for degenerate triangles.
+Eigen::VectorXd computeDoubleAreas(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles);
+
+// Length of the axis-aligned bounding box diagonal (0 for an empty mesh).
+double boundingBoxDiagonal(const Eigen::MatrixX3d& positions);
+
+// True when triangle f repeats a vertex or has (numerically) zero area relative
+// to the mesh scale `diagonal`.
+bool isDegenerateTriangle(const Eigen::MatrixX3d& positions, const Eigen::Vector3i& triangle, double diagonal);
+
+// Checks finiteness of positions/normals/uvs, index ranges and array shapes.
+// `label` names the mesh in messages (usually its file name); the message names
+// the first offending vertex or triangle.
+Status validateMesh(const Mesh& mesh, const std::string& label);
+
+}  // namespace core

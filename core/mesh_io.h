@@ -1,0 +1,60 @@
+// Reading and writing meshes: glTF/GLB (core/gltf_io.cpp), OBJ (core/obj_io.cpp),
+// PLY (core/ply_io.cpp). Every reader returns a validated core::Mesh or an Error
+// whose message starts with the file label and names the defect.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "core/error.h"
+#include "core/mesh.h"
+
+namespace core {
+
+enum class MeshFormat { kGlb, kGltf, kObj, kPly };
+
+// What a reader did to turn the file into a Mesh, for diagnostics.
+struct MeshReadReport {
+  MeshFormat format = MeshFormat::kGlb;
+  std::string chosen_mesh;               // glTF: which mesh/node was taken and why ("first skinned", "largest")
+  int meshes_in_file = 0;                // glTF meshes (primitives counted once per mesh)
+  int polygons_triangulated = 0;         // input faces with more than 3 corners, fan-triangulated
+  int degenerate_triangles = 0;          // kept in the mesh but skipped by the algorithms
+  bool normals_computed = false;         // the file had no normals; area-weighted ones were computed
+  bool point_cloud = false;              // no faces in the file
+  std::vector<std::string> warnings;     // anything else a TD should know
+};
+
+struct LoadedMesh {
+  Mesh mesh;
+  MeshReadReport report;
+};
+
+// Chooses the reader from the extension (.glb .gltf .obj .ply, case-insensitive),
+// falling back to the content's magic bytes. `label` defaults to the file name.
+Result<LoadedMesh> readMesh(const std::filesystem::path& path);
+
+// Reads from memory; `format` is required because there is no file name. `label`
+// names the data in error messages (for example the upload's field name).
+Result<LoadedMesh> readMeshFromMemory(std::span<const std::uint8_t> bytes, MeshFormat format, const std::string& label);
+
+// Format readers (also used by readMesh). A glTF node transform is applied to
+// positions and normals. The mesh chosen from a multi-mesh glTF is the first
+// skinned one, else the one with most triangles; the choice is reported.
+Result<LoadedMesh> readGltf(std::span<const std::uint8_t> bytes, const std::string& label, bool binary);
+Result<LoadedMesh> readObj(std::span<const std::uint8_t> bytes, const std::string& label);
+Result<LoadedMesh> readPly(std::span<const std::uint8_t> bytes, const std::string& label);
+
+// A single-mesh GLB (POSITION, NORMAL when present, TEXCOORD_0 when present,
+// uint32 indices) that passes the Khronos validator. Deterministic bytes.
+Result<std::vector<std::uint8_t>> encodeMeshGlb(const Mesh& mesh);
+Status writeMeshGlb(const Mesh& mesh, const std::filesystem::path& path);
+
+// Whole-file read and atomic write (temp file + rename) used by all file formats.
+Result<std::vector<std::uint8_t>> readFileBytes(const std::filesystem::path& path);
+Status writeFileBytes(const std::filesystem::path& path, std::span<const std::uint8_t> bytes);
+
+}  // namespace core

@@ -1,0 +1,47 @@
+// Shared helpers for rigport tests: where the real data lives, the Khronos
+// validator, matrix comparison with (i, j) in the failure message.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include <Eigen/Core>
+#include <gtest/gtest.h>
+
+namespace rigport_test {
+
+// ../shared/data beside the repository (or $RIGPORT_SHARED_DATA); nullopt when absent.
+std::optional<std::filesystem::path> sharedDataDir();
+
+// Skips the current test with a clear message when ../shared/data is absent.
+#define RIGPORT_REQUIRE_SHARED_DATA(var)                                                        \
+  const auto var##_opt = ::rigport_test::sharedDataDir();                                       \
+  if (!var##_opt) GTEST_SKIP() << "../shared/data not found (set RIGPORT_SHARED_DATA): skipped"; \
+  const std::filesystem::path var = *var##_opt
+
+// A fresh empty directory under the build tree's temp area, unique per test.
+std::filesystem::path makeTempDir(const std::string& name);
+
+struct ValidatorResult {
+  bool ran = false;      // false: node or gltf-validator missing (message in `output`)
+  int errors = -1;
+  int warnings = -1;
+  std::string output;    // the validator's JSON line(s)
+};
+
+// Runs tests/tools/validate_gltf.mjs (Khronos gltf-validator) on `file`.
+ValidatorResult validateGltf(const std::filesystem::path& file);
+
+// Fails the test unless the validator ran and reported zero errors.
+#define EXPECT_GLTF_VALID(path)                                                            \
+  do {                                                                                     \
+    const auto vr_ = ::rigport_test::validateGltf(path);                                   \
+    EXPECT_TRUE(vr_.ran) << "glTF validator did not run: " << vr_.output;                  \
+    EXPECT_EQ(vr_.errors, 0) << "glTF validator errors in " << (path) << ": " << vr_.output; \
+  } while (0)
+
+// Compares two matrices elementwise; the failure names the first (i, j) apart.
+::testing::AssertionResult matricesNear(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b, double tol);
+
+}  // namespace rigport_test
