@@ -1,1 +1,650 @@
-// (in progress)
+// Exact closest point on a triangle mesh.
+//
+// Point-triangle test: Ericson 2005, "Real-Time Collision Detection", 5.1.5
+// (Voronoi-region method), with a fallback to the closest of the three edges as
+// segments for degenerate or badly shaped (sliver) triangles.
+//
+// Index: every non-degenerate triangle is covered by sample points (centroids
+// of a longest-edge bisection of the triangle), each sample s carrying a
+// covering radius h_s: every point of its piece lies within h_s of s. If the
+// closest point of triangle t lies in the piece of sample s, then
+// |q - s| <= d(q, t) + h_s, hence
+//   (1) t need only be evaluated when |q - s| - h_s <= best distance so far, and
+//   (2) the KD-tree search (nanoflann) may prune at radius best + max h_s.
+// The search is a single depth-first nanoflann traversal whose radius shrinks as
+// better triangles are found (the result set reports it through worstDist()), so
+// there is no k-NN pass and no radius doubling: filtered queries simply keep the
+// radius open until a compatible face is found. Triangles much larger than the
+// median edge would need too many samples at the fine spacing; they go to
+// coarser levels (own tree, own max h), searched after the fine level.
+#include "core/closest_point.h"
+
+#include <algorithm>
+#include <array>
+#include <cassert>
+#include <cmath>
+#include <cstdint>
+#include <numbers>
+#include <utility>
+#include <vector>
+#ifdef RIGPORT_CP_STATS
+#include <cstdio>
+#endif
+
+#include "core/mesh.h"
+#include "core/parallel.h"
+
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wshadow"
+#pragma GCC diagnostic ignored "-Wpedantic"
+#pragma GCC diagnostic ignored "-Wunused-parameter"
+#include <nanoflann.hpp>
+#pragma GCC diagnostic pop
+
+namespace core {
+namespace {
+
+using Vec3 = Eigen::Vector3d;
+
+// Plain 3-vector for the hot path: fixed-size Eigen 3-vectors compile to
+// shuffle-heavy SSE code here, and plain scalars are about twice as fast.
+struct P3 {
+  double x, y, z;
+};
+inline P3 operator-(const P3& a, const P3& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+inline P3 operator+(const P3& a, const P3& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+inline P3 operator*(double s, const P3& a) { return {s * a.x, s * a.y, s * a.z}; }
+inline double dot(const P3& a, const P3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline P3 cross(const P3& a, const P3& b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+inline P3 toP3(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
+inline Vec3 toVec3(const P3& v) { return {v.x, v.y, v.z}; }
+
+// Closest point of p on one triangle: squared distance, barycentrics, point.
+struct TriHit {
+  double sq_distance = std::numeric_limits<double>::infinity();
+  double bary[3] = {0.0, 0.0, 0.0};
+  P3 point{0.0, 0.0, 0.0};
+};
+
+inline void setHit(TriHit& h, const P3& p, const P3& point, double u, double v, double w) {
+  h.point = point;
+  h.bary[0] = u;
+  h.bary[1] = v;
+  h.bary[2] = w;
+  const P3 d = p - point;
+  h.sq_distance = dot(d, d);
+}
+
+// Below this ratio |ab x ac|^2 / (max edge)^4 (sin^2 of the flattest angle,
+// roughly) Ericson's interior barycentrics lose digits to cancellation; the
+// edge fallback is then evaluated too and the closer answer kept.
+constexpr double kSliverRatio = 1e-6;
+
+// Closest point over the three edges as segments: the answer for collinear
+// triangles (zero-length edges allowed).
+inline TriHit closestOnEdges(const P3& p, const P3& a, const P3& b, const P3& c) {
+  TriHit best;
+  const P3* corners[3] = {&a, &b, &c};
+  for (int i = 0; i < 3; ++i) {
+    const int j = (i + 1) % 3;
+    const P3 e = *corners[j] - *corners[i];
+    const double len2 = dot(e, e);
+    const double t = len2 > 0.0 ? std::clamp(dot(p - *corners[i], e) / len2, 0.0, 1.0) : 0.0;
+    TriHit h;
+    double bary[3] = {0.0, 0.0, 0.0};
+    bary[i] = 1.0 - t;
+    bary[j] = t;
+    setHit(h, p, *corners[i] + t * e, bary[0], bary[1], bary[2]);
+    if (i == 0 || h.sq_distance < best.sq_distance) best = h;
+  }
+  return best;
+}
+
+// True when Ericson's region method is accurate for (a, b, c). A pure function
+// of the corners, so the index can precompute it and stay bit-identical to
+// closestPointOnTriangle().
+inline bool isWellShaped(const P3& a, const P3& b, const P3& c) {
+  const P3 ab = b - a;
+  const P3 ac = c - a;
+  const P3 bc = c - b;
+  const P3 n = cross(ab, ac);
+  const double e2 = std::max({dot(ab, ab), dot(ac, ac), dot(bc, bc)});
+  return dot(n, n) > kSliverRatio * e2 * e2;  // false for NaN and for zero-length edges
+}
+
+// Ericson 2005, 5.1.5 (Voronoi regions of corners, edges, face).
+inline TriHit closestOnTriangle(const P3& p, const P3& a, const P3& b, const P3& c, bool well_shaped) {
+  TriHit r;
+  const P3 ab = b - a;
+  const P3 ac = c - a;
+  const P3 ap = p - a;
+  const double d1 = dot(ab, ap);
+  const double d2 = dot(ac, ap);
+  // Divisions are guarded: their denominators are squared edge lengths
+  // mathematically, but may round to 0 on degenerate input.
+  auto ratio = [](double num, double den) { return den > 0.0 ? std::clamp(num / den, 0.0, 1.0) : 0.0; };
+  do {
+    if (d1 <= 0.0 && d2 <= 0.0) {
+      setHit(r, p, a, 1.0, 0.0, 0.0);
+      break;
+    }
+    const P3 bp = p - b;
+    const double d3 = dot(ab, bp);
+    const double d4 = dot(ac, bp);
+    if (d3 >= 0.0 && d4 <= d3) {
+      setHit(r, p, b, 0.0, 1.0, 0.0);
+      break;
+    }
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+      const double v = ratio(d1, d1 - d3);
+      setHit(r, p, a + v * ab, 1.0 - v, v, 0.0);
+      break;
+    }
+    const P3 cp = p - c;
+    const double d5 = dot(ab, cp);
+    const double d6 = dot(ac, cp);
+    if (d6 >= 0.0 && d5 <= d6) {
+      setHit(r, p, c, 0.0, 0.0, 1.0);
+      break;
+    }
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+      const double w = ratio(d2, d2 - d6);
+      setHit(r, p, a + w * ac, 1.0 - w, 0.0, w);
+      break;
+    }
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
+      const double w = ratio(d4 - d3, (d4 - d3) + (d5 - d6));
+      setHit(r, p, b + w * (c - b), 0.0, 1.0 - w, w);
+      break;
+    }
+    // Face interior. Rounding can leave one of va, vb, vc slightly negative;
+    // clamping keeps the barycentrics a convex combination.
+    const double ua = std::max(va, 0.0);
+    const double ub = std::max(vb, 0.0);
+    const double uc = std::max(vc, 0.0);
+    const double sum = ua + ub + uc;
+    if (!(sum > 0.0 && sum < std::numeric_limits<double>::infinity())) {
+      well_shaped = false;  // collinear: only the edge answer is meaningful
+      break;              // r stays at infinite distance
+    }
+    const double v = ub / sum;
+    const double w = uc / sum;
+    setHit(r, p, a + v * ab + w * ac, std::max(0.0, 1.0 - v - w), v, w);
+  } while (false);
+  if (well_shaped) return r;
+  const TriHit e = closestOnEdges(p, a, b, c);
+  return r.sq_distance <= e.sq_distance ? r : e;  // NaN in r selects the edges
+}
+
+inline SurfacePoint toSurfacePoint(const TriHit& h, int face) {
+  SurfacePoint s;
+  s.face = face;
+  s.barycentric = Vec3(h.bary[0], h.bary[1], h.bary[2]);
+  s.point = toVec3(h.point);
+  s.sq_distance = h.sq_distance;
+  return s;
+}
+
+inline Vec3 row(const Eigen::MatrixX3d& m, Eigen::Index i) { return Vec3(m(i, 0), m(i, 1), m(i, 2)); }
+
+// ---------------------------------------------------------------------------
+// Sampling
+
+// A sample point in float, relative to the index origin (the mesh bounding-box
+// centre, so precision follows the mesh size, not its position). Its covering
+// radius h is measured from the rounded position and rounded up, so the
+// covering property holds exactly for the stored point.
+struct Sample {
+  float p[3];
+  std::int32_t face;
+  float h;
+};
+static_assert(sizeof(Sample) == 20, "compact samples: more of the tree stays in cache");
+
+#ifdef RIGPORT_CP_STATS
+struct CpStats { long coords = 0, adds = 0, evals = 0, queries = 0; };
+CpStats& cpStats() { static CpStats s; return s; }
+#endif
+// nanoflann dataset adaptor over a sample array.
+// Coordinates are returned as double so that nanoflann's point distances are
+// computed in double (float inputs, exact differences).
+struct SampleCloud {
+  const Sample* data = nullptr;
+  std::size_t size = 0;
+  std::size_t kdtree_get_point_count() const { return size; }
+  double kdtree_get_pt(std::uint32_t i, std::size_t dim) const {
+    return data[i].p[dim];
+  }
+  template <class Bbox>
+  bool kdtree_get_bbox(Bbox&) const {
+    return false;
+  }
+};
+
+using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, SampleCloud, double, std::uint32_t>,
+                                                   SampleCloud, 3, std::uint32_t>;
+
+#ifndef CP_LEAF
+#define CP_LEAF 12
+#endif
+constexpr int kLeafSize = CP_LEAF;  // nanoflann leaf_max_size
+
+float roundUpToFloat(double h) {
+  float f = static_cast<float>(h);
+  if (static_cast<double>(f) < h) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  return f;
+}
+
+// Covers triangle (a, b, c) (relative to the index origin) by longest-edge
+// bisection until every piece's covering radius (rounded centroid to farthest
+// corner) is <= h_target. Appends the samples and returns true, or returns
+// false (appending nothing) when more than `cap` pieces would be needed.
+// `slack` (absolute) absorbs rounding in later distance computations.
+bool sampleTriangle(const Vec3& a, const Vec3& b, const Vec3& c, int face, double h_target, int cap, double slack,
+                    std::vector<Sample>& out) {
+  const std::size_t start = out.size();
+  std::vector<std::array<Vec3, 3>> stack{{a, b, c}};
+  while (!stack.empty()) {
+    const std::array<Vec3, 3> t = stack.back();
+    stack.pop_back();
+    const Vec3 g = (t[0] + t[1] + t[2]) / 3.0;
+    const Eigen::Vector3f gf = g.cast<float>();
+    const Vec3 gr = gf.cast<double>();
+    const double h =
+        std::sqrt(std::max({(t[0] - gr).squaredNorm(), (t[1] - gr).squaredNorm(), (t[2] - gr).squaredNorm()}));
+    if (h <= h_target) {
+      if (static_cast<int>(out.size() - start) >= cap) {
+        out.resize(start);
+        return false;
+      }
+      out.push_back(Sample{{gf.x(), gf.y(), gf.z()}, face, roundUpToFloat(h * (1.0 + 1e-9) + slack)});
+      continue;
+    }
+    if (static_cast<int>(out.size() - start + stack.size()) + 2 > cap) {
+      out.resize(start);
+      return false;
+    }
+    // Split the longest edge (i, i+1) at its midpoint.
+    const double l0 = (t[1] - t[0]).squaredNorm();
+    const double l1 = (t[2] - t[1]).squaredNorm();
+    const double l2 = (t[0] - t[2]).squaredNorm();
+    const int i = (l0 >= l1 && l0 >= l2) ? 0 : (l1 >= l2 ? 1 : 2);
+    const Vec3& p0 = t[i];
+    const Vec3& p1 = t[(i + 1) % 3];
+    const Vec3& p2 = t[(i + 2) % 3];
+    const Vec3 m = 0.5 * (p0 + p1);
+    stack.push_back({p0, m, p2});
+    stack.push_back({m, p1, p2});
+  }
+  return true;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+
+struct ClosestPointIndex::Impl {
+  struct Level {
+    std::vector<Sample> samples;
+    double h_max = 0.0;
+    SampleCloud cloud;
+    std::unique_ptr<KdTree> tree;
+  };
+
+  // Per-face data, indexed by the caller's face index (degenerate faces keep a slot).
+  struct Face {
+    P3 a, b, c;
+    P3 n;  // unit normal (zero for degenerate faces)
+    bool well_shaped = false;
+    bool indexed = false;
+  };
+  std::vector<Face> faces;
+  std::vector<std::uint8_t> labels;  // empty: no label filter; 64 = out-of-range label (never allowed)
+  std::uint64_t present_labels = 0;  // union of the indexed faces' label bits
+  std::vector<std::unique_ptr<Level>> levels;  // finest first
+  Vec3 origin = Vec3::Zero();                  // sample coordinates are relative to it
+  double origin_max_abs = 0.0;
+  double max_abs = 0.0;                        // largest vertex coordinate magnitude
+  int indexed_faces = 0;
+  std::size_t tree_bytes = 0;
+
+  struct Search;
+  SurfacePoint query(const Vec3& q, const Vec3* normal, std::uint64_t label_mask,
+                     const ClosestPointOptions& options) const;
+};
+
+// nanoflann result set that evaluates triangles as their samples are reached.
+// worstDist() is the squared pruning radius (best + level h_max)^2; nanoflann
+// re-reads it at every branch, so the search tightens as it goes. Samples of a
+// leaf are only queued by addPoint() and evaluated nearest first at the next
+// worstDist() call (before any further pruning decision), so the first good
+// triangle bounds the rest of the leaf.
+struct ClosestPointIndex::Impl::Search {
+  Search(const Impl& index, const Vec3& query) : impl(index), q(toP3(query)) { recent.fill(-1); }
+
+  const Impl& impl;
+  const P3 q;
+  // Filters.
+  const P3* normal = nullptr;  // null: no normal filter; else &normal_value
+  P3 normal_value{0.0, 0.0, 0.0};
+  double min_cos = -2.0;
+  std::uint64_t label_mask = ~std::uint64_t{0};
+  bool use_labels = false;
+  // The last faces examined, so that a face reached through several samples
+  // is usually evaluated once. Purely a shortcut: re-evaluating a face gives
+  // the same answer, so no per-face table (and no thread-local state) is needed.
+  static constexpr int kRecent = 8;
+  std::array<std::int32_t, kRecent> recent;
+  int recent_next = 0;
+  // Current level.
+  const Sample* samples = nullptr;
+  double level_h = 0.0;
+  // Rounding allowance of the plane-distance bound.
+  double plane_eps = 0.0;
+  // Bound on |q - (float query used in the tree)|: added to every covering
+  // radius so that tree distances (from the rounded query) stay conservative.
+  double query_eps = 0.0;
+  // Best so far.
+  double best_sq = std::numeric_limits<double>::infinity();
+  double best_d = std::numeric_limits<double>::infinity();
+  TriHit best;
+  int best_face = -1;
+  double radius_sq = std::numeric_limits<double>::infinity();
+  // Samples queued since the last worstDist() call (one leaf at most).
+  struct Pending {
+    double dist_sq;
+    std::uint32_t index;
+  };
+  std::array<Pending, kLeafSize> pending;
+  int pending_count = 0;
+
+  // Slightly generous bounds so that rounding never prunes an exact tie.
+  // nanoflann computes some cell distances from float coordinates in float
+  // (relative error ~1e-7), hence the looser factor on the tree radius.
+  static constexpr double kInflate = 1.0 + 1e-12;
+  static constexpr double kTreeInflate = 1.0 + 1e-5;
+
+  void setLevel(const Level& level) {
+    samples = level.samples.data();
+    level_h = level.h_max;
+    updateRadius();
+  }
+  void updateRadius() {
+    const double r = (best_d + level_h + query_eps) * kTreeInflate;
+    radius_sq = r * r;
+  }
+
+  // nanoflann result-set interface.
+  std::size_t size() const { return 0; }
+  bool full() const { return true; }
+  double worstDist() {
+    flush();
+    return radius_sq;
+  }
+  bool addPoint(double dist_sq, std::uint32_t index) {
+    if (best_face >= 0) {
+      consider(dist_sq, samples[index]);
+      return true;
+    }
+    if (pending_count == kLeafSize) flush();
+    pending[pending_count++] = Pending{dist_sq, index};
+    return true;
+  }
+
+  void flush() {
+    if (pending_count == 0) return;
+    // The nearest sample first: its triangle usually bounds the others out.
+    int nearest = 0;
+    for (int i = 1; i < pending_count; ++i) {
+      if (pending[i].dist_sq < pending[nearest].dist_sq) nearest = i;
+    }
+    std::swap(pending[0], pending[nearest]);
+    for (int i = 0; i < pending_count; ++i) consider(pending[i].dist_sq, samples[pending[i].index]);
+    pending_count = 0;
+  }
+
+  void consider(double dist_sq, const Sample& s) {
+#ifdef RIGPORT_CP_STATS
+    ++cpStats().adds;
+#endif
+    const double reach = (best_d + static_cast<double>(s.h) + query_eps) * kInflate;
+    if (dist_sq > reach * reach) return;  // lower bound |q - s| - h_s exceeds the best
+    const auto f = static_cast<std::uint32_t>(s.face);
+    for (const std::int32_t g : recent) {
+      if (g == s.face) return;
+    }
+    recent[recent_next] = s.face;
+    recent_next = (recent_next + 1) % kRecent;
+    if (use_labels && ((label_mask >> impl.labels[f]) & 1u) == 0) return;  // label 64 shifts to 0 bits
+    const Face& face = impl.faces[f];
+    if (normal != nullptr && dot(face.n, *normal) < min_cos) return;
+    // Distance to the face's plane: a lower bound that often rejects
+    // neighbours of the closest face before the full test. Only for
+    // well-shaped faces, whose normal is accurate (direction error <~ 1e-13).
+    if (face.well_shaped) {
+      const double plane = std::abs(dot(face.n, q - face.a)) - plane_eps;
+      if (plane > 0.0 && plane * plane > best_sq) return;
+    }
+#ifdef RIGPORT_CP_STATS
+    ++cpStats().evals;
+#endif
+    const TriHit r = closestOnTriangle(q, face.a, face.b, face.c, face.well_shaped);
+    const int fi = static_cast<int>(f);
+    if (r.sq_distance < best_sq || (r.sq_distance == best_sq && (best_face < 0 || fi < best_face))) {
+      best = r;
+      best_face = fi;
+      best_sq = r.sq_distance;
+      best_d = std::sqrt(best_sq);
+      updateRadius();
+    }
+  }
+};
+
+SurfacePoint ClosestPointIndex::Impl::query(const Vec3& q, const Vec3* normal, std::uint64_t label_mask,
+                                            const ClosestPointOptions& options) const {
+  if (levels.empty() || !q.allFinite() || !(options.max_distance >= 0.0)) return {};
+  const bool use_labels = !labels.empty();
+  if (use_labels && (label_mask & present_labels) == 0) return {};  // no face can pass
+
+#ifdef RIGPORT_CP_STATS
+  ++cpStats().queries;
+#endif
+  Search search(*this, q);
+  search.use_labels = use_labels;
+  search.label_mask = label_mask;
+  if (normal != nullptr && options.max_normal_angle_deg < 180.0) {
+    search.normal_value = toP3(*normal);
+    search.normal = &search.normal_value;
+    search.min_cos = std::cos(options.max_normal_angle_deg * (std::numbers::pi / 180.0));
+  }
+  if (std::isfinite(options.max_distance)) {
+    search.best_d = options.max_distance;
+    search.best_sq = options.max_distance * options.max_distance;
+  }
+  // The tree works in float relative to `origin`; clamping keeps far queries
+  // finite (their query_eps then simply widens the search).
+  const Vec3 qc = q - origin;
+  float qf[3];
+  double err2 = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    qf[k] = static_cast<float>(std::clamp(qc(k), -1e30, 1e30));
+    const double e = qc(k) - static_cast<double>(qf[k]);
+    err2 += e * e;
+  }
+  search.query_eps = std::sqrt(err2) + 1e-15 * (q.cwiseAbs().maxCoeff() + origin_max_abs);
+  search.plane_eps = 1e-12 * (q.cwiseAbs().maxCoeff() + max_abs);
+  const nanoflann::SearchParams params(0, 0.0f, false);
+  for (const auto& level : levels) {
+    search.setLevel(*level);
+    level->tree->findNeighbors(search, qf, params);
+    search.flush();
+  }
+  return search.best_face < 0 ? SurfacePoint{} : toSurfacePoint(search.best, search.best_face);
+}
+
+ClosestPointIndex::ClosestPointIndex(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles,
+                                     std::vector<int> face_labels)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  const Eigen::Index nf = triangles.rows();
+  assert(face_labels.empty() || static_cast<Eigen::Index>(face_labels.size()) == nf);
+  const double diagonal = boundingBoxDiagonal(positions);
+  const double max_abs = positions.rows() > 0 ? positions.cwiseAbs().maxCoeff() : 0.0;
+  // Absolute slack on covering radii: distances to points ~max_abs from the
+  // origin carry rounding of that order.
+  const double slack = 1e-12 * (diagonal + max_abs);
+  m.max_abs = max_abs;
+  if (positions.rows() > 0) {
+    m.origin = 0.5 * (positions.colwise().minCoeff() + positions.colwise().maxCoeff()).transpose();
+    m.origin_max_abs = m.origin.cwiseAbs().maxCoeff();
+  }
+
+  const Eigen::MatrixX3d normals = computeFaceNormals(positions, triangles);
+  m.faces.resize(nf);
+  std::vector<double> edge_lengths;
+  edge_lengths.reserve(3 * nf);
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    const Eigen::Vector3i t = triangles.row(f);
+    Impl::Face& face = m.faces[f];
+    face.n = toP3(row(normals, f));
+    if (isDegenerateTriangle(positions, t, diagonal)) continue;
+    face.a = toP3(row(positions, t(0)));
+    face.b = toP3(row(positions, t(1)));
+    face.c = toP3(row(positions, t(2)));
+    face.well_shaped = isWellShaped(face.a, face.b, face.c);
+    face.indexed = true;
+    ++m.indexed_faces;
+    const P3 e0 = face.b - face.a, e1 = face.c - face.b, e2 = face.a - face.c;
+    edge_lengths.push_back(std::sqrt(dot(e0, e0)));
+    edge_lengths.push_back(std::sqrt(dot(e1, e1)));
+    edge_lengths.push_back(std::sqrt(dot(e2, e2)));
+  }
+  if (!face_labels.empty() && static_cast<Eigen::Index>(face_labels.size()) == nf) {
+    m.labels.resize(nf);
+    for (Eigen::Index f = 0; f < nf; ++f) {
+      const int l = face_labels[f];
+      assert(l >= 0 && l < 64);
+      m.labels[f] = static_cast<std::uint8_t>(l >= 0 && l < 64 ? l : 64);
+      if (m.faces[f].indexed && l >= 0 && l < 64) m.present_labels |= std::uint64_t{1} << l;
+    }
+  }
+  if (m.indexed_faces == 0) return;
+
+  // Fine spacing from the median edge: typical triangles get 2-4 samples. A
+  // triangle needing more than kCap pieces moves to the next level, whose
+  // spacing is kGrowth times coarser.
+#ifndef CP_SPACING
+#define CP_SPACING 0.5
+#endif
+  constexpr double kSpacing = CP_SPACING;
+  constexpr int kCap = 64;
+  constexpr double kGrowth = 4.0;
+  std::nth_element(edge_lengths.begin(), edge_lengths.begin() + edge_lengths.size() / 2, edge_lengths.end());
+  double h_target = kSpacing * edge_lengths[edge_lengths.size() / 2];
+
+  std::vector<int> pending;
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    if (m.faces[f].indexed) pending.push_back(static_cast<int>(f));
+  }
+  while (!pending.empty()) {
+    auto level = std::make_unique<Impl::Level>();
+    std::vector<int> rest;
+    for (const int f : pending) {
+      const Impl::Face& face = m.faces[f];
+      if (!sampleTriangle(toVec3(face.a) - m.origin, toVec3(face.b) - m.origin, toVec3(face.c) - m.origin, f, h_target,
+                          kCap, slack, level->samples)) {
+        rest.push_back(f);
+      }
+    }
+    if (!level->samples.empty()) {
+      for (const Sample& s : level->samples) level->h_max = std::max(level->h_max, static_cast<double>(s.h));
+      level->samples.shrink_to_fit();
+      level->cloud.data = level->samples.data();
+      level->cloud.size = level->samples.size();
+      level->tree = std::make_unique<KdTree>(3, level->cloud, nanoflann::KDTreeSingleIndexAdaptorParams(kLeafSize));
+      // Store the samples in tree order so that a leaf reads one contiguous
+      // run; nanoflann's permutation (the public vAcc) becomes the identity.
+      auto& order = level->tree->vAcc;
+      std::vector<Sample> sorted(level->samples.size());
+      for (std::size_t j = 0; j < order.size(); ++j) sorted[j] = level->samples[order[j]];
+      level->samples.swap(sorted);
+      level->cloud.data = level->samples.data();
+      for (std::size_t j = 0; j < order.size(); ++j) order[j] = static_cast<std::uint32_t>(j);
+      m.tree_bytes += level->tree->usedMemory(*level->tree);
+#ifdef RIGPORT_CP_STATS
+      std::printf("level h %.4g samples %zu (faces %zu) tree bytes %zu\n", level->h_max, level->samples.size(), pending.size(), level->tree->usedMemory(*level->tree));
+#endif
+      m.levels.push_back(std::move(level));
+    }
+    pending.swap(rest);
+    h_target *= kGrowth;
+  }
+}
+
+ClosestPointIndex::~ClosestPointIndex() = default;
+ClosestPointIndex::ClosestPointIndex(ClosestPointIndex&&) noexcept = default;
+ClosestPointIndex& ClosestPointIndex::operator=(ClosestPointIndex&&) noexcept = default;
+
+SurfacePoint ClosestPointIndex::closestPoint(const Eigen::Vector3d& query) const {
+  if (!impl_) return {};  // moved-from
+  return impl_->query(query, nullptr, ~std::uint64_t{0}, ClosestPointOptions{});
+}
+
+SurfacePoint ClosestPointIndex::closestPoint(const Eigen::Vector3d& query, const Eigen::Vector3d* normal,
+                                             std::uint64_t label_mask, const ClosestPointOptions& options) const {
+  if (!impl_) return {};
+  return impl_->query(query, normal, label_mask, options);
+}
+
+std::vector<SurfacePoint> ClosestPointIndex::closestPoints(const Eigen::MatrixX3d& queries,
+                                                           const ClosestPointOptions& options,
+                                                           const ClosestPointFilters& filters) const {
+  if (!impl_) return std::vector<SurfacePoint>(static_cast<std::size_t>(queries.rows()));
+  const Eigen::Index nq = queries.rows();
+  assert(filters.normals.rows() == 0 || filters.normals.rows() == nq);
+  assert(filters.label_masks.empty() || static_cast<Eigen::Index>(filters.label_masks.size()) == nq);
+  const bool use_normals = filters.normals.rows() == nq && nq > 0;
+  const bool use_masks = static_cast<Eigen::Index>(filters.label_masks.size()) == nq;
+  std::vector<SurfacePoint> out(static_cast<std::size_t>(nq));
+  parallelFor(nq, options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
+    for (std::ptrdiff_t i = begin; i < end; ++i) {
+      const Vec3 q = row(queries, i);
+      Vec3 n;
+      if (use_normals) n = row(filters.normals, i);
+      const std::uint64_t mask = use_masks ? filters.label_masks[i] : ~std::uint64_t{0};
+      out[i] = impl_->query(q, use_normals ? &n : nullptr, mask, options);
+    }
+  });
+  return out;
+}
+
+std::size_t ClosestPointIndex::memoryBytes() const {
+  if (!impl_) return 0;
+  const Impl& m = *impl_;
+  std::size_t bytes = sizeof(Impl) + m.tree_bytes;
+  bytes += m.faces.capacity() * sizeof(Impl::Face) + m.labels.capacity();
+  for (const auto& level : m.levels) bytes += sizeof(Impl::Level) + level->samples.capacity() * sizeof(Sample);
+  return bytes;
+}
+
+int ClosestPointIndex::faceCount() const { return impl_ ? impl_->indexed_faces : 0; }
+
+SurfacePoint closestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                    const Eigen::Vector3d& c) {
+  const P3 pa = toP3(a), pb = toP3(b), pc = toP3(c);
+  return toSurfacePoint(closestOnTriangle(toP3(p), pa, pb, pc, isWellShaped(pa, pb, pc)), 0);
+}
+
+#ifdef RIGPORT_CP_STATS
+void printCpStats(const char* label) {
+  auto& s = cpStats();
+  std::printf("%s: samples %.1f adds %.1f evals %.2f\n", label, s.coords / 3.0 / s.queries, double(s.adds) / s.queries, double(s.evals) / s.queries);
+  s = CpStats{};
+}
+#endif
+}  // namespace core

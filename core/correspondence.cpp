@@ -1,1 +1,118 @@
-// (in progress)
+// Dense correspondence by closest-point projection ("Stick", papers 004 eq. 4)
+// and the inverse location of target vertices on the guide.
+#include "core/correspondence.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace core {
+
+GuideModel projectToTarget(const Eigen::MatrixX3d& warped_positions, const Eigen::MatrixX3d& warped_normals,
+                           const ClosestPointIndex& target_index, double target_diagonal,
+                           const ProjectionOptions& options) {
+  ClosestPointOptions cp;
+  cp.max_normal_angle_deg = options.max_normal_angle_deg;
+  cp.max_distance = options.max_distance * target_diagonal;
+  cp.threads = options.threads;
+  ClosestPointFilters filters;
+  filters.normals = warped_normals;
+  GuideModel guide;
+  guide.on_target = target_index.closestPoints(warped_positions, cp, filters);
+  guide.positions = warped_positions;
+  guide.distance = Eigen::VectorXd::Zero(warped_positions.rows());
+  for (Eigen::Index v = 0; v < warped_positions.rows(); ++v) {
+    const SurfacePoint& sp = guide.on_target[static_cast<std::size_t>(v)];
+    if (!sp.found()) {
+      ++guide.unmatched;
+      continue;
+    }
+    guide.positions.row(v) = sp.point.transpose();
+    guide.distance(v) = std::sqrt(sp.sq_distance);
+  }
+  return guide;
+}
+
+FoldReport countFolds(const Eigen::MatrixX3d& warped_positions, const Eigen::MatrixX3d& guide_positions,
+                      const Eigen::MatrixX3i& triangles) {
+  FoldReport report;
+  const double diag = boundingBoxDiagonal(warped_positions);
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
+    const Eigen::Vector3i t = triangles.row(f);
+    if (isDegenerateTriangle(warped_positions, t, diag)) continue;
+    if (isDegenerateTriangle(guide_positions, t, diag)) {
+      ++report.collapsed;
+      continue;
+    }
+    const Eigen::Vector3d a0 = warped_positions.row(t(0)), a1 = warped_positions.row(t(1)), a2 = warped_positions.row(t(2));
+    const Eigen::Vector3d b0 = guide_positions.row(t(0)), b1 = guide_positions.row(t(1)), b2 = guide_positions.row(t(2));
+    if ((a1 - a0).cross(a2 - a0).dot((b1 - b0).cross(b2 - b0)) < 0.0) ++report.flipped;
+  }
+  return report;
+}
+
+TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_positions,
+                              const Eigen::MatrixX3i& source_triangles, const LocateOptions& options) {
+  const ClosestPointIndex guide_index(guide_positions, source_triangles);
+  const Eigen::MatrixX3d normals =
+      target.normals.rows() == target.positions.rows() ? target.normals
+                                                        : computeVertexNormals(target.positions, target.triangles);
+  ClosestPointOptions cp;
+  cp.max_normal_angle_deg = options.max_normal_angle_deg;
+  cp.threads = options.threads;
+  ClosestPointFilters filters;
+  filters.normals = normals;
+
+  TargetLocations out;
+  out.on_source = guide_index.closestPoints(target.positions, cp, filters);
+  const Eigen::Index n = target.positions.rows();
+  out.distance = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::infinity());
+  out.normal_cosine = Eigen::VectorXd::Constant(n, -1.0);
+  out.confidence = Eigen::VectorXd::Zero(n);
+
+  // Smooth guide normals interpolated at the located point: a flat face normal
+  // would disagree with a curved surface's vertex normal by a few degrees.
+  const Eigen::MatrixX3d guide_normals = computeVertexNormals(guide_positions, source_triangles);
+  const double max_distance = options.low_confidence_distance * boundingBoxDiagonal(target.positions);
+  const double cos_limit = std::cos(options.low_confidence_angle_deg * std::numbers::pi / 180.0);
+  for (Eigen::Index v = 0; v < n; ++v) {
+    const SurfacePoint& sp = out.on_source[static_cast<std::size_t>(v)];
+    if (!sp.found()) {
+      ++out.low_confidence;
+      continue;
+    }
+    const double d = std::sqrt(sp.sq_distance);
+    Eigen::RowVector3d gn = Eigen::RowVector3d::Zero();
+    for (int k = 0; k < 3; ++k) gn += sp.barycentric(k) * guide_normals.row(source_triangles(sp.face, k));
+    const double len = gn.norm();
+    const double c = len > 0.0 ? gn.dot(normals.row(v)) / len : -1.0;
+    out.distance(v) = d;
+    out.normal_cosine(v) = c;
+    const double distance_term = max_distance > 0.0 ? std::max(0.0, 1.0 - d / max_distance) : (d == 0.0 ? 1.0 : 0.0);
+    const double angle_term = cos_limit < 1.0 ? std::clamp((c - cos_limit) / (1.0 - cos_limit), 0.0, 1.0) : 1.0;
+    out.confidence(v) = distance_term * angle_term;
+    if (d > max_distance || c < cos_limit) ++out.low_confidence;
+  }
+  return out;
+}
+
+std::vector<int> farthestPointSample(const Eigen::MatrixX3d& positions, int count) {
+  const Eigen::Index n = positions.rows();
+  std::vector<int> chosen;
+  if (n == 0 || count <= 0) return chosen;
+  count = static_cast<int>(std::min<Eigen::Index>(count, n));
+  const Eigen::RowVector3d centroid = positions.colwise().mean();
+  Eigen::Index first = 0;
+  (positions.rowwise() - centroid).rowwise().squaredNorm().minCoeff(&first);
+  Eigen::VectorXd sq = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::infinity());
+  Eigen::Index next = first;
+  for (int k = 0; k < count; ++k) {
+    chosen.push_back(static_cast<int>(next));
+    const Eigen::RowVector3d p = positions.row(next);
+    for (Eigen::Index v = 0; v < n; ++v) sq(v) = std::min(sq(v), (positions.row(v) - p).squaredNorm());
+    sq.maxCoeff(&next);  // lowest index among ties: deterministic
+  }
+  return chosen;
+}
+
+}  // namespace core

@@ -1,1 +1,78 @@
-// (in progress)
+#include "core/diagnostics_json.h"
+
+#include <nlohmann/json.hpp>
+
+namespace core {
+
+namespace {
+
+using Json = nlohmann::ordered_json;
+
+const char* formatName(MeshFormat f) {
+  switch (f) {
+    case MeshFormat::kGlb: return "glb";
+    case MeshFormat::kGltf: return "gltf";
+    case MeshFormat::kObj: return "obj";
+    case MeshFormat::kPly: return "ply";
+  }
+  return "unknown";
+}
+
+Json readReportJson(const MeshReadReport& r) {
+  Json j;
+  j["format"] = formatName(r.format);
+  j["chosen_mesh"] = r.chosen_mesh;
+  j["meshes_in_file"] = r.meshes_in_file;
+  j["polygons_triangulated"] = r.polygons_triangulated;
+  j["degenerate_triangles"] = r.degenerate_triangles;
+  j["normals_computed"] = r.normals_computed;
+  j["warnings"] = r.warnings;
+  return j;
+}
+
+}  // namespace
+
+std::string formatWarpDiagnostics(const WarpReport& r, const DiagnosticsContext& context) {
+  Json doc;
+  Json& lm = doc["landmarks"];
+  lm["count"] = r.landmark_count;
+  lm["rms_residual"] = r.landmark_rms_residual;
+  lm["max_residual"] = r.landmark_max_residual;
+  lm["suspicious"] = r.suspicious_landmarks;
+  lm["bending_energy"] = r.bending_energy;
+  lm["residuals"] = Json::array();
+  for (const auto& res : r.landmark_residuals) {
+    lm["residuals"].push_back({{"name", res.name}, {"fit", res.fit}, {"leave_one_out", res.leave_one_out}});
+  }
+
+  Json& c = doc["correspondence"];
+  c["mean_distance"] = r.mean_distance;
+  c["p95_distance"] = r.p95_distance;
+  c["max_distance"] = r.max_distance;
+  c["flipped_triangles"] = r.flipped_triangles;
+  c["collapsed_triangles"] = r.collapsed_triangles;
+  c["unmatched_source_vertices"] = r.unmatched_source_vertices;
+  c["low_confidence_vertices"] = r.low_confidence_vertices;
+  c["refine_iterations"] = r.refine_iterations;
+
+  Json& m = doc["mesh"];
+  m["bbox_diagonal"] = r.target_diagonal;
+  m["source_vertices"] = r.source_vertices;
+  m["source_triangles"] = r.source_triangles;
+  m["target_vertices"] = r.target_vertices;
+  m["target_triangles"] = r.target_triangles;
+  if (context.source_read) m["source_file"] = readReportJson(*context.source_read);
+  if (context.target_read) m["target_file"] = readReportJson(*context.target_read);
+
+  doc["cache"] = {{"hit", context.cache_hit}};
+
+  Json& t = doc["timings_ms"];
+  t["prepare"] = r.prepare_ms;
+  t["warp"] = r.warp_ms;
+  t["correspond"] = r.correspond_ms;
+  for (const auto& [name, ms] : context.extra_timings_ms) t[name] = ms;
+  t["total"] = context.total_ms >= 0.0 ? context.total_ms : r.total_ms;
+  return doc.dump(2) + "\n";
+}
+
+}  // namespace core

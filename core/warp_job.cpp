@@ -1,1 +1,286 @@
-// (in progress)
+#include "core/warp_job.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+namespace core {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(std::ceil(q * static_cast<double>(v.size()))) - (q > 0 ? 1 : 0));
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return v[k];
+}
+
+// Trusted projection displacements (guide - warped), spread over the source
+// mesh by normalised convolution: smooth w*d and w with the same uniform
+// Laplacian passes and divide, so untrusted vertices borrow from neighbours.
+Eigen::MatrixX3d smoothedDisplacement(const PreparedSource& source, const Eigen::MatrixX3d& warped,
+                                      const GuideModel& guide, double trust, int passes) {
+  const Eigen::Index nv = warped.rows();
+  Eigen::MatrixX3d wd = Eigen::MatrixX3d::Zero(nv, 3);
+  Eigen::VectorXd w = Eigen::VectorXd::Zero(nv);
+  for (Eigen::Index v = 0; v < nv; ++v) {
+    if (guide.on_target[static_cast<std::size_t>(v)].found() && guide.distance(v) <= trust) {
+      w(v) = 1.0;
+      wd.row(v) = guide.positions.row(v) - warped.row(v);
+    }
+  }
+  Eigen::MatrixX3d wd_next(nv, 3);
+  Eigen::VectorXd w_next(nv);
+  for (int pass = 0; pass < passes; ++pass) {
+    for (Eigen::Index v = 0; v < nv; ++v) {
+      const int begin = source.neighbor_offsets[static_cast<std::size_t>(v)];
+      const int end = source.neighbor_offsets[static_cast<std::size_t>(v) + 1];
+      Eigen::RowVector3d sum = wd.row(v);
+      double wsum = w(v);
+      for (int k = begin; k < end; ++k) {
+        const int u = source.neighbor_indices[static_cast<std::size_t>(k)];
+        sum += wd.row(u);
+        wsum += w(u);
+      }
+      const double inv = 1.0 / (1 + end - begin);
+      wd_next.row(v) = sum * inv;
+      w_next(v) = wsum * inv;
+    }
+    wd.swap(wd_next);
+    w.swap(w_next);
+  }
+  Eigen::MatrixX3d out = Eigen::MatrixX3d::Zero(nv, 3);
+  for (Eigen::Index v = 0; v < nv; ++v) {
+    if (w(v) > 1e-6) out.row(v) = wd.row(v) / w(v);
+  }
+  return out;
+}
+
+}  // namespace
+
+std::size_t PreparedSource::memoryBytes() const {
+  std::size_t bytes = sizeof(*this);
+  bytes += static_cast<std::size_t>(mesh.positions.size() + mesh.normals.size() + mesh.uvs.size()) * sizeof(double);
+  bytes += static_cast<std::size_t>(mesh.triangles.size()) * sizeof(int);
+  bytes += static_cast<std::size_t>(dense_centres.size() + landmark_positions.size()) * sizeof(double);
+  bytes += (neighbor_offsets.size() + neighbor_indices.size()) * sizeof(int);
+  if (dense_factorization) bytes += dense_factorization->memoryBytes();
+  return bytes;
+}
+
+Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std::string& label,
+                                     const PrepareOptions& options) {
+  const auto t0 = Clock::now();
+  if (auto ok = validateMesh(mesh, label); !ok) return ok.error();
+  if (mesh.triangleCount() == 0) {
+    return makeError(ErrorCode::kInvalidMesh, label + ": the source must be a triangle mesh (it has no faces)");
+  }
+  if (options.dense_centres < 0) return makeError(ErrorCode::kInvalidArgument, "dense_centres must be >= 0");
+  PreparedSource prepared;
+  prepared.label = label;
+  if (mesh.normals.rows() != mesh.positions.rows()) mesh.normals = computeVertexNormals(mesh.positions, mesh.triangles);
+  prepared.mesh = std::move(mesh);
+  prepared.diagonal = boundingBoxDiagonal(prepared.mesh.positions);
+
+  auto positions = resolveLandmarks(landmarks, prepared.mesh, label);
+  if (!positions) return positions.error();
+  prepared.landmarks = std::move(landmarks);
+  prepared.landmark_positions = std::move(*positions);
+  {
+    std::vector<std::string> names;
+    for (const auto& lm : prepared.landmarks.landmarks) names.push_back(lm.name);
+    TpsOptions check;
+    check.leave_one_out = false;
+    // The full landmark set must make a valid TPS on its own (names in errors).
+    auto f = TpsFactorization::create(prepared.landmark_positions, check, names);
+    if (!f) return Error{f.error().code, label + ": " + f.error().message};
+  }
+
+  // Dense map centres: landmarks first (so they can be pinned to the target's),
+  // then a farthest-point sample that keeps away from them.
+  if (options.dense_centres > 0) {
+    std::vector<int> sample = farthestPointSample(prepared.mesh.positions, options.dense_centres);
+    const double min_gap = 1e-3 * prepared.diagonal;
+    Eigen::MatrixX3d centres(prepared.landmark_positions.rows() + static_cast<Eigen::Index>(sample.size()), 3);
+    centres.topRows(prepared.landmark_positions.rows()) = prepared.landmark_positions;
+    Eigen::Index n = prepared.landmark_positions.rows();
+    for (int v : sample) {
+      const Eigen::RowVector3d p = prepared.mesh.positions.row(v);
+      if (((centres.topRows(n).rowwise() - p).rowwise().squaredNorm().array() < min_gap * min_gap).any()) continue;
+      centres.row(n++) = p;
+      prepared.dense_vertices.push_back(v);
+    }
+    prepared.dense_centres = centres.topRows(n);
+    TpsOptions dense;
+    dense.regularization = options.dense_regularization * prepared.diagonal;
+    dense.leave_one_out = false;
+    dense.threads = options.threads;
+    auto f = TpsFactorization::create(prepared.dense_centres, dense);
+    if (!f) return Error{f.error().code, label + ": dense map: " + f.error().message};
+    prepared.dense_factorization = std::move(*f);
+  }
+  // Vertex adjacency (unique neighbours, sorted) for smoothing on the source.
+  {
+    const Eigen::Index nv = prepared.mesh.vertexCount();
+    std::vector<std::vector<int>> nbrs(static_cast<std::size_t>(nv));
+    for (Eigen::Index f = 0; f < prepared.mesh.triangleCount(); ++f) {
+      for (int k = 0; k < 3; ++k) {
+        const int a = prepared.mesh.triangles(f, k), b = prepared.mesh.triangles(f, (k + 1) % 3);
+        if (a == b) continue;
+        nbrs[static_cast<std::size_t>(a)].push_back(b);
+        nbrs[static_cast<std::size_t>(b)].push_back(a);
+      }
+    }
+    prepared.neighbor_offsets.assign(static_cast<std::size_t>(nv) + 1, 0);
+    for (Eigen::Index v = 0; v < nv; ++v) {
+      auto& n = nbrs[static_cast<std::size_t>(v)];
+      std::sort(n.begin(), n.end());
+      n.erase(std::unique(n.begin(), n.end()), n.end());
+      prepared.neighbor_offsets[static_cast<std::size_t>(v) + 1] = prepared.neighbor_offsets[static_cast<std::size_t>(v)] + static_cast<int>(n.size());
+      prepared.neighbor_indices.insert(prepared.neighbor_indices.end(), n.begin(), n.end());
+    }
+  }
+  prepared.prepare_ms = msSince(t0);
+  return prepared;
+}
+
+Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, const LandmarkSet& target_landmarks,
+                           const std::string& target_label, const WarpOptions& options) {
+  const auto t_start = Clock::now();
+  if (auto ok = validateMesh(target, target_label); !ok) return ok.error();
+  if (target.triangleCount() == 0) {
+    return makeError(ErrorCode::kInvalidMesh, target_label + ": the target must be a triangle mesh (it has no faces)");
+  }
+  WarpResult result;
+  WarpReport& report = result.report;
+  report.source_vertices = static_cast<int>(source.mesh.vertexCount());
+  report.source_triangles = static_cast<int>(source.mesh.triangleCount());
+  report.target_vertices = static_cast<int>(target.vertexCount());
+  report.target_triangles = static_cast<int>(target.triangleCount());
+  report.target_diagonal = boundingBoxDiagonal(target.positions);
+
+  // --- warp: landmark TPS on the shared names
+  auto t0 = Clock::now();
+  const ClosestPointIndex target_index(target.positions, target.triangles);
+  auto target_positions = resolveLandmarks(target_landmarks, target, target_label, &target_index);
+  if (!target_positions) return target_positions.error();
+  auto pairs = pairLandmarks(source.landmarks, source.landmark_positions, target_landmarks, *target_positions,
+                             target_label);
+  if (!pairs) return pairs.error();
+  TpsOptions tps_options = options.landmark_tps;
+  tps_options.threads = options.threads;
+  tps_options.leave_one_out = true;
+  auto factorization = TpsFactorization::create(pairs->source, tps_options, pairs->names);
+  if (!factorization) return Error{factorization.error().code, target_label + ": " + factorization.error().message};
+  {
+    // Target landmarks must span 3D as well, or the warp flattens the face.
+    TpsOptions check = tps_options;
+    check.leave_one_out = false;
+    auto t = TpsFactorization::create(pairs->target, check, pairs->names);
+    if (!t) return Error{t.error().code, target_label + ": " + t.error().message};
+  }
+  result.landmark_warp = factorization->fit(pairs->target);
+  const TpsLeaveOneOut loo = factorization->leaveOneOut(pairs->target);
+  const Eigen::MatrixX3d fitted = result.landmark_warp.apply(pairs->source);
+  report.landmark_count = static_cast<int>(pairs->names.size());
+  double sum_sq = 0.0;
+  for (std::size_t i = 0; i < pairs->names.size(); ++i) {
+    const double r = (fitted.row(static_cast<Eigen::Index>(i)) - pairs->target.row(static_cast<Eigen::Index>(i))).norm();
+    sum_sq += r * r;
+    report.landmark_max_residual = std::max(report.landmark_max_residual, r);
+    report.landmark_residuals.push_back({pairs->names[i], r, i < loo.residuals.size() ? loo.residuals[i] : 0.0});
+  }
+  report.landmark_rms_residual = std::sqrt(sum_sq / static_cast<double>(pairs->names.size()));
+  for (int i : loo.suspicious) report.suspicious_landmarks.push_back(pairs->names[static_cast<std::size_t>(i)]);
+  report.bending_energy = result.landmark_warp.bendingEnergy();
+  result.warped_positions = result.landmark_warp.apply(source.mesh.positions);
+  report.warp_ms = msSince(t0);
+
+  // --- correspond: refine through the dense map, project, locate
+  t0 = Clock::now();
+  ProjectionOptions projection = options.projection;
+  projection.threads = options.threads;
+  const Eigen::MatrixX3i& tris = source.mesh.triangles;
+  Eigen::MatrixX3d warped_normals = computeVertexNormals(result.warped_positions, tris);
+  if (source.dense_factorization && options.refine_iterations > 0) {
+    // Non-rigid ICP on the dense centres only: project them, fit the dense map
+    // to the trusted projections, move the centres (and their normals, by the
+    // map's Jacobian) and repeat. The full surface is warped once at the end.
+    // Landmark centres are pinned to the job's target landmarks (the source's
+    // other landmarks follow the warp).
+    const Eigen::Index nl = source.landmark_positions.rows();
+    const Eigen::Index nc = source.dense_centres.rows();
+    const double trust = options.refine_max_distance * report.target_diagonal;
+    Eigen::MatrixX3d centre_positions(nc, 3), centre_normals(nc, 3);
+    centre_positions.topRows(nl) = result.landmark_warp.apply(source.landmark_positions);
+    for (std::size_t k = 0; k < source.dense_vertices.size(); ++k) {
+      const int v = source.dense_vertices[k];
+      centre_positions.row(nl + static_cast<Eigen::Index>(k)) = result.warped_positions.row(v);
+      centre_normals.row(nl + static_cast<Eigen::Index>(k)) = warped_normals.row(v);
+    }
+    Eigen::MatrixX3d pinned = centre_positions.topRows(nl);
+    for (std::size_t i = 0; i < pairs->names.size(); ++i) {
+      pinned.row(source.landmarks.indexOf(pairs->names[i])) = pairs->target.row(static_cast<Eigen::Index>(i));
+    }
+    TpsWarp dense;
+    for (int it = 0; it < options.refine_iterations; ++it) {
+      const Eigen::MatrixX3d samples = centre_positions.bottomRows(nc - nl);
+      const GuideModel projected = projectToTarget(samples, centre_normals.bottomRows(nc - nl), target_index,
+                                                   report.target_diagonal, projection);
+      Eigen::MatrixX3d centre_targets(nc, 3);
+      centre_targets.topRows(nl) = pinned;
+      for (Eigen::Index k = 0; k < nc - nl; ++k) {
+        const bool trusted = projected.on_target[static_cast<std::size_t>(k)].found() && projected.distance(k) <= trust;
+        centre_targets.row(nl + k) = trusted ? projected.positions.row(k) : samples.row(k);
+      }
+      dense = source.dense_factorization->fit(centre_targets);
+      // Centres and their normals through the new map (normals by J^-T).
+      const Eigen::MatrixX3d source_samples = source.dense_centres.bottomRows(nc - nl);
+      centre_positions.bottomRows(nc - nl) = dense.apply(source_samples);
+      const auto jac = dense.jacobians(source_samples);
+      for (Eigen::Index k = 0; k < nc - nl; ++k) {
+        const int v = source.dense_vertices[static_cast<std::size_t>(k)];
+        Eigen::Vector3d n = jac[static_cast<std::size_t>(k)].inverse().transpose() * source.mesh.normals.row(v).transpose();
+        centre_normals.row(nl + k) = n.normalized().transpose();
+      }
+      report.refine_iterations = it + 1;
+    }
+    result.warped_positions = dense.apply(source.mesh.positions);
+    warped_normals = computeVertexNormals(result.warped_positions, tris);
+  }
+  result.guide = projectToTarget(result.warped_positions, warped_normals, target_index, report.target_diagonal,
+                                 projection);
+  for (int round = 0; round < options.local_rounds; ++round) {
+    const Eigen::MatrixX3d step =
+        smoothedDisplacement(source, result.warped_positions, result.guide,
+                             options.refine_max_distance * report.target_diagonal, options.smoothing_passes);
+    result.warped_positions += step;
+    warped_normals = computeVertexNormals(result.warped_positions, tris);
+    result.guide = projectToTarget(result.warped_positions, warped_normals, target_index, report.target_diagonal,
+                                   projection);
+  }
+  LocateOptions locate = options.locate;
+  locate.threads = options.threads;
+  result.locations = locateOnGuide(target, result.guide.positions, tris, locate);
+  report.correspond_ms = msSince(t0);
+
+  std::vector<double> d(result.guide.distance.data(), result.guide.distance.data() + result.guide.distance.size());
+  report.mean_distance = result.guide.distance.mean();
+  report.max_distance = result.guide.distance.maxCoeff();
+  report.p95_distance = percentile(d, 0.95);
+  const FoldReport folds = countFolds(result.warped_positions, result.guide.positions, tris);
+  report.flipped_triangles = folds.flipped;
+  report.collapsed_triangles = folds.collapsed;
+  report.unmatched_source_vertices = result.guide.unmatched;
+  report.low_confidence_vertices = result.locations.low_confidence;
+  report.total_ms = msSince(t_start);
+  return result;
+}
+
+}  // namespace core

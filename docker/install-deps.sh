@@ -8,7 +8,7 @@ SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 
 PACKAGES=(
-  build-essential cmake ninja-build pkg-config git
+  build-essential cmake ninja-build pkg-config git ca-certificates
   libeigen3-dev libnanoflann-dev libcpp-httplib-dev nlohmann-json3-dev
   libtinygltf-dev libspdlog-dev libfmt-dev libcli11-dev libsqlite3-dev libssl-dev
   libtinyobjloader-dev libgtest-dev libgmock-dev libbenchmark-dev

@@ -1,2 +1,92 @@
+// Whole warp + dense correspondence (prepared source), per stage.
+// Uses the ICT data in ../shared/data when present (MANIFEST.md), else
+// generated heads of similar size.
+//   warp_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+#include <filesystem>
+
 #include <benchmark/benchmark.h>
+
+#include "core/mesh_io.h"
+#include "core/synthetic_head.h"
+#include "core/warp_job.h"
+
+namespace {
+
+struct Case {
+  core::PreparedSource source;
+  core::Mesh target;
+  core::LandmarkSet target_landmarks;
+  std::string name;
+};
+
+const Case& ictCase() {
+  static Case c = [] {
+    Case out;
+    const std::filesystem::path data = std::filesystem::path(RIGPORT_SOURCE_DIR) / ".." / "shared" / "data" / "ict";
+    core::PrepareOptions prepare;
+    prepare.threads = 1;
+    auto mesh = core::readMesh(data / "source_face.glb");
+    auto landmarks = core::readLandmarks(data / "source_face.landmarks.json");
+    auto target = core::readMesh(data / "targets" / "id_s01_remesh.glb");
+    auto target_landmarks = core::readLandmarks(data / "targets" / "id_s01_remesh.landmarks.json");
+    if (mesh && landmarks && target && target_landmarks) {
+      out.source = std::move(*core::prepareSource(mesh->mesh, *landmarks, "source_face.glb", prepare));
+      out.target = target->mesh;
+      out.target_landmarks = *target_landmarks;
+      out.name = "ICT source_face (11248 v) -> id_s01_remesh (5884 v)";
+    } else {
+      const auto s = core::generateHead(core::HeadShape{}, core::HeadResolution{110, 100});
+      const auto t = core::generateHead(core::randomHeadShape(4, 0.2), core::HeadResolution{80, 74, true, 0.3, 4});
+      out.source = std::move(*core::prepareSource(s.mesh, s.landmarks, "generated", prepare));
+      out.target = t.mesh;
+      out.target_landmarks = t.landmarks;
+      out.name = "generated heads (../shared/data absent)";
+    }
+    return out;
+  }();
+  return c;
+}
+
+void runCase(benchmark::State& state, core::WarpOptions options) {
+  const Case& c = ictCase();
+  options.threads = 1;
+  double warp = 0, correspond = 0;
+  for (auto _ : state) {
+    auto r = core::runWarp(c.source, c.target, c.target_landmarks, "target", options);
+    if (!r) {
+      state.SkipWithError(r.error().message.c_str());
+      return;
+    }
+    warp += r->report.warp_ms;
+    correspond += r->report.correspond_ms;
+  }
+  state.counters["warp_ms"] = warp / static_cast<double>(state.iterations());
+  state.counters["correspond_ms"] = correspond / static_cast<double>(state.iterations());
+  state.SetLabel(c.name);
+}
+
+void BM_WarpCorrespondPlain(benchmark::State& state) {
+  core::WarpOptions options;
+  options.refine_iterations = 0;
+  options.local_rounds = 0;
+  runCase(state, options);
+}
+BENCHMARK(BM_WarpCorrespondPlain)->Unit(benchmark::kMillisecond);
+
+void BM_WarpCorrespondDefault(benchmark::State& state) { runCase(state, core::WarpOptions{}); }
+BENCHMARK(BM_WarpCorrespondDefault)->Unit(benchmark::kMillisecond);
+
+void BM_PrepareSource(benchmark::State& state) {
+  const Case& c = ictCase();
+  core::PrepareOptions prepare;
+  prepare.threads = 1;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(core::prepareSource(c.source.mesh, c.source.landmarks, "source", prepare));
+  }
+  state.SetLabel(c.name);
+}
+BENCHMARK(BM_PrepareSource)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
 BENCHMARK_MAIN();

@@ -1,1 +1,132 @@
+#include "core/correspondence.h"
+
+#include <set>
+
 #include <gtest/gtest.h>
+
+#include "core/synthetic_head.h"
+#include "core/warp_job.h"
+#include "tests/test_support.h"
+
+namespace {
+
+core::Mesh transformed(const core::Mesh& m, const Eigen::Matrix3d& a, const Eigen::RowVector3d& t) {
+  core::Mesh out = m;
+  out.positions = (m.positions * a.transpose()).rowwise() + t;
+  out.normals = core::computeVertexNormals(out.positions, out.triangles);
+  return out;
+}
+
+core::LandmarkSet asVertexLandmarks(const core::SyntheticHead& head) {
+  // Same landmarks; positions resolve identically on a transformed copy.
+  return head.landmarks;
+}
+
+TEST(Correspondence, AffineCopyGivesAnExactGuideAndNoFolds) {
+  const auto head = core::generateHead(core::HeadShape{}, core::HeadResolution{64, 56});
+  Eigen::Matrix3d a;
+  a << 1.2, 0.05, 0.0, -0.03, 0.9, 0.02, 0.0, 0.04, 1.1;
+  const core::Mesh target = transformed(head.mesh, a, Eigen::RowVector3d(0.1, -0.2, 0.3));
+  auto prepared = core::prepareSource(head.mesh, head.landmarks, "head");
+  ASSERT_TRUE(prepared) << prepared.error().message;
+  auto result = core::runWarp(*prepared, target, asVertexLandmarks(head), "copy");
+  ASSERT_TRUE(result) << result.error().message;
+  const double diag = result->report.target_diagonal;
+  EXPECT_TRUE(rigport_test::matricesNear(result->guide.positions, target.positions, 1e-6 * diag));
+  EXPECT_EQ(result->report.flipped_triangles, 0);
+  EXPECT_EQ(result->report.unmatched_source_vertices, 0);
+  EXPECT_LE(result->report.landmark_rms_residual, 1e-9 * diag);
+  EXPECT_TRUE(result->report.suspicious_landmarks.empty());
+  // Every target vertex is found on the guide at its own source vertex.
+  for (Eigen::Index v = 0; v < target.vertexCount(); v += 97) {
+    const auto& loc = result->locations.on_source[static_cast<std::size_t>(v)];
+    ASSERT_TRUE(loc.found());
+    Eigen::RowVector3d p = Eigen::RowVector3d::Zero();
+    for (int k = 0; k < 3; ++k) p += loc.barycentric(k) * head.mesh.positions.row(head.mesh.triangles(loc.face, k));
+    EXPECT_LT((p - head.mesh.positions.row(v)).norm(), 1e-6) << "vertex " << v;
+    EXPECT_GT(result->locations.confidence(v), 0.99);
+  }
+}
+
+TEST(Correspondence, OtherIdentityAndTopologyLandsOnTheTarget) {
+  const auto source = core::generateHead();
+  core::HeadResolution res;
+  res.columns = 80;
+  res.rows = 76;
+  res.alternate_diagonals = true;
+  res.jitter = 0.3;
+  res.seed = 5;
+  const auto target = core::generateHead(core::randomHeadShape(5, 0.2), res);
+  auto prepared = core::prepareSource(source.mesh, source.landmarks, "source");
+  ASSERT_TRUE(prepared);
+  auto result = core::runWarp(*prepared, target.mesh, target.landmarks, "target");
+  ASSERT_TRUE(result) << result.error().message;
+  const auto& r = result->report;
+  EXPECT_LE(r.landmark_rms_residual, 1e-9 * r.target_diagonal);
+  EXPECT_LE(r.p95_distance, 0.005 * r.target_diagonal);
+  EXPECT_LT(r.low_confidence_vertices, target.mesh.vertexCount() / 20);
+  for (Eigen::Index v = 0; v < result->guide.positions.rows(); ++v) ASSERT_TRUE(result->guide.positions.row(v).allFinite());
+}
+
+TEST(Correspondence, RefinementBringsTheSurfaceCloserThanThePlainWarp) {
+  const auto source = core::generateHead();
+  const auto target = core::generateHead(core::randomHeadShape(11, 0.25), core::HeadResolution{90, 80, true, 0.2, 11});
+  auto prepared = core::prepareSource(source.mesh, source.landmarks, "source");
+  ASSERT_TRUE(prepared);
+  core::WarpOptions plain;
+  plain.refine_iterations = 0;
+  plain.local_rounds = 0;
+  auto a = core::runWarp(*prepared, target.mesh, target.landmarks, "t", plain);
+  auto b = core::runWarp(*prepared, target.mesh, target.landmarks, "t");
+  ASSERT_TRUE(a && b);
+  EXPECT_LT(b->report.mean_distance, a->report.mean_distance);
+  EXPECT_EQ(b->report.refine_iterations, core::WarpOptions{}.refine_iterations);
+}
+
+TEST(Correspondence, FoldsAreCounted) {
+  const auto head = core::generateHead(core::HeadShape{}, core::HeadResolution{16, 16});
+  Eigen::MatrixX3d crumpled = head.mesh.positions;
+  // Mirror one triangle's corner through its opposite edge: that triangle flips.
+  const Eigen::Vector3i t = head.mesh.triangles.row(100);
+  const Eigen::RowVector3d mid = 0.5 * (crumpled.row(t(1)) + crumpled.row(t(2)));
+  crumpled.row(t(0)) = 2 * mid - crumpled.row(t(0));
+  const auto folds = core::countFolds(head.mesh.positions, crumpled, head.mesh.triangles);
+  EXPECT_GE(folds.flipped, 1);
+  EXPECT_EQ(core::countFolds(head.mesh.positions, head.mesh.positions, head.mesh.triangles).flipped, 0);
+}
+
+TEST(Correspondence, FarthestPointSampleIsSpreadAndDeterministic) {
+  const auto head = core::generateHead(core::HeadShape{}, core::HeadResolution{32, 32});
+  const auto a = core::farthestPointSample(head.mesh.positions, 50);
+  const auto b = core::farthestPointSample(head.mesh.positions, 50);
+  EXPECT_EQ(a, b);
+  std::set<int> unique(a.begin(), a.end());
+  EXPECT_EQ(unique.size(), 50u);
+}
+
+TEST(Correspondence, RejectsPointCloudTargetsAndBadLandmarks) {
+  const auto head = core::generateHead(core::HeadShape{}, core::HeadResolution{32, 32});
+  auto prepared = core::prepareSource(head.mesh, head.landmarks, "source");
+  ASSERT_TRUE(prepared);
+  core::Mesh cloud;
+  cloud.positions = head.mesh.positions;
+  auto r = core::runWarp(*prepared, cloud, head.landmarks, "cloud.ply");
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("cloud.ply"), std::string::npos);
+
+  core::LandmarkSet coplanar;
+  for (const char* n : {"jaw_00", "jaw_16", "eye_left_0", "eye_right_0", "nose_bridge_3"}) {
+    core::Landmark lm;
+    lm.name = n;
+    lm.kind = core::LandmarkKind::kPosition;
+    coplanar.landmarks.push_back(lm);
+  }
+  // Positions: all on the plane z = const, so the target set is flat.
+  core::Mesh flat = head.mesh;
+  flat.positions.col(2).setConstant(0.0);
+  for (auto& lm : coplanar.landmarks) lm.position = flat.positions.row(0).transpose();
+  auto c = core::runWarp(*prepared, flat, coplanar, "flat");
+  ASSERT_FALSE(c);
+}
+
+}  // namespace

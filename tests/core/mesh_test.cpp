@@ -1,1 +1,152 @@
+// Tests core/mesh.cpp: normals, areas, degenerate triangles, validateMesh.
+#include "core/mesh.h"
+
+#include <cmath>
+#include <limits>
+
 #include <gtest/gtest.h>
+
+#include "tests/test_support.h"
+
+namespace {
+
+// Regular tetrahedron centred at the origin, counter-clockwise seen from outside.
+core::Mesh makeTetrahedron() {
+  core::Mesh mesh;
+  mesh.positions.resize(4, 3);
+  mesh.positions << 1, 1, 1,  //
+      1, -1, -1,              //
+      -1, 1, -1,              //
+      -1, -1, 1;
+  mesh.triangles.resize(4, 3);
+  mesh.triangles << 0, 1, 2,  //
+      0, 3, 1,                //
+      0, 2, 3,                //
+      1, 3, 2;
+  return mesh;
+}
+
+TEST(Mesh, TetrahedronFaceNormalsAreUnitAndPointOutward) {
+  const core::Mesh mesh = makeTetrahedron();
+  const Eigen::MatrixX3d normals = core::computeFaceNormals(mesh.positions, mesh.triangles);
+  ASSERT_EQ(normals.rows(), 4);
+  for (Eigen::Index f = 0; f < 4; ++f) {
+    EXPECT_NEAR(normals.row(f).norm(), 1.0, 1e-12) << "face " << f;
+    Eigen::RowVector3d centroid = Eigen::RowVector3d::Zero();
+    for (int k = 0; k < 3; ++k) centroid += mesh.positions.row(mesh.triangles(f, k)) / 3.0;
+    // Regular tetrahedron: the outward face normal is the direction of the face centroid.
+    EXPECT_TRUE(rigport_test::matricesNear(normals.row(f), centroid.normalized(), 1e-12)) << "face " << f;
+  }
+}
+
+TEST(Mesh, TetrahedronVertexNormalsPointAwayFromCentre) {
+  const core::Mesh mesh = makeTetrahedron();
+  const Eigen::MatrixX3d normals = core::computeVertexNormals(mesh.positions, mesh.triangles);
+  for (Eigen::Index v = 0; v < 4; ++v) {
+    // By symmetry the area-weighted normal is the vertex direction.
+    EXPECT_TRUE(rigport_test::matricesNear(normals.row(v), mesh.positions.row(v).normalized(), 1e-12)) << "vertex " << v;
+  }
+}
+
+TEST(Mesh, VertexOnNoTriangleGetsZeroNormal) {
+  core::Mesh mesh = makeTetrahedron();
+  mesh.positions.conservativeResize(5, 3);
+  mesh.positions.row(4) << 5, 5, 5;
+  const Eigen::MatrixX3d normals = core::computeVertexNormals(mesh.positions, mesh.triangles);
+  EXPECT_EQ(normals.row(4).norm(), 0.0);
+  EXPECT_NEAR(normals.row(0).norm(), 1.0, 1e-12);
+}
+
+TEST(Mesh, DoubleAreasAndBoundingBoxDiagonal) {
+  core::Mesh mesh;
+  mesh.positions.resize(4, 3);
+  mesh.positions << 0, 0, 0,  //
+      2, 0, 0,                //
+      0, 3, 0,                //
+      4, 0, 0;
+  mesh.triangles.resize(2, 3);
+  mesh.triangles << 0, 1, 2,  //
+      0, 1, 3;                // collinear
+  const Eigen::VectorXd areas = core::computeDoubleAreas(mesh.positions, mesh.triangles);
+  EXPECT_DOUBLE_EQ(areas(0), 6.0);
+  EXPECT_DOUBLE_EQ(areas(1), 0.0);
+  EXPECT_DOUBLE_EQ(core::boundingBoxDiagonal(mesh.positions), 5.0);
+  EXPECT_EQ(core::boundingBoxDiagonal(Eigen::MatrixX3d(0, 3)), 0.0);
+  const Eigen::MatrixX3d face_normals = core::computeFaceNormals(mesh.positions, mesh.triangles);
+  EXPECT_EQ(face_normals.row(1).norm(), 0.0) << "degenerate triangle must get a zero normal";
+}
+
+TEST(Mesh, DetectsDegenerateTriangles) {
+  Eigen::MatrixX3d positions(5, 3);
+  positions << 0, 0, 0,  //
+      1, 0, 0,           //
+      0, 1, 0,           //
+      2, 0, 0,           //
+      0.5, 1e-21, 0;     // twice-area 1e-21, below (1e-10 * diagonal)^2
+  const double diagonal = core::boundingBoxDiagonal(positions);
+  EXPECT_FALSE(core::isDegenerateTriangle(positions, Eigen::Vector3i(0, 1, 2), diagonal));
+  EXPECT_TRUE(core::isDegenerateTriangle(positions, Eigen::Vector3i(0, 0, 2), diagonal)) << "repeated index";
+  EXPECT_TRUE(core::isDegenerateTriangle(positions, Eigen::Vector3i(0, 2, 2), diagonal)) << "repeated index";
+  EXPECT_TRUE(core::isDegenerateTriangle(positions, Eigen::Vector3i(0, 1, 3), diagonal)) << "collinear";
+  EXPECT_TRUE(core::isDegenerateTriangle(positions, Eigen::Vector3i(0, 1, 4), diagonal)) << "zero area at mesh scale";
+}
+
+TEST(Mesh, ValidMeshPasses) {
+  core::Mesh mesh = makeTetrahedron();
+  mesh.normals = core::computeVertexNormals(mesh.positions, mesh.triangles);
+  mesh.uvs = Eigen::MatrixX2d::Zero(4, 2);
+  EXPECT_TRUE(core::validateMesh(mesh, "tet.glb").ok());
+}
+
+TEST(Mesh, ValidateMeshNamesFirstNonFiniteVertex) {
+  core::Mesh mesh = makeTetrahedron();
+  mesh.positions(2, 1) = std::numeric_limits<double>::quiet_NaN();
+  mesh.positions(3, 0) = std::numeric_limits<double>::infinity();
+  const auto status = core::validateMesh(mesh, "tet.glb");
+  ASSERT_FALSE(status.ok());
+  EXPECT_EQ(status.error().code, core::ErrorCode::kInvalidMesh);
+  EXPECT_EQ(status.error().message, "tet.glb: vertex 2 has a non-finite position");
+}
+
+TEST(Mesh, ValidateMeshChecksNormalsAndUvs) {
+  core::Mesh mesh = makeTetrahedron();
+  mesh.normals = Eigen::MatrixX3d::Zero(3, 3);
+  auto status = core::validateMesh(mesh, "a.obj");
+  ASSERT_FALSE(status.ok());
+  EXPECT_EQ(status.error().message, "a.obj: normal count 3 differs from vertex count 4");
+
+  mesh.normals = Eigen::MatrixX3d::Zero(4, 3);
+  mesh.normals(1, 2) = std::numeric_limits<double>::infinity();
+  status = core::validateMesh(mesh, "a.obj");
+  ASSERT_FALSE(status.ok());
+  EXPECT_EQ(status.error().message, "a.obj: vertex 1 has a non-finite normal");
+
+  mesh.normals.resize(0, 3);
+  mesh.uvs = Eigen::MatrixX2d::Zero(4, 2);
+  mesh.uvs(3, 0) = std::numeric_limits<double>::quiet_NaN();
+  status = core::validateMesh(mesh, "a.obj");
+  ASSERT_FALSE(status.ok());
+  EXPECT_EQ(status.error().message, "a.obj: vertex 3 has a non-finite UV");
+
+  mesh.uvs = Eigen::MatrixX2d::Zero(5, 2);
+  status = core::validateMesh(mesh, "a.obj");
+  ASSERT_FALSE(status.ok());
+  EXPECT_EQ(status.error().message, "a.obj: UV count 5 differs from vertex count 4");
+}
+
+TEST(Mesh, ValidateMeshNamesTriangleWithOutOfRangeIndex) {
+  core::Mesh mesh = makeTetrahedron();
+  mesh.triangles(1, 2) = 7;
+  auto status = core::validateMesh(mesh, "t.ply");
+  ASSERT_FALSE(status.ok());
+  EXPECT_EQ(status.error().code, core::ErrorCode::kInvalidMesh);
+  EXPECT_EQ(status.error().message, "t.ply: triangle 1 refers to vertex 7 but the mesh has 4 vertices");
+
+  mesh = makeTetrahedron();
+  mesh.triangles(3, 0) = -1;
+  status = core::validateMesh(mesh, "t.ply");
+  ASSERT_FALSE(status.ok());
+  EXPECT_EQ(status.error().message, "t.ply: triangle 3 refers to vertex -1 but the mesh has 4 vertices");
+}
+
+}  // namespace

@@ -1,1 +1,202 @@
+#include "core/tps.h"
+
+#include <random>
+
 #include <gtest/gtest.h>
+
+#include "tests/test_support.h"
+
+namespace {
+
+using rigport_test::matricesNear;
+
+Eigen::MatrixX3d randomPoints(int n, unsigned seed, double scale = 1.0) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-scale, scale);
+  Eigen::MatrixX3d p(n, 3);
+  for (int i = 0; i < n; ++i) p.row(i) << u(rng), u(rng), u(rng);
+  return p;
+}
+
+// A smooth non-linear deformation used as ground truth.
+Eigen::MatrixX3d bend(const Eigen::MatrixX3d& p) {
+  Eigen::MatrixX3d q = p;
+  for (Eigen::Index i = 0; i < p.rows(); ++i) {
+    q(i, 0) += 0.1 * std::sin(p(i, 1));
+    q(i, 1) += 0.05 * p(i, 0) * p(i, 2);
+    q(i, 2) += 0.08 * p(i, 0) * p(i, 0);
+  }
+  return q;
+}
+
+TEST(Tps, ReproducesLandmarksExactlyWithoutRegularization) {
+  for (int n : {4, 10, 44, 68, 300}) {
+    const Eigen::MatrixX3d p = randomPoints(n, 7u + static_cast<unsigned>(n), 10.0);
+    const Eigen::MatrixX3d q = bend(p);
+    auto warp = core::fitTps(p, q);
+    ASSERT_TRUE(warp) << warp.error().message;
+    EXPECT_TRUE(matricesNear(warp->apply(p), q, 1e-9 * 10.0)) << "n = " << n;
+  }
+}
+
+TEST(Tps, ReproducesAnAffineMapExactlyWithZeroBendingEnergy) {
+  const Eigen::MatrixX3d p = randomPoints(40, 3, 5.0);
+  Eigen::Matrix3d A;
+  A << 1.3, 0.2, -0.1, 0.05, 0.9, 0.3, -0.2, 0.1, 1.1;
+  const Eigen::RowVector3d t(3.0, -2.0, 0.5);
+  const Eigen::MatrixX3d q = (p * A.transpose()).rowwise() + t;
+  auto warp = core::fitTps(p, q);
+  ASSERT_TRUE(warp) << warp.error().message;
+  EXPECT_LT(warp->kernelWeights().cwiseAbs().maxCoeff(), 1e-10);
+  EXPECT_NEAR(warp->bendingEnergy(), 0.0, 1e-12);
+  // Off the landmarks too, and the Jacobian is A everywhere.
+  const Eigen::MatrixX3d x = randomPoints(500, 4, 8.0);
+  EXPECT_TRUE(matricesNear(warp->apply(x), (x * A.transpose()).rowwise() + t, 1e-9));
+  for (const auto& j : warp->jacobians(x.topRows(20))) EXPECT_TRUE(matricesNear(j, A, 1e-9));
+}
+
+TEST(Tps, NonAffineWarpHasPositiveBendingEnergy) {
+  const Eigen::MatrixX3d p = randomPoints(30, 5, 2.0);
+  auto warp = core::fitTps(p, bend(p));
+  ASSERT_TRUE(warp);
+  EXPECT_GT(warp->bendingEnergy(), 1e-6);
+}
+
+TEST(Tps, FactorisationReuseEqualsFreshSolve) {
+  const Eigen::MatrixX3d p = randomPoints(68, 11, 10.0);
+  auto factorization = core::TpsFactorization::create(p);
+  ASSERT_TRUE(factorization) << factorization.error().message;
+  const Eigen::MatrixX3d x = randomPoints(1000, 12, 12.0);
+  for (unsigned s = 0; s < 3; ++s) {
+    Eigen::MatrixX3d q = bend(p) + 0.3 * randomPoints(68, 20 + s);
+    const core::TpsWarp reused = factorization->fit(q);
+    auto fresh = core::fitTps(p, q);
+    ASSERT_TRUE(fresh);
+    EXPECT_TRUE(matricesNear(reused.apply(x), fresh->apply(x), 1e-9));
+  }
+}
+
+TEST(Tps, JacobianMatchesFiniteDifferences) {
+  const Eigen::MatrixX3d p = randomPoints(20, 21, 3.0);
+  auto warp = core::fitTps(p, bend(p));
+  ASSERT_TRUE(warp);
+  const Eigen::MatrixX3d x = randomPoints(50, 22, 3.0);
+  const auto jac = warp->jacobians(x);
+  const double h = 1e-6;
+  for (Eigen::Index i = 0; i < x.rows(); ++i) {
+    Eigen::Matrix3d fd;
+    for (int c = 0; c < 3; ++c) {
+      Eigen::Vector3d e = Eigen::Vector3d::Zero();
+      e(c) = h;
+      const Eigen::Vector3d xp = x.row(i).transpose();
+      fd.col(c) = (warp->apply(Eigen::Vector3d(xp + e)) - warp->apply(Eigen::Vector3d(xp - e))) / (2 * h);
+    }
+    EXPECT_TRUE(matricesNear(jac[static_cast<std::size_t>(i)], fd, 1e-5)) << "point " << i;
+  }
+}
+
+TEST(Tps, BatchEvaluationDoesNotDependOnThreadCount) {
+  const Eigen::MatrixX3d p = randomPoints(68, 31, 10.0);
+  core::TpsOptions one;
+  one.threads = 1;
+  core::TpsOptions two;
+  two.threads = 2;
+  auto w1 = core::fitTps(p, bend(p), one);
+  auto w2 = core::fitTps(p, bend(p), two);
+  ASSERT_TRUE(w1 && w2);
+  const Eigen::MatrixX3d x = randomPoints(5000, 32, 10.0);
+  EXPECT_TRUE(matricesNear(w1->apply(x), w2->apply(x), 0.0));
+}
+
+TEST(Tps, RegularizationTradesLandmarkFitForSmoothness) {
+  const Eigen::MatrixX3d p = randomPoints(50, 41, 10.0);
+  const Eigen::MatrixX3d q = bend(p) + 0.2 * randomPoints(50, 42);
+  auto exact = core::fitTps(p, q);
+  core::TpsOptions smooth;
+  smooth.regularization = 5.0;
+  auto approx = core::fitTps(p, q, smooth);
+  ASSERT_TRUE(exact && approx);
+  EXPECT_LT(approx->bendingEnergy(), exact->bendingEnergy());
+  EXPECT_GT((approx->apply(p) - q).norm(), 1e-3);
+}
+
+TEST(Tps, LeaveOneOutMatchesExplicitRefit) {
+  const Eigen::MatrixX3d p = randomPoints(30, 51, 5.0);
+  const Eigen::MatrixX3d q = bend(p);
+  for (double lambda : {0.0, 0.5}) {
+    core::TpsOptions opts;
+    opts.regularization = lambda;
+    auto f = core::TpsFactorization::create(p, opts);
+    ASSERT_TRUE(f);
+    const auto loo = f->leaveOneOut(q);
+    ASSERT_EQ(loo.residuals.size(), 30u);
+    for (int i = 0; i < 30; i += 7) {
+      Eigen::MatrixX3d p_minus(29, 3), q_minus(29, 3);
+      for (int j = 0, k = 0; j < 30; ++j) {
+        if (j == i) continue;
+        p_minus.row(k) = p.row(j);
+        q_minus.row(k++) = q.row(j);
+      }
+      auto w = core::fitTps(p_minus, q_minus, opts);
+      ASSERT_TRUE(w);
+      const double expected = (w->apply(Eigen::Vector3d(p.row(i).transpose())) - q.row(i).transpose()).norm();
+      EXPECT_NEAR(loo.residuals[static_cast<std::size_t>(i)], expected, 1e-8 * (1 + expected)) << "landmark " << i;
+    }
+  }
+}
+
+// Smooth at the scale of the landmark spacing, like a change of identity.
+Eigen::MatrixX3d gentleBend(const Eigen::MatrixX3d& p) {
+  Eigen::MatrixX3d q = 1.2 * p;
+  for (Eigen::Index i = 0; i < p.rows(); ++i) {
+    q(i, 0) += 0.5 * std::sin(0.2 * p(i, 1));
+    q(i, 2) += 0.02 * p(i, 0) * p(i, 0);
+  }
+  return q;
+}
+
+TEST(Tps, ConsistentLandmarksFlagNothing) {
+  const Eigen::MatrixX3d p = randomPoints(68, 61, 10.0);
+  auto f = core::TpsFactorization::create(p);
+  ASSERT_TRUE(f);
+  EXPECT_TRUE(f->leaveOneOut(gentleBend(p)).suspicious.empty());
+  EXPECT_TRUE(f->leaveOneOut(p).suspicious.empty());  // identity: all residuals ~0
+}
+
+TEST(Tps, SwappedLandmarkPairIsFlagged) {
+  const Eigen::MatrixX3d p = randomPoints(68, 71, 10.0);
+  Eigen::MatrixX3d q = gentleBend(p);
+  q.row(10).swap(q.row(40));
+  auto f = core::TpsFactorization::create(p);
+  ASSERT_TRUE(f);
+  const auto loo = f->leaveOneOut(q);
+  EXPECT_NE(std::find(loo.suspicious.begin(), loo.suspicious.end(), 10), loo.suspicious.end());
+  EXPECT_NE(std::find(loo.suspicious.begin(), loo.suspicious.end(), 40), loo.suspicious.end());
+  EXPECT_EQ(loo.suspicious.size(), 2u);
+}
+
+TEST(Tps, RejectsTooFewDuplicateAndCoplanarLandmarks) {
+  auto few = core::TpsFactorization::create(randomPoints(3, 1));
+  ASSERT_FALSE(few);
+  EXPECT_EQ(few.error().code, core::ErrorCode::kInvalidLandmarks);
+
+  Eigen::MatrixX3d dup = randomPoints(10, 2);
+  dup.row(7) = dup.row(3);
+  auto d = core::TpsFactorization::create(dup, {}, {"a", "b", "c", "nose_tip", "e", "f", "g", "chin", "i", "j"});
+  ASSERT_FALSE(d);
+  EXPECT_EQ(d.error().code, core::ErrorCode::kIllConditioned);
+  EXPECT_NE(d.error().message.find("'nose_tip'"), std::string::npos) << d.error().message;
+  EXPECT_NE(d.error().message.find("'chin'"), std::string::npos) << d.error().message;
+
+  Eigen::MatrixX3d flat = randomPoints(12, 3);
+  flat.col(2).setConstant(1.0);
+  auto c = core::TpsFactorization::create(flat);
+  ASSERT_FALSE(c);
+  EXPECT_EQ(c.error().code, core::ErrorCode::kIllConditioned);
+  EXPECT_NE(c.error().message.find("coplanar"), std::string::npos);
+
+  flat.col(2) = 1e-6 * randomPoints(12, 4).col(0);  // nearly coplanar
+  EXPECT_FALSE(core::TpsFactorization::create(flat));
+}
+
+}  // namespace

@@ -1,0 +1,148 @@
+#include "client/local_jobs.h"
+
+#include <chrono>
+#include <cstdio>
+#include <string>
+
+#include <spdlog/spdlog.h>
+
+#include "core/diagnostics_json.h"
+#include "core/landmarks.h"
+#include "core/mesh_io.h"
+#include "core/synthetic_head.h"
+#include "core/warp_job.h"
+
+namespace client {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+int fail(const core::Error& error) {
+  spdlog::error("{} ({})", error.message, core::errorCodeName(error.code));
+  return 1;
+}
+
+core::Status writeText(const std::filesystem::path& path, const std::string& text) {
+  return core::writeFileBytes(path, std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
+}
+
+}  // namespace
+
+int runWarp(const WarpArgs& args) {
+  const auto t_start = Clock::now();
+  auto t0 = Clock::now();
+  auto source = core::readMesh(args.source);
+  if (!source) return fail(source.error());
+  auto source_landmarks = core::readLandmarks(args.source_landmarks);
+  if (!source_landmarks) return fail(source_landmarks.error());
+  auto target = core::readMesh(args.target);
+  if (!target) return fail(target.error());
+  auto target_landmarks = core::readLandmarks(args.target_landmarks);
+  if (!target_landmarks) return fail(target_landmarks.error());
+  const double read_ms = msSince(t0);
+  spdlog::info("read source {} ({} vertices), target {} ({} vertices)", args.source.filename().string(),
+               source->mesh.vertexCount(), args.target.filename().string(), target->mesh.vertexCount());
+
+  core::PrepareOptions prepare_options;
+  prepare_options.threads = args.threads;
+  auto prepared = core::prepareSource(source->mesh, *source_landmarks, args.source.filename().string(), prepare_options);
+  if (!prepared) return fail(prepared.error());
+
+  core::WarpOptions options;
+  options.refine_iterations = args.refine_iterations;
+  options.landmark_tps.regularization = args.landmark_regularization;
+  options.threads = args.threads;
+  auto result = core::runWarp(*prepared, target->mesh, *target_landmarks, args.target.filename().string(), options);
+  if (!result) return fail(result.error());
+  result->report.prepare_ms = prepared->prepare_ms;
+
+  t0 = Clock::now();
+  core::Mesh guide;
+  guide.positions = result->guide.positions;
+  guide.triangles = prepared->mesh.triangles;
+  guide.normals = core::computeVertexNormals(guide.positions, guide.triangles);
+  if (auto ok = core::writeMeshGlb(guide, args.output); !ok) return fail(ok.error());
+  const double write_ms = msSince(t0);
+
+  core::DiagnosticsContext context;
+  context.source_read = &source->report;
+  context.target_read = &target->report;
+  context.extra_timings_ms = {{"read", read_ms}, {"write", write_ms}};
+  context.total_ms = msSince(t_start);
+  const std::string diagnostics = core::formatWarpDiagnostics(result->report, context);
+  if (!args.diagnostics.empty()) {
+    if (auto ok = writeText(args.diagnostics, diagnostics); !ok) return fail(ok.error());
+  }
+  if (args.print_diagnostics) std::fputs(diagnostics.c_str(), stdout);
+  const auto& r = result->report;
+  spdlog::info("warp: {} landmarks, rms residual {:.3g}, suspicious {}; correspondence p95 {:.4g} ({:.3f}% of diagonal), "
+               "{} flipped triangles, {} low-confidence target vertices; {:.1f} ms",
+               r.landmark_count, r.landmark_rms_residual, r.suspicious_landmarks.size(), r.p95_distance,
+               100.0 * r.p95_distance / r.target_diagonal, r.flipped_triangles, r.low_confidence_vertices,
+               context.total_ms);
+  if (!r.suspicious_landmarks.empty()) {
+    std::string names;
+    for (const auto& n : r.suspicious_landmarks) names += (names.empty() ? "" : ", ") + n;
+    spdlog::warn("suspicious landmarks (the others cannot explain them; swapped or misplaced?): {}", names);
+  }
+  spdlog::info("wrote {}{}", args.output.string(), args.diagnostics.empty() ? "" : " and " + args.diagnostics.string());
+  return 0;
+}
+
+int runGenerateHead(const GenerateHeadArgs& args) {
+  core::HeadShape shape = args.seed == 0 ? core::HeadShape{} : core::randomHeadShape(args.seed, args.variation);
+  shape.mouth_open = args.mouth_open;
+  core::HeadResolution resolution;
+  resolution.columns = args.columns;
+  resolution.rows = args.rows;
+  resolution.alternate_diagonals = args.alternate_diagonals;
+  resolution.jitter = args.jitter;
+  resolution.seed = args.seed;
+  core::SyntheticHead head = core::generateHead(shape, resolution);
+  head.mesh.positions *= args.scale;
+  if (auto ok = core::writeMeshGlb(head.mesh, args.output); !ok) return fail(ok.error());
+  if (auto ok = writeText(args.landmarks, core::formatLandmarks(head.landmarks)); !ok) return fail(ok.error());
+  spdlog::info("wrote {} ({} vertices, {} triangles) and {} ({} landmarks)", args.output.string(),
+               head.mesh.vertexCount(), head.mesh.triangleCount(), args.landmarks.string(),
+               head.landmarks.landmarks.size());
+  return 0;
+}
+
+int runDemo(const std::filesystem::path& dir, int threads) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) return fail(core::makeError(core::ErrorCode::kIo, dir.string() + ": " + ec.message()));
+  GenerateHeadArgs source;
+  source.output = dir / "source_head.glb";
+  source.landmarks = dir / "source_head.landmarks.json";
+  if (int rc = runGenerateHead(source)) return rc;
+  // The target: another identity, another resolution and triangulation.
+  GenerateHeadArgs target;
+  target.output = dir / "target_head.glb";
+  target.landmarks = dir / "target_head.landmarks.json";
+  target.seed = 7;
+  target.variation = 0.2;
+  target.columns = 90;
+  target.rows = 84;
+  target.alternate_diagonals = true;
+  target.jitter = 0.3;
+  if (int rc = runGenerateHead(target)) return rc;
+
+  WarpArgs warp;
+  warp.source = source.output;
+  warp.source_landmarks = source.landmarks;
+  warp.target = target.output;
+  warp.target_landmarks = target.landmarks;
+  warp.output = dir / "guide.glb";
+  warp.diagnostics = dir / "diagnostics.json";
+  warp.threads = threads;
+  warp.print_diagnostics = true;
+  return runWarp(warp);
+}
+
+}  // namespace client

@@ -1,0 +1,38 @@
+// In-process job runners behind the CLI subcommands: read files, call core,
+// write outputs. Each returns the process exit code (0 ok, 1 failed job).
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+namespace client {
+
+struct WarpArgs {
+  std::filesystem::path source, source_landmarks, target, target_landmarks;
+  std::filesystem::path output;       // guide GLB (source topology on the target)
+  std::filesystem::path diagnostics;  // JSON; empty = none
+  int refine_iterations = 3;
+  double landmark_regularization = 0.0;
+  int threads = 0;
+  bool print_diagnostics = false;     // also print the diagnostics JSON on stdout
+};
+int runWarp(const WarpArgs& args);
+
+struct GenerateHeadArgs {
+  std::filesystem::path output;       // GLB
+  std::filesystem::path landmarks;    // landmarks JSON
+  unsigned seed = 0;                  // 0 = the mean head
+  double variation = 0.15;
+  int columns = 128, rows = 112;
+  bool alternate_diagonals = false;
+  double jitter = 0.0;
+  double mouth_open = 0.0;
+  double scale = 1.0;                 // uniform scale (e.g. 100 for centimetres)
+};
+int runGenerateHead(const GenerateHeadArgs& args);
+
+// Generates a source and a target of other proportions and topology in `dir`,
+// then runs the warp on them and prints the diagnostics.
+int runDemo(const std::filesystem::path& dir, int threads);
+
+}  // namespace client

@@ -1,0 +1,78 @@
+// Dense correspondence (papers 004 sec. 3.3 "STK", 000 ch. 4.7.1): the warped
+// source surface is stuck onto the target by closest-point projection, giving
+// the guide model (source topology lying on the target surface); then every
+// target vertex is located on the guide, i.e. on the source surface.
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "core/closest_point.h"
+#include "core/mesh.h"
+
+namespace core {
+
+struct ProjectionOptions {
+  // Target faces whose normal differs more than this from the warped source
+  // vertex normal are not candidates. 90 keeps opposite-facing sheets apart
+  // (touching lips, closed lids: ~180 degrees) while tolerating the normal
+  // error of a rough early warp.
+  double max_normal_angle_deg = 90.0;
+  // Candidates beyond this fraction of the target bbox diagonal are ignored:
+  // such a vertex stays at its warped position and counts as unmatched.
+  double max_distance = 0.1;
+  int threads = 0;  // 0 = hardware threads
+};
+
+// The source surface lying on the target.
+struct GuideModel {
+  Eigen::MatrixX3d positions;          // #Vs by 3: projected position, or the warped one when unmatched
+  std::vector<SurfacePoint> on_target; // #Vs: target face + barycentric (face -1 when unmatched)
+  Eigen::VectorXd distance;            // #Vs: warped source vertex -> guide position, target units
+  int unmatched = 0;                   // source vertices with no compatible target face in range
+};
+
+// warped_positions / warped_normals: #Vs by 3, the source after the warp.
+GuideModel projectToTarget(const Eigen::MatrixX3d& warped_positions, const Eigen::MatrixX3d& warped_normals,
+                           const ClosestPointIndex& target_index, double target_diagonal,
+                           const ProjectionOptions& options);
+
+// Triangles of the guide whose orientation flips against the warped source
+// (folds of plain projection) and triangles that collapse to zero area.
+struct FoldReport {
+  int flipped = 0;
+  int collapsed = 0;
+};
+FoldReport countFolds(const Eigen::MatrixX3d& warped_positions, const Eigen::MatrixX3d& guide_positions,
+                      const Eigen::MatrixX3i& triangles);
+
+struct LocateOptions {
+  // Guide faces whose normal differs more than this from the target vertex
+  // normal are not candidates.
+  double max_normal_angle_deg = 90.0;
+  // Confidence falls linearly to 0 at this distance (fraction of the target
+  // bbox diagonal) and at this normal disagreement; beyond either the vertex is
+  // "low confidence".
+  double low_confidence_distance = 0.05;
+  double low_confidence_angle_deg = 30.0;
+  int threads = 0;
+};
+
+// Every target vertex located on the guide = on the source surface.
+struct TargetLocations {
+  std::vector<SurfacePoint> on_source;  // #Vt: source face + barycentric (face -1: no compatible guide face)
+  Eigen::VectorXd distance;             // #Vt: target vertex -> guide surface, target units
+  Eigen::VectorXd normal_cosine;        // #Vt: cos(angle) target vertex normal vs guide face normal
+  Eigen::VectorXd confidence;           // #Vt in [0, 1]: 1 = on the guide with agreeing normal
+  int low_confidence = 0;               // vertices beyond a threshold (confidence 0)
+};
+
+TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_positions,
+                              const Eigen::MatrixX3i& source_triangles, const LocateOptions& options);
+
+// Farthest-point sample of `count` vertices (deterministic, starting from the
+// vertex nearest the centroid). Used for the dense-map centres.
+std::vector<int> farthestPointSample(const Eigen::MatrixX3d& positions, int count);
+
+}  // namespace core

@@ -1,0 +1,117 @@
+// The warp job, read top to bottom: prepare (once per source, cacheable) ->
+// landmark TPS warp -> project onto the target (guide model) -> optional
+// non-rigid refinement through the dense map -> locate target vertices on the
+// guide. Each stage is a function of plain data; the report carries what a TD
+// needs to trust (or not) the correspondence.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/correspondence.h"
+#include "core/landmarks.h"
+#include "core/mesh.h"
+#include "core/tps.h"
+
+namespace core {
+
+struct PrepareOptions {
+  // Dense-map centres: the source landmarks plus this many farthest-point
+  // samples of the source vertices.
+  int dense_centres = 400;
+  // Regularisation of the dense map as a fraction of the source bbox diagonal
+  // (smooths projection noise; 0 interpolates).
+  double dense_regularization = 0.002;
+  int threads = 0;
+};
+
+// Everything that depends only on the source: immutable, shared between jobs.
+struct PreparedSource {
+  Mesh mesh;                           // source surface (normals filled in)
+  std::string label;                   // file or rig name, for messages
+  LandmarkSet landmarks;
+  Eigen::MatrixX3d landmark_positions; // #L by 3 on the source mesh
+  double diagonal = 0.0;               // source bbox diagonal
+  std::vector<int> dense_vertices;     // source vertices used as dense-map centres (after the landmarks)
+  Eigen::MatrixX3d dense_centres;      // #L + #dense_vertices by 3: landmark positions, then samples
+  std::optional<TpsFactorization> dense_factorization;
+  // Vertex adjacency of the source (CSR): neighbours of v are
+  // neighbor_indices[neighbor_offsets[v] .. neighbor_offsets[v+1]).
+  std::vector<int> neighbor_offsets;
+  std::vector<int> neighbor_indices;
+  double prepare_ms = 0.0;
+
+  std::size_t memoryBytes() const;
+};
+
+Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std::string& label,
+                                     const PrepareOptions& options = {});
+
+struct WarpOptions {
+  TpsOptions landmark_tps;             // regularisation of the landmark warp (0 = exact)
+  // Non-rigid ICP rounds: fit the dense map to the current guide, re-warp the
+  // source through it and re-project. 0 = the papers' plain warp + projection.
+  int refine_iterations = 3;
+  // Projections farther than this (fraction of the target diagonal) do not
+  // pull their dense centre during refinement.
+  double refine_max_distance = 0.1;
+  // Local rounds after the dense map: the trusted projection displacements are
+  // smoothed over the source mesh (`smoothing_passes` Jacobi passes of
+  // normalised convolution) and applied, then the surface is projected again.
+  // Corrects misfit finer than the dense centres' spacing.
+  int local_rounds = 3;
+  int smoothing_passes = 10;
+  ProjectionOptions projection;
+  LocateOptions locate;
+  int threads = 0;                     // 0 = hardware threads (stages that run in parallel)
+};
+
+struct LandmarkResidual {
+  std::string name;
+  double fit = 0.0;            // |warp(source) - target| at the landmark
+  double leave_one_out = 0.0;  // |target - warp without this landmark (source)|
+};
+
+struct WarpReport {
+  // landmarks
+  int landmark_count = 0;
+  double landmark_rms_residual = 0.0;
+  double landmark_max_residual = 0.0;
+  double bending_energy = 0.0;
+  std::vector<LandmarkResidual> landmark_residuals;
+  std::vector<std::string> suspicious_landmarks;
+  // correspondence (target units)
+  double mean_distance = 0.0;
+  double p95_distance = 0.0;
+  double max_distance = 0.0;
+  int flipped_triangles = 0;
+  int collapsed_triangles = 0;
+  int unmatched_source_vertices = 0;
+  int low_confidence_vertices = 0;
+  int refine_iterations = 0;
+  // meshes
+  int source_vertices = 0;
+  int source_triangles = 0;
+  int target_vertices = 0;
+  int target_triangles = 0;
+  double target_diagonal = 0.0;
+  // stage timings, milliseconds
+  double prepare_ms = 0.0;     // 0 when the prepared source came from a cache
+  double warp_ms = 0.0;
+  double correspond_ms = 0.0;
+  double total_ms = 0.0;
+};
+
+struct WarpResult {
+  TpsWarp landmark_warp;
+  Eigen::MatrixX3d warped_positions;   // #Vs by 3 source after the (last) warp
+  GuideModel guide;
+  TargetLocations locations;
+  WarpReport report;
+};
+
+Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, const LandmarkSet& target_landmarks,
+                           const std::string& target_label, const WarpOptions& options = {});
+
+}  // namespace core
