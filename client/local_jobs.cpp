@@ -8,8 +8,11 @@
 
 #include "core/diagnostics_json.h"
 #include "core/landmarks.h"
+#include "client/transfer_options.h"
 #include "core/mesh_io.h"
+#include "core/rig_io.h"
 #include "core/synthetic_head.h"
+#include "core/synthetic_rig.h"
 #include "core/warp_job.h"
 
 namespace client {
@@ -94,6 +97,69 @@ int runWarp(const WarpArgs& args) {
   return 0;
 }
 
+int runTransfer(const TransferArgs& args) {
+  const auto t_start = Clock::now();
+  TransferSettings settings;
+  if (!args.options.empty()) {
+    auto text = core::readFileBytes(args.options);
+    if (!text) return fail(text.error());
+    auto parsed = parseTransferOptions(std::string(text->begin(), text->end()), args.options.filename().string());
+    if (!parsed) return fail(parsed.error());
+    settings = std::move(*parsed);
+  }
+  settings.transfer.threads = args.threads;
+
+  auto t0 = Clock::now();
+  auto source = core::readRig(args.source);
+  if (!source) return fail(source.error());
+  auto source_landmarks = core::readLandmarks(args.source_landmarks);
+  if (!source_landmarks) return fail(source_landmarks.error());
+  auto target = core::readMesh(args.target);
+  if (!target) return fail(target.error());
+  auto target_landmarks = core::readLandmarks(args.target_landmarks);
+  if (!target_landmarks) return fail(target_landmarks.error());
+  const double read_ms = msSince(t0);
+  spdlog::info("read rig {} ({} vertices, {} joints, {} shapes, {} animations), target {} ({} vertices)",
+               args.source.filename().string(), source->rig.mesh.vertexCount(),
+               source->rig.skin ? source->rig.skin->joints.size() : 0, source->rig.morph_targets.size(),
+               source->rig.animations.size(), args.target.filename().string(), target->mesh.vertexCount());
+
+  core::PrepareOptions prepare_options;
+  prepare_options.threads = args.threads;
+  auto prepared = core::prepareRig(std::move(source->rig), *source_landmarks, args.source.filename().string(), prepare_options);
+  if (!prepared) return fail(prepared.error());
+  auto result = core::transferRig(*prepared, target->mesh, *target_landmarks, args.target.filename().string(),
+                                  settings.transfer);
+  if (!result) return fail(result.error());
+
+  t0 = Clock::now();
+  if (auto ok = core::writeRigGlb(result->rig, args.output, settings.write); !ok) return fail(ok.error());
+  const double write_ms = msSince(t0);
+
+  core::DiagnosticsContext context;
+  context.source_read = &source->report;
+  context.target_read = &target->report;
+  context.extra_timings_ms = {{"read", read_ms}, {"write", write_ms}};
+  context.total_ms = msSince(t_start);
+  const std::string diagnostics = core::formatTransferDiagnostics(result->report, context);
+  if (!args.diagnostics.empty()) {
+    if (auto ok = writeText(args.diagnostics, diagnostics); !ok) return fail(ok.error());
+  }
+  if (args.print_diagnostics) std::fputs(diagnostics.c_str(), stdout);
+  const auto& r = result->report;
+  spdlog::info("transfer: {} joints, {} shapes, {} animations; {} vertices inpainted, {} pruned; "
+               "landmark rms {:.3g}, correspondence p95 {:.3f}% of diagonal, {} flipped; {:.1f} ms",
+               r.joints, r.shapes, r.animations, r.inpainted_vertices, r.pruned_vertices, r.warp.landmark_rms_residual,
+               100.0 * r.warp.p95_distance / r.warp.target_diagonal, r.warp.flipped_triangles, context.total_ms);
+  if (!r.warp.suspicious_landmarks.empty()) {
+    std::string names;
+    for (const auto& n : r.warp.suspicious_landmarks) names += (names.empty() ? "" : ", ") + n;
+    spdlog::warn("suspicious landmarks (the others cannot explain them; swapped or misplaced?): {}", names);
+  }
+  spdlog::info("wrote {}{}", args.output.string(), args.diagnostics.empty() ? "" : " and " + args.diagnostics.string());
+  return 0;
+}
+
 int runGenerateHead(const GenerateHeadArgs& args) {
   core::HeadShape shape = args.seed == 0 ? core::HeadShape{} : core::randomHeadShape(args.seed, args.variation);
   shape.mouth_open = args.mouth_open;
@@ -117,10 +183,14 @@ int runDemo(const std::filesystem::path& dir, int threads) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) return fail(core::makeError(core::ErrorCode::kIo, dir.string() + ": " + ec.message()));
-  GenerateHeadArgs source;
-  source.output = dir / "source_head.glb";
-  source.landmarks = dir / "source_head.landmarks.json";
-  if (int rc = runGenerateHead(source)) return rc;
+  // The source: a generated rig (skeleton, weights, shapes, one clip).
+  const core::SyntheticRig source = core::generateRig();
+  const std::filesystem::path source_rig = dir / "source_rig.glb";
+  const std::filesystem::path source_landmarks = dir / "source_rig.landmarks.json";
+  if (auto ok = core::writeRigGlb(source.rig, source_rig); !ok) return fail(ok.error());
+  if (auto ok = writeText(source_landmarks, core::formatLandmarks(source.landmarks)); !ok) return fail(ok.error());
+  spdlog::info("wrote {} ({} vertices, {} joints, {} shapes, {} clip)", source_rig.string(), source.rig.mesh.vertexCount(),
+               source.rig.skin->joints.size(), source.rig.morph_targets.size(), source.rig.animations.size());
   // The target: another identity, another resolution and triangulation.
   GenerateHeadArgs target;
   target.output = dir / "target_head.glb";
@@ -131,18 +201,19 @@ int runDemo(const std::filesystem::path& dir, int threads) {
   target.rows = 84;
   target.alternate_diagonals = true;
   target.jitter = 0.3;
+  target.mouth_open = 0.012;
   if (int rc = runGenerateHead(target)) return rc;
 
-  WarpArgs warp;
-  warp.source = source.output;
-  warp.source_landmarks = source.landmarks;
-  warp.target = target.output;
-  warp.target_landmarks = target.landmarks;
-  warp.output = dir / "guide.glb";
-  warp.diagnostics = dir / "diagnostics.json";
-  warp.threads = threads;
-  warp.print_diagnostics = true;
-  return runWarp(warp);
+  TransferArgs transfer;
+  transfer.source = source_rig;
+  transfer.source_landmarks = source_landmarks;
+  transfer.target = target.output;
+  transfer.target_landmarks = target.landmarks;
+  transfer.output = dir / "out.glb";
+  transfer.diagnostics = dir / "diagnostics.json";
+  transfer.threads = threads;
+  transfer.print_diagnostics = true;
+  return runTransfer(transfer);
 }
 
 }  // namespace client

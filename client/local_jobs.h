@@ -18,6 +18,16 @@ struct WarpArgs {
 };
 int runWarp(const WarpArgs& args);
 
+struct TransferArgs {
+  std::filesystem::path source, source_landmarks, target, target_landmarks;
+  std::filesystem::path output;       // rigged target GLB
+  std::filesystem::path diagnostics;  // JSON; empty = none
+  std::filesystem::path options;      // transfer options JSON; empty = defaults
+  int threads = 0;
+  bool print_diagnostics = false;
+};
+int runTransfer(const TransferArgs& args);
+
 struct GenerateHeadArgs {
   std::filesystem::path output;       // GLB
   std::filesystem::path landmarks;    // landmarks JSON
@@ -31,8 +41,8 @@ struct GenerateHeadArgs {
 };
 int runGenerateHead(const GenerateHeadArgs& args);
 
-// Generates a source and a target of other proportions and topology in `dir`,
-// then runs the warp on them and prints the diagnostics.
+// Generates a source rig and a target head of other proportions and topology
+// in `dir`, transfers the rig (out.glb) and prints the diagnostics.
 int runDemo(const std::filesystem::path& dir, int threads);
 
 }  // namespace client

@@ -32,6 +32,18 @@ int main(int argc, char** argv) {
   warp_cmd->add_option("--threads", warp.threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
   warp_cmd->add_flag("--print-diagnostics", warp.print_diagnostics, "Also print the diagnostics JSON on stdout");
 
+  client::TransferArgs transfer;
+  auto* transfer_cmd = app.add_subcommand("transfer", "Transfer a rig (skin, joints, shapes, animations, attributes) to a target mesh");
+  transfer_cmd->add_option("--source", transfer.source, "Source rig (GLB/glTF)")->required()->check(CLI::ExistingFile);
+  transfer_cmd->add_option("--source-landmarks", transfer.source_landmarks, "Source landmarks JSON")->required()->check(CLI::ExistingFile);
+  transfer_cmd->add_option("--target", transfer.target, "Target mesh (GLB/glTF/OBJ/PLY)")->required()->check(CLI::ExistingFile);
+  transfer_cmd->add_option("--target-landmarks", transfer.target_landmarks, "Target landmarks JSON")->required()->check(CLI::ExistingFile);
+  transfer_cmd->add_option("-o,--output", transfer.output, "Rigged target GLB")->required();
+  transfer_cmd->add_option("--diagnostics", transfer.diagnostics, "Diagnostics JSON");
+  transfer_cmd->add_option("--options", transfer.options, "Transfer options JSON (see client/transfer_options.h)")->check(CLI::ExistingFile);
+  transfer_cmd->add_option("--threads", transfer.threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
+  transfer_cmd->add_flag("--print-diagnostics", transfer.print_diagnostics, "Also print the diagnostics JSON on stdout");
+
   client::GenerateHeadArgs head;
   auto* head_cmd = app.add_subcommand("generate-head", "Write a procedural head mesh with 68 landmarks");
   head_cmd->add_option("-o,--output", head.output, "GLB to write")->required();
@@ -47,7 +59,7 @@ int main(int argc, char** argv) {
 
   std::string demo_dir = "demo-out";
   int demo_threads = 0;
-  auto* demo_cmd = app.add_subcommand("demo", "Generate a source and a target head and run the warp on them");
+  auto* demo_cmd = app.add_subcommand("demo", "Generate a rig and a target head, transfer the rig, print diagnostics");
   demo_cmd->add_option("--out", demo_dir, "Output directory")->capture_default_str();
   demo_cmd->add_option("--threads", demo_threads, "Worker threads (0 = all cores)");
 
@@ -59,6 +71,7 @@ int main(int argc, char** argv) {
   spdlog::set_level(quiet ? spdlog::level::err : verbose ? spdlog::level::debug : spdlog::level::info);
 
   if (*warp_cmd) return client::runWarp(warp);
+  if (*transfer_cmd) return client::runTransfer(transfer);
   if (*head_cmd) return client::runGenerateHead(head);
   if (*demo_cmd) return client::runDemo(demo_dir, demo_threads);
   return 2;

@@ -1,22 +1,34 @@
 // Exact closest point on a triangle mesh.
 //
 // Point-triangle test: Ericson 2005, "Real-Time Collision Detection", 5.1.5
-// (Voronoi-region method), with a fallback to the closest of the three edges as
-// segments for degenerate or badly shaped (sliver) triangles.
+// (Voronoi regions of corners, edges and face), with a fallback to the closest
+// of the three edges as segments for degenerate and sliver triangles.
 //
-// Index: every non-degenerate triangle is covered by sample points (centroids
-// of a longest-edge bisection of the triangle), each sample s carrying a
-// covering radius h_s: every point of its piece lies within h_s of s. If the
-// closest point of triangle t lies in the piece of sample s, then
-// |q - s| <= d(q, t) + h_s, hence
-//   (1) t need only be evaluated when |q - s| - h_s <= best distance so far, and
-//   (2) the KD-tree search (nanoflann) may prune at radius best + max h_s.
-// The search is a single depth-first nanoflann traversal whose radius shrinks as
-// better triangles are found (the result set reports it through worstDist()), so
-// there is no k-NN pass and no radius doubling: filtered queries simply keep the
-// radius open until a compatible face is found. Triangles much larger than the
-// median edge would need too many samples at the fine spacing; they go to
-// coarser levels (own tree, own max h), searched after the fine level.
+// Index (built on nanoflann's KD-tree): every non-degenerate triangle is cut by
+// longest-edge bisection into pieces whose covering radius h_s (from the centre
+// of the piece's smallest enclosing ball to its farthest corner) is at most a
+// target tied to the median edge; each piece contributes one sample point s.
+// If the closest point of triangle t to q lies in the piece of s, then
+// |q - s| <= d(q, t) + h_s. Hence
+//   (1) t needs an exact test only when |q - s| - h_s <= best distance so far;
+//   (2) the tree search may prune at radius best + max h_s.
+// The query is one depth-first nanoflann traversal with a custom result set
+// whose radius (worstDist) shrinks as better triangles are found: no k-NN pass
+// and no radius doubling, and filtered queries just keep the radius open until
+// a compatible face is found, so results stay exact under filters. A face's
+// plane distance is a second cheap lower bound before the exact test.
+// Triangles far larger than the median need too many pieces; they go to
+// coarser levels (own tree, own max h), searched after the fine one.
+// Samples are floats relative to the mesh centre; every bound carries the
+// rounding slack that keeps it conservative, and exact tests use the double
+// input positions, so results equal a brute-force scan with
+// closestPointOnTriangle() (ties go to the lower face index).
+//
+// Behaviour worth knowing: without face_labels the label mask is ignored; a
+// non-finite query, a negative or NaN max_distance, or a mask allowing no
+// present label give face = -1; the query normal is used as given (unit
+// expected); faces with non-finite corners are skipped like degenerate ones.
+// Vertex coordinates must stay within float range of the mesh centre (~1e18).
 #include "core/closest_point.h"
 
 #include <algorithm>
@@ -24,12 +36,11 @@
 #include <cassert>
 #include <cmath>
 #include <cstdint>
+#include <limits>
+#include <memory>
 #include <numbers>
 #include <utility>
 #include <vector>
-#ifdef RIGPORT_CP_STATS
-#include <cstdio>
-#endif
 
 #include "core/mesh.h"
 #include "core/parallel.h"
@@ -47,7 +58,7 @@ namespace {
 using Vec3 = Eigen::Vector3d;
 
 // Plain 3-vector for the hot path: fixed-size Eigen 3-vectors compile to
-// shuffle-heavy SSE code here, and plain scalars are about twice as fast.
+// shuffle-heavy SSE code here; plain scalars take fewer instructions.
 struct P3 {
   double x, y, z;
 };
@@ -206,10 +217,6 @@ struct Sample {
 };
 static_assert(sizeof(Sample) == 20, "compact samples: more of the tree stays in cache");
 
-#ifdef RIGPORT_CP_STATS
-struct CpStats { long coords = 0, adds = 0, evals = 0, queries = 0; };
-CpStats& cpStats() { static CpStats s; return s; }
-#endif
 // nanoflann dataset adaptor over a sample array.
 // Coordinates are returned as double so that nanoflann's point distances are
 // computed in double (float inputs, exact differences).
@@ -229,10 +236,9 @@ struct SampleCloud {
 using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, SampleCloud, double, std::uint32_t>,
                                                    SampleCloud, 3, std::uint32_t>;
 
-#ifndef CP_LEAF
-#define CP_LEAF 12
-#endif
-constexpr int kLeafSize = CP_LEAF;  // nanoflann leaf_max_size
+// nanoflann leaf_max_size. Larger than the usual 10: leaf scans are cheap and
+// predictable, node visits are branchy (measured ~10% faster than 12).
+constexpr int kLeafSize = 32;
 
 float roundUpToFloat(double h) {
   float f = static_cast<float>(h);
@@ -240,9 +246,25 @@ float roundUpToFloat(double h) {
   return f;
 }
 
+// Centre of the smallest ball containing triangle (a, b, c): the midpoint of
+// the longest edge for right and obtuse triangles, else the circumcentre. Any
+// point would be correct (the covering radius is measured from it); this one
+// minimises the radius, 5-20% below the centroid's on typical pieces.
+Vec3 coveringCentre(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 e[3] = {b - a, c - b, a - c};
+  const double l[3] = {e[0].squaredNorm(), e[1].squaredNorm(), e[2].squaredNorm()};
+  const int i = (l[0] >= l[1] && l[0] >= l[2]) ? 0 : (l[1] >= l[2] ? 1 : 2);
+  const Vec3* v[3] = {&a, &b, &c};
+  if (l[i] >= l[(i + 1) % 3] + l[(i + 2) % 3]) return 0.5 * (*v[i] + *v[(i + 1) % 3]);  // angle opposite >= 90
+  const Vec3 ab = b - a, ac = c - a;
+  const Vec3 n = ab.cross(ac);
+  const Vec3 centre = a + (ac.squaredNorm() * n.cross(ab) + ab.squaredNorm() * ac.cross(n)) / (2.0 * n.squaredNorm());
+  return centre.allFinite() ? centre : (a + b + c) / 3.0;
+}
+
 // Covers triangle (a, b, c) (relative to the index origin) by longest-edge
-// bisection until every piece's covering radius (rounded centroid to farthest
-// corner) is <= h_target. Appends the samples and returns true, or returns
+// bisection until every piece's covering radius (from its rounded covering
+// centre to its farthest corner) is <= h_target. Appends the samples and returns true, or returns
 // false (appending nothing) when more than `cap` pieces would be needed.
 // `slack` (absolute) absorbs rounding in later distance computations.
 bool sampleTriangle(const Vec3& a, const Vec3& b, const Vec3& c, int face, double h_target, int cap, double slack,
@@ -252,8 +274,7 @@ bool sampleTriangle(const Vec3& a, const Vec3& b, const Vec3& c, int face, doubl
   while (!stack.empty()) {
     const std::array<Vec3, 3> t = stack.back();
     stack.pop_back();
-    const Vec3 g = (t[0] + t[1] + t[2]) / 3.0;
-    const Eigen::Vector3f gf = g.cast<float>();
+    const Eigen::Vector3f gf = coveringCentre(t[0], t[1], t[2]).cast<float>();
     const Vec3 gr = gf.cast<double>();
     const double h =
         std::sqrt(std::max({(t[0] - gr).squaredNorm(), (t[1] - gr).squaredNorm(), (t[2] - gr).squaredNorm()}));
@@ -296,15 +317,17 @@ struct ClosestPointIndex::Impl {
     std::unique_ptr<KdTree> tree;
   };
 
-  // Per-face data, indexed by the caller's face index (degenerate faces keep a slot).
+  // Indexed (non-degenerate) faces, stored in the order their first sample
+  // appears in the trees so that the faces of one leaf share cache lines.
+  // Samples refer to these slots; `id` is the caller's face index.
   struct Face {
     P3 a, b, c;
-    P3 n;  // unit normal (zero for degenerate faces)
+    P3 n;  // unit normal
+    std::int32_t id = -1;
     bool well_shaped = false;
-    bool indexed = false;
   };
   std::vector<Face> faces;
-  std::vector<std::uint8_t> labels;  // empty: no label filter; 64 = out-of-range label (never allowed)
+  std::vector<std::uint8_t> labels;  // per slot; empty: no labels given; 64 = out-of-range label (never allowed)
   std::uint64_t present_labels = 0;  // union of the indexed faces' label bits
   std::vector<std::unique_ptr<Level>> levels;  // finest first
   Vec3 origin = Vec3::Zero();                  // sample coordinates are relative to it
@@ -409,9 +432,6 @@ struct ClosestPointIndex::Impl::Search {
   }
 
   void consider(double dist_sq, const Sample& s) {
-#ifdef RIGPORT_CP_STATS
-    ++cpStats().adds;
-#endif
     const double reach = (best_d + static_cast<double>(s.h) + query_eps) * kInflate;
     if (dist_sq > reach * reach) return;  // lower bound |q - s| - h_s exceeds the best
     const auto f = static_cast<std::uint32_t>(s.face);
@@ -420,7 +440,10 @@ struct ClosestPointIndex::Impl::Search {
     }
     recent[recent_next] = s.face;
     recent_next = (recent_next + 1) % kRecent;
-    if (use_labels && ((label_mask >> impl.labels[f]) & 1u) == 0) return;  // label 64 shifts to 0 bits
+    if (use_labels) {
+      const unsigned label = impl.labels[f];
+      if (label >= 64 || ((label_mask >> label) & 1u) == 0) return;
+    }
     const Face& face = impl.faces[f];
     if (normal != nullptr && dot(face.n, *normal) < min_cos) return;
     // Distance to the face's plane: a lower bound that often rejects
@@ -430,11 +453,8 @@ struct ClosestPointIndex::Impl::Search {
       const double plane = std::abs(dot(face.n, q - face.a)) - plane_eps;
       if (plane > 0.0 && plane * plane > best_sq) return;
     }
-#ifdef RIGPORT_CP_STATS
-    ++cpStats().evals;
-#endif
     const TriHit r = closestOnTriangle(q, face.a, face.b, face.c, face.well_shaped);
-    const int fi = static_cast<int>(f);
+    const int fi = face.id;
     if (r.sq_distance < best_sq || (r.sq_distance == best_sq && (best_face < 0 || fi < best_face))) {
       best = r;
       best_face = fi;
@@ -451,9 +471,6 @@ SurfacePoint ClosestPointIndex::Impl::query(const Vec3& q, const Vec3* normal, s
   const bool use_labels = !labels.empty();
   if (use_labels && (label_mask & present_labels) == 0) return {};  // no face can pass
 
-#ifdef RIGPORT_CP_STATS
-  ++cpStats().queries;
-#endif
   Search search(*this, q);
   search.use_labels = use_labels;
   search.label_mask = label_mask;
@@ -466,13 +483,14 @@ SurfacePoint ClosestPointIndex::Impl::query(const Vec3& q, const Vec3* normal, s
     search.best_d = options.max_distance;
     search.best_sq = options.max_distance * options.max_distance;
   }
-  // The tree works in float relative to `origin`; clamping keeps far queries
-  // finite (their query_eps then simply widens the search).
+  // The tree works in float relative to `origin`. Clamping keeps nanoflann's
+  // float squares finite for absurdly far queries; their query_eps then just
+  // widens the search (still exact, only slower).
   const Vec3 qc = q - origin;
   float qf[3];
   double err2 = 0.0;
   for (int k = 0; k < 3; ++k) {
-    qf[k] = static_cast<float>(std::clamp(qc(k), -1e30, 1e30));
+    qf[k] = static_cast<float>(std::clamp(qc(k), -1e18, 1e18));
     const double e = qc(k) - static_cast<double>(qf[k]);
     err2 += e * e;
   }
@@ -504,58 +522,51 @@ ClosestPointIndex::ClosestPointIndex(const Eigen::MatrixX3d& positions, const Ei
     m.origin_max_abs = m.origin.cwiseAbs().maxCoeff();
   }
 
+  // Indexed faces in caller order first; re-slotted in tree order at the end.
   const Eigen::MatrixX3d normals = computeFaceNormals(positions, triangles);
-  m.faces.resize(nf);
+  std::vector<Impl::Face> faces;
   std::vector<double> edge_lengths;
   edge_lengths.reserve(3 * nf);
   for (Eigen::Index f = 0; f < nf; ++f) {
     const Eigen::Vector3i t = triangles.row(f);
-    Impl::Face& face = m.faces[f];
-    face.n = toP3(row(normals, f));
     if (isDegenerateTriangle(positions, t, diagonal)) continue;
+    if (!(positions.row(t(0)).allFinite() && positions.row(t(1)).allFinite() && positions.row(t(2)).allFinite())) {
+      continue;  // NaN/Inf corners: no usable geometry (validateMesh rejects these upstream)
+    }
+    Impl::Face face;
     face.a = toP3(row(positions, t(0)));
     face.b = toP3(row(positions, t(1)));
     face.c = toP3(row(positions, t(2)));
+    face.n = toP3(row(normals, f));
+    face.id = static_cast<std::int32_t>(f);
     face.well_shaped = isWellShaped(face.a, face.b, face.c);
-    face.indexed = true;
-    ++m.indexed_faces;
+    faces.push_back(face);
     const P3 e0 = face.b - face.a, e1 = face.c - face.b, e2 = face.a - face.c;
     edge_lengths.push_back(std::sqrt(dot(e0, e0)));
     edge_lengths.push_back(std::sqrt(dot(e1, e1)));
     edge_lengths.push_back(std::sqrt(dot(e2, e2)));
   }
-  if (!face_labels.empty() && static_cast<Eigen::Index>(face_labels.size()) == nf) {
-    m.labels.resize(nf);
-    for (Eigen::Index f = 0; f < nf; ++f) {
-      const int l = face_labels[f];
-      assert(l >= 0 && l < 64);
-      m.labels[f] = static_cast<std::uint8_t>(l >= 0 && l < 64 ? l : 64);
-      if (m.faces[f].indexed && l >= 0 && l < 64) m.present_labels |= std::uint64_t{1} << l;
-    }
-  }
-  if (m.indexed_faces == 0) return;
+  m.indexed_faces = static_cast<int>(faces.size());
+  if (faces.empty()) return;
 
-  // Fine spacing from the median edge: typical triangles get 2-4 samples. A
-  // triangle needing more than kCap pieces moves to the next level, whose
-  // spacing is kGrowth times coarser.
-#ifndef CP_SPACING
-#define CP_SPACING 0.5
-#endif
-  constexpr double kSpacing = CP_SPACING;
+  // Covering radius target from the median edge: most triangles get one sample
+  // (1.2 per face on the benchmark spheres), large or sliver ones a few. The
+  // value trades tree size against candidates per query (tuned on the
+  // benchmark: 0.5-1.0 are within 10%). A triangle needing more than kCap
+  // pieces moves to the next level, whose target is kGrowth times coarser.
+  constexpr double kSpacing = 0.7;
   constexpr int kCap = 64;
   constexpr double kGrowth = 4.0;
   std::nth_element(edge_lengths.begin(), edge_lengths.begin() + edge_lengths.size() / 2, edge_lengths.end());
   double h_target = kSpacing * edge_lengths[edge_lengths.size() / 2];
 
-  std::vector<int> pending;
-  for (Eigen::Index f = 0; f < nf; ++f) {
-    if (m.faces[f].indexed) pending.push_back(static_cast<int>(f));
-  }
+  std::vector<int> pending(faces.size());  // positions in `faces`
+  for (std::size_t i = 0; i < faces.size(); ++i) pending[i] = static_cast<int>(i);
   while (!pending.empty()) {
     auto level = std::make_unique<Impl::Level>();
     std::vector<int> rest;
     for (const int f : pending) {
-      const Impl::Face& face = m.faces[f];
+      const Impl::Face& face = faces[f];
       if (!sampleTriangle(toVec3(face.a) - m.origin, toVec3(face.b) - m.origin, toVec3(face.c) - m.origin, f, h_target,
                           kCap, slack, level->samples)) {
         rest.push_back(f);
@@ -576,13 +587,34 @@ ClosestPointIndex::ClosestPointIndex(const Eigen::MatrixX3d& positions, const Ei
       level->cloud.data = level->samples.data();
       for (std::size_t j = 0; j < order.size(); ++j) order[j] = static_cast<std::uint32_t>(j);
       m.tree_bytes += level->tree->usedMemory(*level->tree);
-#ifdef RIGPORT_CP_STATS
-      std::printf("level h %.4g samples %zu (faces %zu) tree bytes %zu\n", level->h_max, level->samples.size(), pending.size(), level->tree->usedMemory(*level->tree));
-#endif
       m.levels.push_back(std::move(level));
     }
     pending.swap(rest);
     h_target *= kGrowth;
+  }
+
+  // Slot faces by first appearance in the (tree-ordered) samples.
+  std::vector<std::int32_t> slot(faces.size(), -1);
+  m.faces.reserve(faces.size());
+  for (auto& level : m.levels) {
+    for (Sample& s : level->samples) {
+      if (slot[s.face] < 0) {
+        slot[s.face] = static_cast<std::int32_t>(m.faces.size());
+        m.faces.push_back(faces[s.face]);
+      }
+      s.face = slot[s.face];
+    }
+  }
+  assert(m.faces.size() == faces.size());
+  if (!face_labels.empty() && static_cast<Eigen::Index>(face_labels.size()) == nf) {
+    m.labels.resize(m.faces.size());
+    for (std::size_t i = 0; i < m.faces.size(); ++i) {
+      const int l = face_labels[m.faces[i].id];
+      assert(l >= 0 && l < 64);
+      const bool valid = l >= 0 && l < 64;
+      m.labels[i] = static_cast<std::uint8_t>(valid ? l : 64);
+      if (valid) m.present_labels |= std::uint64_t{1} << l;
+    }
   }
 }
 
@@ -634,17 +666,12 @@ std::size_t ClosestPointIndex::memoryBytes() const {
 
 int ClosestPointIndex::faceCount() const { return impl_ ? impl_->indexed_faces : 0; }
 
+// The result's face is 0 (the only triangle); the index calls the same inline
+// routine, so both give bit-identical answers for the same corners.
 SurfacePoint closestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                                     const Eigen::Vector3d& c) {
   const P3 pa = toP3(a), pb = toP3(b), pc = toP3(c);
   return toSurfacePoint(closestOnTriangle(toP3(p), pa, pb, pc, isWellShaped(pa, pb, pc)), 0);
 }
 
-#ifdef RIGPORT_CP_STATS
-void printCpStats(const char* label) {
-  auto& s = cpStats();
-  std::printf("%s: samples %.1f adds %.1f evals %.2f\n", label, s.coords / 3.0 / s.queries, double(s.adds) / s.queries, double(s.evals) / s.queries);
-  s = CpStats{};
-}
-#endif
 }  // namespace core

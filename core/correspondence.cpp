@@ -69,16 +69,30 @@ TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_
   out.distance = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::infinity());
   out.normal_cosine = Eigen::VectorXd::Constant(n, -1.0);
   out.confidence = Eigen::VectorXd::Zero(n);
+  out.mismatched = Eigen::VectorXi::Zero(n);
 
   // Smooth guide normals interpolated at the located point: a flat face normal
   // would disagree with a curved surface's vertex normal by a few degrees.
   const Eigen::MatrixX3d guide_normals = computeVertexNormals(guide_positions, source_triangles);
   const double max_distance = options.low_confidence_distance * boundingBoxDiagonal(target.positions);
+  // Mean incident edge length per target vertex (edges counted from both faces).
+  Eigen::VectorXd edge_sum = Eigen::VectorXd::Zero(n), edge_count = Eigen::VectorXd::Zero(n);
+  for (Eigen::Index f = 0; f < target.triangles.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int a = target.triangles(f, k), b = target.triangles(f, (k + 1) % 3);
+      const double len = (target.positions.row(a) - target.positions.row(b)).norm();
+      edge_sum(a) += len;
+      edge_sum(b) += len;
+      edge_count(a) += 1;
+      edge_count(b) += 1;
+    }
+  }
   const double cos_limit = std::cos(options.low_confidence_angle_deg * std::numbers::pi / 180.0);
   for (Eigen::Index v = 0; v < n; ++v) {
     const SurfacePoint& sp = out.on_source[static_cast<std::size_t>(v)];
     if (!sp.found()) {
       ++out.low_confidence;
+      out.mismatched(v) = 1;
       continue;
     }
     const double d = std::sqrt(sp.sq_distance);
@@ -90,8 +104,11 @@ TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_
     out.normal_cosine(v) = c;
     const double distance_term = max_distance > 0.0 ? std::max(0.0, 1.0 - d / max_distance) : (d == 0.0 ? 1.0 : 0.0);
     const double angle_term = cos_limit < 1.0 ? std::clamp((c - cos_limit) / (1.0 - cos_limit), 0.0, 1.0) : 1.0;
-    out.confidence(v) = distance_term * angle_term;
-    if (d > max_distance || c < cos_limit) ++out.low_confidence;
+    const double edge = edge_count(v) > 0 ? edge_sum(v) / edge_count(v) : 0.0;
+    const bool jumped = options.max_relative_distance > 0.0 && edge > 0.0 && d > options.max_relative_distance * edge;
+    out.confidence(v) = jumped ? 0.0 : distance_term * angle_term;
+    out.mismatched(v) = jumped ? 1 : 0;
+    if (d > max_distance || c < cos_limit || jumped) ++out.low_confidence;
   }
   return out;
 }

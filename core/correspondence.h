@@ -15,10 +15,11 @@ namespace core {
 
 struct ProjectionOptions {
   // Target faces whose normal differs more than this from the warped source
-  // vertex normal are not candidates. 90 keeps opposite-facing sheets apart
-  // (touching lips, closed lids: ~180 degrees) while tolerating the normal
-  // error of a rough early warp.
-  double max_normal_angle_deg = 90.0;
+  // vertex normal are not candidates. 160 only keeps opposite-facing sheets
+  // apart (touching lips: ~180 degrees); stricter values strand eyelid-margin
+  // vertices on the wrong side of the rim (measured: ICT remeshed eyeBlink E
+  // 0.63 at 90 degrees, 0.20 at 160).
+  double max_normal_angle_deg = 160.0;
   // Candidates beyond this fraction of the target bbox diagonal are ignored:
   // such a vertex stays at its warped position and counts as unmatched.
   double max_distance = 0.1;
@@ -56,6 +57,11 @@ struct LocateOptions {
   // "low confidence".
   double low_confidence_distance = 0.05;
   double low_confidence_angle_deg = 30.0;
+  // Also low confidence: farther from the guide than this many times the
+  // vertex's mean incident edge length. The guide lies on the target, so a
+  // right match is (nearly) on it; a vertex matched across a thin gap (the
+  // other lip or lid) is a gap-width away. 0 disables.
+  double max_relative_distance = 0.5;
   int threads = 0;
 };
 
@@ -65,6 +71,10 @@ struct TargetLocations {
   Eigen::VectorXd distance;             // #Vt: target vertex -> guide surface, target units
   Eigen::VectorXd normal_cosine;        // #Vt: cos(angle) target vertex normal vs guide face normal
   Eigen::VectorXd confidence;           // #Vt in [0, 1]: 1 = on the guide with agreeing normal
+  // #Vt, 1 where the location must not be used at all: no compatible guide
+  // face, or matched across a thin gap (max_relative_distance). Values there
+  // are inpainted; other low-confidence vertices keep their (sharp) values.
+  Eigen::VectorXi mismatched;
   int low_confidence = 0;               // vertices beyond a threshold (confidence 0)
 };
 

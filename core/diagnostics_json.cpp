@@ -30,9 +30,7 @@ Json readReportJson(const MeshReadReport& r) {
   return j;
 }
 
-}  // namespace
-
-std::string formatWarpDiagnostics(const WarpReport& r, const DiagnosticsContext& context) {
+Json warpJson(const WarpReport& r, const DiagnosticsContext& context) {
   Json doc;
   Json& lm = doc["landmarks"];
   lm["count"] = r.landmark_count;
@@ -65,11 +63,45 @@ std::string formatWarpDiagnostics(const WarpReport& r, const DiagnosticsContext&
   if (context.target_read) m["target_file"] = readReportJson(*context.target_read);
 
   doc["cache"] = {{"hit", context.cache_hit}};
+  return doc;
+}
 
+}  // namespace
+
+std::string formatWarpDiagnostics(const WarpReport& r, const DiagnosticsContext& context) {
+  Json doc = warpJson(r, context);
   Json& t = doc["timings_ms"];
   t["prepare"] = r.prepare_ms;
   t["warp"] = r.warp_ms;
   t["correspond"] = r.correspond_ms;
+  for (const auto& [name, ms] : context.extra_timings_ms) t[name] = ms;
+  t["total"] = context.total_ms >= 0.0 ? context.total_ms : r.total_ms;
+  return doc.dump(2) + "\n";
+}
+
+std::string formatTransferDiagnostics(const TransferReport& r, const DiagnosticsContext& context) {
+  Json doc = warpJson(r.warp, context);
+  doc["weights"] = {{"inpainted_vertices", r.inpainted_vertices},
+                    {"pruned_vertices", r.pruned_vertices},
+                    {"max_influences", r.max_influences}};
+  doc["shapes"] = {{"count", r.shapes}};
+  doc["joints"] = {{"count", r.joints}};
+  doc["animations"] = {{"count", r.animations}};
+  doc["transfer"] = {{"unlocated_vertices", r.unlocated_vertices},
+                     {"global_scale", r.global_scale},
+                     {"global_rotation_deg", r.global_rotation_deg},
+                     {"rotation_applied", r.rotation_applied},
+                     {"warnings", r.warnings}};
+  Json& t = doc["timings_ms"];
+  t["prepare"] = r.prepare_ms;
+  t["warp"] = r.warp.warp_ms;
+  t["correspond"] = r.warp.correspond_ms;
+  t["dense_map"] = r.dense_map_ms;
+  t["weights"] = r.weights_ms;
+  t["joints"] = r.joints_ms;
+  t["shapes"] = r.shapes_ms;
+  t["animations"] = r.animations_ms;
+  t["attributes"] = r.attributes_ms;
   for (const auto& [name, ms] : context.extra_timings_ms) t[name] = ms;
   t["total"] = context.total_ms >= 0.0 ? context.total_ms : r.total_ms;
   return doc.dump(2) + "\n";

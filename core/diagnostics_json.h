@@ -7,6 +7,7 @@
 #include <string>
 
 #include "core/mesh_io.h"
+#include "core/transfer.h"
 #include "core/warp_job.h"
 
 namespace core {
@@ -21,5 +22,10 @@ struct DiagnosticsContext {
 
 // Pretty-printed JSON (2-space indent), keys in a fixed order.
 std::string formatWarpDiagnostics(const WarpReport& report, const DiagnosticsContext& context = {});
+
+// The warp keys plus weights/shapes/joints/animations and the transfer stages'
+// timings (prepare, warp, correspond, dense_map, weights, joints, shapes,
+// animations, attributes, write, total), lined up with the papers' Tables 5.1-5.2.
+std::string formatTransferDiagnostics(const TransferReport& report, const DiagnosticsContext& context = {});
 
 }  // namespace core

@@ -17,23 +17,29 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <fstream>  // tinygltf uses std::ofstream even with TINYGLTF_NO_FS
 #include <limits>
 #include <map>
 #include <optional>
+#include <set>
 #include <sstream>
 #include <string>
 #include <string_view>
 #include <system_error>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
+#include <Eigen/SVD>
 #include <nlohmann/json.hpp>
 
 #include "core/mesh_io.h"
+#include "core/rig_io.h"
 
 // tinygltf 2.7 uses nlohmann::json; TINYGLTF_NO_INCLUDE_JSON makes it use the
 // one included above. No image decoding or writing (we never need pixels), no
@@ -336,6 +342,9 @@ std::pair<int, int> elementShape(int type) {
     default: return {0, 0};
   }
 }
+
+// Components of one element (16 for MAT4).
+int typeComponents(int type) { return elementShape(type).first * elementShape(type).second; }
 
 // Byte layout of one element: matrix columns start on 4-byte boundaries (spec,
 // "Data Alignment"), which only matters for 1- and 2-byte matrix components.
@@ -1027,18 +1036,841 @@ Status checkRequiredExtensions(const tinygltf::Model& model, const std::string& 
   return Ok{};
 }
 
+// The parsed file and the mesh chosen from it: the common start of readGltf
+// and readRig.
+struct ParsedGltf {
+  tinygltf::Model model;
+  MeshChoice choice;
+};
+
+Result<ParsedGltf> parseGltf(Bytes bytes, const std::string& label, bool binary,
+                             const std::optional<std::filesystem::path>& base_dir, MeshReadReport& report) {
+  report.format = binary ? MeshFormat::kGlb : MeshFormat::kGltf;
+  auto model = loadModel(bytes, label, binary, base_dir, report.warnings);
+  if (!model) return model.error();
+  if (auto ok = checkRequiredExtensions(*model, label, report.warnings); !ok) return ok.error();
+  report.meshes_in_file = static_cast<int>(model->meshes.size());
+  auto choice = chooseMesh(*model, label);
+  if (!choice) return choice.error();
+  report.chosen_mesh = choice->description;
+  return ParsedGltf{std::move(*model), std::move(*choice)};
+}
+
 Result<LoadedMesh> readGltfImpl(Bytes bytes, const std::string& label, bool binary,
                                 const std::optional<std::filesystem::path>& base_dir) {
   LoadedMesh loaded;
-  loaded.report.format = binary ? MeshFormat::kGlb : MeshFormat::kGltf;
-  auto model = loadModel(bytes, label, binary, base_dir, loaded.report.warnings);
-  if (!model) return model.error();
-  if (auto ok = checkRequiredExtensions(*model, label, loaded.report.warnings); !ok) return ok.error();
-  loaded.report.meshes_in_file = static_cast<int>(model->meshes.size());
-  auto choice = chooseMesh(*model, label);
-  if (!choice) return choice.error();
-  loaded.report.chosen_mesh = choice->description;
-  return buildMesh(*model, *choice, label, std::move(loaded));
+  auto parsed = parseGltf(bytes, label, binary, base_dir, loaded.report);
+  if (!parsed) return parsed.error();
+  return buildMesh(parsed->model, parsed->choice, label, std::move(loaded));
+}
+
+// ---------------------------------------------------------------------------
+// Rig reading: nodes, skin and weights, morph targets, animations and vertex
+// attributes of the mesh chosen above (after buildMesh has read and checked
+// its primitives).
+
+// Weight rows further than this from a sum of 1 are reported as renormalised
+// (every non-empty row is divided by its sum anyway).
+constexpr double kWeightSumTolerance = 1e-5;
+
+// Closest translation * rotation * scale to a node matrix (spec,
+// "Transformations"). `exact` is false when the matrix has shear or a
+// projective row, which TRS cannot hold.
+struct Trs {
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d scale = Eigen::Vector3d::Ones();
+  bool exact = true;
+};
+
+Trs decomposeTrs(const Eigen::Matrix4d& m) {
+  Trs trs;
+  trs.translation = m.topRightCorner<3, 1>();
+  const Eigen::Matrix3d linear = m.topLeftCorner<3, 3>();
+  for (int i = 0; i < 3; ++i) trs.scale(i) = linear.col(i).norm();
+  if (linear.determinant() < 0.0) trs.scale(0) = -trs.scale(0);  // a mirror is one negative scale
+  Eigen::Matrix3d unscaled = Eigen::Matrix3d::Zero();
+  for (int i = 0; i < 3; ++i) {
+    if (trs.scale(i) != 0.0) unscaled.col(i) = linear.col(i) / trs.scale(i);
+  }
+  // Closest rotation to the unscaled columns (polar decomposition by SVD).
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(unscaled, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d u = svd.matrixU();
+  Eigen::Matrix3d rotation = u * svd.matrixV().transpose();
+  if (rotation.determinant() < 0.0) {
+    u.col(2) = -u.col(2);
+    rotation = u * svd.matrixV().transpose();
+  }
+  trs.rotation = Eigen::Quaterniond(rotation).normalized();
+  const double tolerance = 1e-6 * std::max(1.0, linear.cwiseAbs().maxCoeff());
+  trs.exact = (rotation * trs.scale.asDiagonal() - linear).cwiseAbs().maxCoeff() <= tolerance &&
+              (m.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() <= 1e-12;
+  return trs;
+}
+
+// Every node with its parent and local TRS (a `matrix` is decomposed).
+Result<std::vector<Node>> readNodes(const tinygltf::Model& model, const std::string& label,
+                                    std::vector<std::string>& warnings) {
+  auto parents = nodeParents(model, label);
+  if (!parents) return parents.error();
+  const std::size_t n = model.nodes.size();
+  std::vector<Node> nodes(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    std::size_t steps = 0;
+    for (int p = (*parents)[i]; p != -1; p = (*parents)[static_cast<std::size_t>(p)]) {
+      if (++steps > n) return parseError(label, "the node hierarchy has a cycle through node " + std::to_string(i));
+    }
+    const tinygltf::Node& gnode = model.nodes[i];
+    auto local = localTransform(gnode, static_cast<int>(i), label);  // checks sizes and finiteness
+    if (!local) return local.error();
+    Node& node = nodes[i];
+    node.name = gnode.name;
+    node.parent = (*parents)[i];
+    if (!gnode.matrix.empty()) {
+      const Trs trs = decomposeTrs(*local);
+      node.translation = trs.translation;
+      node.rotation = trs.rotation;
+      node.scale = trs.scale;
+      if (!trs.exact) {
+        warnings.push_back("node " + std::to_string(i) + quoted(gnode.name) +
+                           " matrix has shear or a projective row; the closest translation/rotation/scale was kept");
+      }
+      continue;
+    }
+    const auto& t = gnode.translation;
+    const auto& r = gnode.rotation;
+    const auto& s = gnode.scale;
+    if (!t.empty()) node.translation = Eigen::Vector3d(t[0], t[1], t[2]);
+    if (!r.empty()) node.rotation = Eigen::Quaterniond(r[3], r[0], r[1], r[2]).normalized();
+    if (!s.empty()) node.scale = Eigen::Vector3d(s[0], s[1], s[2]);
+  }
+  return nodes;
+}
+
+std::string jointName(const tinygltf::Model& model, const std::vector<int>& joints, std::size_t j) {
+  const int node = joints[j];
+  return "joint " + std::to_string(j) + " (node " + std::to_string(node) +
+         quoted(model.nodes[static_cast<std::size_t>(node)].name) + ")";
+}
+
+Status readInverseBinds(const tinygltf::Model& model, const tinygltf::Skin& gskin, const std::string& what,
+                        const std::string& label, std::vector<std::string>& warnings, Skin& skin) {
+  const std::size_t count = skin.joints.size();
+  skin.inverse_bind.assign(count, Eigen::Matrix4d::Identity());  // spec: identity when absent
+  if (gskin.inverseBindMatrices < 0) return Ok{};
+  auto ibm = readAccessor(model, gskin.inverseBindMatrices, what + " inverseBindMatrices", label);
+  if (!ibm) return ibm.error();
+  if (ibm->components != 16) return parseError(label, what + " inverseBindMatrices accessor is not MAT4");
+  if (ibm->count < count) {
+    return parseError(label, what + " has " + std::to_string(count) + " joints but " + std::to_string(ibm->count) +
+                                 " inverse bind matrices");
+  }
+  if (ibm->count > count) {
+    warnings.push_back(what + " has " + std::to_string(ibm->count - count) +
+                       " inverse bind matrices beyond its joints");
+  }
+  for (std::size_t j = 0; j < count; ++j) {
+    Eigen::Matrix4d& m = skin.inverse_bind[j];
+    for (int c = 0; c < 4; ++c) {
+      for (int r = 0; r < 4; ++r) m(r, c) = ibm->at(j, c * 4 + r);  // column-major in the file
+    }
+    const std::string joint = what + " " + jointName(model, skin.joints, j);
+    if (!m.allFinite()) {
+      return makeError(ErrorCode::kInvalidMesh, label + ": " + joint + " inverse bind matrix is not finite");
+    }
+    if ((m.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-6) {
+      return makeError(ErrorCode::kInvalidMesh,
+                       label + ": " + joint + " inverse bind matrix bottom row is not 0 0 0 1 (not affine)");
+    }
+    m.row(3) = Eigen::RowVector4d(0, 0, 0, 1);
+  }
+  return Ok{};
+}
+
+Result<Skin> readSkin(const tinygltf::Model& model, int index, const std::string& label,
+                      std::vector<std::string>& warnings) {
+  if (index < 0 || static_cast<std::size_t>(index) >= model.skins.size()) {
+    return parseError(label, "the mesh node uses skin " + std::to_string(index) + " but the file has " +
+                                 std::to_string(model.skins.size()));
+  }
+  const tinygltf::Skin& gskin = model.skins[static_cast<std::size_t>(index)];
+  const std::string what = "skin " + std::to_string(index) + quoted(gskin.name);
+  if (gskin.joints.empty()) return parseError(label, what + " has no joints");
+  const std::size_t node_count = model.nodes.size();
+  std::vector<char> used(node_count, 0);
+  for (std::size_t j = 0; j < gskin.joints.size(); ++j) {
+    const int node = gskin.joints[j];
+    if (node < 0 || static_cast<std::size_t>(node) >= node_count) {
+      return parseError(label, what + " joint " + std::to_string(j) + " refers to node " + std::to_string(node) +
+                                   " but the file has " + std::to_string(node_count) + " nodes");
+    }
+    if (used[static_cast<std::size_t>(node)]) {
+      return parseError(label, what + " joint " + std::to_string(j) + " repeats node " + std::to_string(node));
+    }
+    used[static_cast<std::size_t>(node)] = 1;
+  }
+  if (gskin.skeleton >= 0 && static_cast<std::size_t>(gskin.skeleton) >= node_count) {
+    return parseError(label, what + " skeleton refers to node " + std::to_string(gskin.skeleton) +
+                                 " but the file has " + std::to_string(node_count) + " nodes");
+  }
+  Skin skin;
+  skin.name = gskin.name;
+  skin.joints = gskin.joints;
+  skin.skeleton = gskin.skeleton >= 0 ? gskin.skeleton : -1;
+  if (auto ok = readInverseBinds(model, gskin, what, label, warnings, skin); !ok) return ok.error();
+  return skin;
+}
+
+// Rows of the merged mesh that come from each primitive (mergePrimitives order).
+struct PrimitiveRange {
+  Eigen::Index offset = 0;
+  Eigen::Index count = 0;
+};
+
+std::vector<PrimitiveRange> primitiveRanges(const tinygltf::Model& model, const tinygltf::Mesh& gmesh) {
+  std::vector<PrimitiveRange> ranges;
+  Eigen::Index offset = 0;
+  for (const tinygltf::Primitive& primitive : gmesh.primitives) {
+    const int position = primitive.attributes.at("POSITION");  // buildMesh has read it
+    const auto count = static_cast<Eigen::Index>(model.accessors[static_cast<std::size_t>(position)].count);
+    ranges.push_back({offset, count});
+    offset += count;
+  }
+  return ranges;
+}
+
+Eigen::Index vertexTotal(const std::vector<PrimitiveRange>& ranges) {
+  return ranges.empty() ? 0 : ranges.back().offset + ranges.back().count;
+}
+
+// Accessor of attribute `name` in each primitive, or in its morph target
+// `target` (-1: the primitive's own attributes); -1 where absent.
+std::vector<int> attributeAccessors(const tinygltf::Mesh& gmesh, const std::string& name, int target = -1) {
+  std::vector<int> accessors;
+  for (const tinygltf::Primitive& primitive : gmesh.primitives) {
+    const std::map<std::string, int>& attributes =
+        target < 0 ? primitive.attributes : primitive.targets[static_cast<std::size_t>(target)];
+    const auto it = attributes.find(name);
+    accessors.push_back(it == attributes.end() ? -1 : it->second);
+  }
+  return accessors;
+}
+
+bool presentInAll(const std::vector<int>& accessors) {
+  return std::all_of(accessors.begin(), accessors.end(), [](int a) { return a >= 0; });
+}
+bool presentInAny(const std::vector<int>& accessors) {
+  return std::any_of(accessors.begin(), accessors.end(), [](int a) { return a >= 0; });
+}
+
+// One attribute of every primitive merged into a #V by `components` matrix
+// (rows of primitives without it stay zero; no rows when no primitive has it).
+// `components` 0 takes the count from the first accessor. Values must be finite.
+Result<Eigen::MatrixXd> readMergedAttribute(const tinygltf::Model& model, const std::vector<int>& accessors,
+                                            const std::vector<PrimitiveRange>& ranges, int components,
+                                            const std::string& role, const std::string& mesh_name,
+                                            const std::string& label) {
+  Eigen::MatrixXd merged;
+  for (std::size_t p = 0; p < accessors.size(); ++p) {
+    if (accessors[p] < 0) continue;
+    const std::string what = mesh_name + " primitive " + std::to_string(p) + " " + role;
+    auto values = readAccessor(model, accessors[p], role, label);
+    if (!values) return values.error();
+    if (components == 0) components = values->components;
+    if (values->components != components) {
+      return parseError(label, what + " has " + std::to_string(values->components) +
+                                   " components per element, expected " + std::to_string(components));
+    }
+    const PrimitiveRange range = ranges[p];
+    if (values->count != static_cast<std::size_t>(range.count)) {
+      return parseError(label, what + " has " + std::to_string(values->count) + " elements but POSITION has " +
+                                   std::to_string(range.count));
+    }
+    if (merged.rows() == 0) merged = Eigen::MatrixXd::Zero(vertexTotal(ranges), components);
+    for (Eigen::Index v = 0; v < range.count; ++v) {
+      for (int c = 0; c < components; ++c) {
+        const double x = values->at(static_cast<std::size_t>(v), c);
+        if (!std::isfinite(x)) {
+          return makeError(ErrorCode::kInvalidMesh,
+                           label + ": " + role + " of vertex " + std::to_string(range.offset + v) + " is not finite");
+        }
+        merged(range.offset + v, c) = x;
+      }
+    }
+  }
+  return merged;
+}
+
+bool isUnsignedSmallInt(int component_type) {
+  return component_type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ||
+         component_type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
+}
+
+// Spec ("Skins"): JOINTS_n unsigned byte/short integers, WEIGHTS_n float or
+// normalized unsigned byte/short. Call after the accessors have been read.
+Status checkInfluenceFormat(const tinygltf::Model& model, const std::vector<int>& accessors, bool joints,
+                            const std::string& role, const std::string& label) {
+  for (const int index : accessors) {
+    if (index < 0) continue;
+    const tinygltf::Accessor& a = model.accessors[static_cast<std::size_t>(index)];
+    const bool ok = joints ? isUnsignedSmallInt(a.componentType) && !a.normalized
+                           : a.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT ||
+                                 (isUnsignedSmallInt(a.componentType) && a.normalized);
+    if (!ok) {
+      return parseError(
+          label, "accessor " + std::to_string(index) + " (" + role + ") must be " +
+                     (joints ? "unsigned byte or short integers" : "float or normalized unsigned byte or short"));
+    }
+  }
+  return Ok{};
+}
+
+// JOINTS_n and WEIGHTS_n of all primitives, #V by 4 each.
+struct InfluenceSet {
+  std::string suffix;  // "0", "1", ...
+  Eigen::MatrixXd joints;
+  Eigen::MatrixXd weights;
+};
+
+Result<std::vector<InfluenceSet>> readInfluenceSets(const tinygltf::Model& model, const tinygltf::Mesh& gmesh,
+                                                    const std::vector<PrimitiveRange>& ranges,
+                                                    const std::string& mesh_name, const std::string& label) {
+  std::vector<InfluenceSet> sets;
+  for (int n = 0;; ++n) {
+    InfluenceSet set{std::to_string(n), {}, {}};
+    const std::string joints_name = "JOINTS_" + set.suffix;
+    const std::string weights_name = "WEIGHTS_" + set.suffix;
+    const std::vector<int> joints = attributeAccessors(gmesh, joints_name);
+    const std::vector<int> weights = attributeAccessors(gmesh, weights_name);
+    if (!presentInAny(joints) && !presentInAny(weights)) break;
+    for (std::size_t p = 0; p < joints.size(); ++p) {
+      if ((joints[p] < 0) != (weights[p] < 0)) {
+        return parseError(label, mesh_name + " primitive " + std::to_string(p) + " has only one of " + joints_name +
+                                     " and " + weights_name);
+      }
+    }
+    auto j = readMergedAttribute(model, joints, ranges, 4, joints_name, mesh_name, label);
+    if (!j) return j.error();
+    auto w = readMergedAttribute(model, weights, ranges, 4, weights_name, mesh_name, label);
+    if (!w) return w.error();
+    if (auto ok = checkInfluenceFormat(model, joints, true, joints_name, label); !ok) return ok.error();
+    if (auto ok = checkInfluenceFormat(model, weights, false, weights_name, label); !ok) return ok.error();
+    set.joints = std::move(*j);
+    set.weights = std::move(*w);
+    sets.push_back(std::move(set));
+  }
+  return sets;
+}
+
+// Skin weights (#V by #joints) from every JOINTS_n/WEIGHTS_n set: zero weights
+// dropped, a joint repeated within a vertex summed, rows normalised.
+Result<SkinWeights> readSkinWeights(const tinygltf::Model& model, const tinygltf::Mesh& gmesh,
+                                    const std::vector<PrimitiveRange>& ranges, std::size_t joint_count,
+                                    const std::string& mesh_name, const std::string& label,
+                                    std::vector<std::string>& warnings) {
+  auto sets = readInfluenceSets(model, gmesh, ranges, mesh_name, label);
+  if (!sets) return sets.error();
+  const Eigen::Index nv = vertexTotal(ranges);
+  std::vector<Eigen::Triplet<double>> triplets;
+  std::vector<std::pair<int, double>> row;
+  int renormalised = 0;
+  int empty = 0;
+  auto vertexError = [&](Eigen::Index v, const std::string& what) {
+    return makeError(ErrorCode::kInvalidMesh, label + ": vertex " + std::to_string(v) + " " + what);
+  };
+  for (Eigen::Index v = 0; v < nv; ++v) {
+    row.clear();
+    for (const InfluenceSet& set : *sets) {
+      for (int c = 0; c < 4; ++c) {
+        const double w = set.weights(v, c);
+        const double joint = set.joints(v, c);
+        if (w < 0.0) return vertexError(v, "has the negative weight " + std::to_string(w) + " in WEIGHTS_" + set.suffix);
+        if (w == 0.0) continue;
+        if (joint >= static_cast<double>(joint_count)) {
+          return vertexError(v, "uses joint " + std::to_string(static_cast<long long>(joint)) + " in JOINTS_" +
+                                    set.suffix + " but the skin has " + std::to_string(joint_count) + " joints");
+        }
+        row.emplace_back(static_cast<int>(joint), w);
+      }
+    }
+    std::sort(row.begin(), row.end());
+    double sum = 0.0;
+    for (const auto& entry : row) sum += entry.second;
+    if (row.empty()) {
+      ++empty;
+      continue;
+    }
+    if (std::abs(sum - 1.0) > kWeightSumTolerance) ++renormalised;
+    for (std::size_t i = 0; i < row.size(); ++i) {
+      double w = row[i].second;
+      while (i + 1 < row.size() && row[i + 1].first == row[i].first) w += row[++i].second;  // repeated joint
+      triplets.emplace_back(static_cast<int>(v), row[i].first, w / sum);
+    }
+  }
+  if (renormalised > 0) {
+    warnings.push_back(std::to_string(renormalised) + " vertices had skin weights not summing to 1; renormalised");
+  }
+  if (empty > 0) {
+    warnings.push_back(std::to_string(empty) + " vertices of the skinned mesh have no skin weight (left empty)");
+  }
+  SkinWeights weights(nv, static_cast<Eigen::Index>(joint_count));
+  weights.setFromTriplets(triplets.begin(), triplets.end());
+  weights.makeCompressed();
+  return weights;
+}
+
+// mesh.extras.targetNames when it is a list of `count` strings, else target_<i>.
+std::vector<std::string> targetNames(const tinygltf::Mesh& gmesh, std::size_t count, const std::string& mesh_name,
+                                     std::vector<std::string>& warnings) {
+  std::vector<std::string> names(count);
+  for (std::size_t i = 0; i < count; ++i) names[i] = "target_" + std::to_string(i);
+  if (!gmesh.extras.IsObject() || !gmesh.extras.Has("targetNames")) return names;
+  const tinygltf::Value& list = gmesh.extras.Get("targetNames");
+  bool usable = list.IsArray() && list.ArrayLen() == count;
+  for (std::size_t i = 0; usable && i < count; ++i) usable = list.Get(static_cast<int>(i)).IsString();
+  if (!usable) {
+    warnings.push_back(mesh_name + " extras.targetNames is not a list of " + std::to_string(count) +
+                       " strings; targets named target_<i>");
+    return names;
+  }
+  for (std::size_t i = 0; i < count; ++i) names[i] = list.Get(static_cast<int>(i)).Get<std::string>();
+  return names;
+}
+
+// Morph targets merged across primitives (POSITION and NORMAL deltas).
+Result<std::vector<MorphTarget>> readMorphTargets(const tinygltf::Model& model, const tinygltf::Mesh& gmesh,
+                                                  const std::vector<PrimitiveRange>& ranges,
+                                                  const std::string& mesh_name, const std::string& label,
+                                                  std::vector<std::string>& warnings) {
+  const std::size_t count = gmesh.primitives.front().targets.size();
+  for (std::size_t p = 1; p < gmesh.primitives.size(); ++p) {
+    if (gmesh.primitives[p].targets.size() != count) {
+      return makeError(ErrorCode::kUnsupported, label + ": " + mesh_name + " primitive " + std::to_string(p) + " has " +
+                                                    std::to_string(gmesh.primitives[p].targets.size()) +
+                                                    " morph targets but primitive 0 has " + std::to_string(count));
+    }
+  }
+  const std::vector<std::string> names = targetNames(gmesh, count, mesh_name, warnings);
+  std::set<std::string> ignored;
+  std::vector<MorphTarget> targets(count);
+  for (std::size_t t = 0; t < count; ++t) {
+    const int ti = static_cast<int>(t);
+    const std::string role = "morph target " + std::to_string(t);
+    auto positions = readMergedAttribute(model, attributeAccessors(gmesh, "POSITION", ti), ranges, 3,
+                                         role + " POSITION", mesh_name, label);
+    if (!positions) return positions.error();
+    auto normals = readMergedAttribute(model, attributeAccessors(gmesh, "NORMAL", ti), ranges, 3, role + " NORMAL",
+                                       mesh_name, label);
+    if (!normals) return normals.error();
+    MorphTarget& target = targets[t];
+    target.name = names[t];
+    if (positions->rows() > 0) {
+      target.position_deltas = *positions;
+    } else {
+      target.position_deltas = Eigen::MatrixX3d::Zero(vertexTotal(ranges), 3);  // NORMAL-only target
+    }
+    if (normals->rows() > 0) target.normal_deltas = *normals;  // else 0 rows: no NORMAL deltas
+    for (const tinygltf::Primitive& primitive : gmesh.primitives) {
+      for (const auto& [name, accessor] : primitive.targets[t]) {
+        if (name != "POSITION" && name != "NORMAL") ignored.insert(name);
+      }
+    }
+  }
+  for (const std::string& name : ignored) warnings.push_back("morph target " + name + " deltas ignored");
+  return targets;
+}
+
+// An unskinned mesh is read in world space (placeMesh), so are its deltas:
+// positions by the linear part, normals by its inverse transpose.
+void transformMorphTargets(const Eigen::Matrix4d& world, std::vector<MorphTarget>& targets) {
+  if (world.isIdentity(0.0)) return;
+  const Eigen::Matrix3d linear = world.topLeftCorner<3, 3>();
+  const Eigen::Matrix3d normal_matrix = linear.inverse().transpose();
+  for (MorphTarget& target : targets) {
+    target.position_deltas = (target.position_deltas * linear.transpose()).eval();
+    if (target.normal_deltas.rows() > 0) {
+      target.normal_deltas = (target.normal_deltas * normal_matrix.transpose()).eval();
+    }
+  }
+}
+
+// node.weights (which override mesh.weights, spec "Morph Targets"), else
+// mesh.weights, else zeros.
+Eigen::VectorXd defaultMorphWeights(const tinygltf::Mesh& gmesh, const tinygltf::Node* node, std::size_t count,
+                                    const std::string& mesh_name, std::vector<std::string>& warnings) {
+  Eigen::VectorXd weights = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(count));
+  const std::vector<double>& source = node && !node->weights.empty() ? node->weights : gmesh.weights;
+  if (source.empty()) return weights;
+  const bool finite = std::all_of(source.begin(), source.end(), [](double w) { return std::isfinite(w); });
+  if (source.size() != count || !finite) {
+    warnings.push_back(mesh_name + " default morph weights are not " + std::to_string(count) +
+                       " finite numbers; zeros used");
+    return weights;
+  }
+  for (std::size_t i = 0; i < count; ++i) weights(static_cast<Eigen::Index>(i)) = source[i];
+  return weights;
+}
+
+std::optional<AnimationPath> animationPath(const std::string& path) {
+  if (path == "translation") return AnimationPath::kTranslation;
+  if (path == "rotation") return AnimationPath::kRotation;
+  if (path == "scale") return AnimationPath::kScale;
+  if (path == "weights") return AnimationPath::kWeights;
+  return std::nullopt;
+}
+
+std::optional<Interpolation> interpolation(const std::string& name) {
+  if (name == "LINEAR" || name.empty()) return Interpolation::kLinear;
+  if (name == "STEP") return Interpolation::kStep;
+  if (name == "CUBICSPLINE") return Interpolation::kCubicSpline;
+  return std::nullopt;
+}
+
+Result<Eigen::VectorXd> readKeyTimes(const tinygltf::Model& model, int accessor, const std::string& what,
+                                     const std::string& label) {
+  auto input = readAccessor(model, accessor, what + " input", label);
+  if (!input) return input.error();
+  if (input->components != 1 || input->count == 0) {
+    return parseError(label, what + " input must be a non-empty SCALAR accessor");
+  }
+  Eigen::VectorXd times(static_cast<Eigen::Index>(input->count));
+  for (std::size_t k = 0; k < input->count; ++k) {
+    const double t = input->values[k];
+    if (!std::isfinite(t)) return parseError(label, what + " key time " + std::to_string(k) + " is not finite");
+    if (k > 0 && !(t > input->values[k - 1])) {
+      return parseError(label, what + " key times do not increase at key " + std::to_string(k));
+    }
+    times(static_cast<Eigen::Index>(k)) = t;
+  }
+  return times;
+}
+
+// Rotation keys as unit quaternions, like node rotations (cubic spline
+// tangents stay as they are).
+Result<AnimationChannel> normalizeRotationKeys(AnimationChannel channel, const std::string& what,
+                                               const std::string& label) {
+  const bool cubic = channel.interpolation == Interpolation::kCubicSpline;
+  for (Eigen::Index r = cubic ? 1 : 0; r < channel.values.rows(); r += cubic ? 3 : 1) {
+    const double norm = channel.values.row(r).norm();
+    if (!(norm > 0.0)) return parseError(label, what + " rotation key " + std::to_string(r) + " is a zero quaternion");
+    channel.values.row(r) /= norm;
+  }
+  return channel;
+}
+
+// One channel: key times and #K (x3 for cubic spline) by `columns` values.
+Result<AnimationChannel> readChannel(const tinygltf::Model& model, const tinygltf::Animation& ganim,
+                                     const tinygltf::AnimationChannel& gchannel, AnimationPath path, int columns,
+                                     const std::string& what, const std::string& label) {
+  if (gchannel.sampler < 0 || static_cast<std::size_t>(gchannel.sampler) >= ganim.samplers.size()) {
+    return parseError(label, what + " refers to sampler " + std::to_string(gchannel.sampler) +
+                                 " but the animation has " + std::to_string(ganim.samplers.size()));
+  }
+  const tinygltf::AnimationSampler& sampler = ganim.samplers[static_cast<std::size_t>(gchannel.sampler)];
+  const auto mode = interpolation(sampler.interpolation);
+  if (!mode) return parseError(label, what + " has unknown interpolation '" + sampler.interpolation + "'");
+  AnimationChannel channel;
+  channel.node = gchannel.target_node;
+  channel.path = path;
+  channel.interpolation = *mode;
+  auto times = readKeyTimes(model, sampler.input, what, label);
+  if (!times) return times.error();
+  channel.times = std::move(*times);
+
+  auto output = readAccessor(model, sampler.output, what + " output", label);
+  if (!output) return output.error();
+  const auto rows = static_cast<std::size_t>(channel.times.size()) * (*mode == Interpolation::kCubicSpline ? 3 : 1);
+  const int element_components = path == AnimationPath::kWeights ? 1 : columns;
+  const std::size_t expected = path == AnimationPath::kWeights ? rows * static_cast<std::size_t>(columns) : rows;
+  if (output->components != element_components || output->count != expected) {
+    return parseError(label, what + " output has " + std::to_string(output->count) + " elements of " +
+                                 std::to_string(output->components) + " components; expected " +
+                                 std::to_string(expected) + " of " + std::to_string(element_components));
+  }
+  channel.values.resize(static_cast<Eigen::Index>(rows), columns);
+  for (std::size_t r = 0; r < rows; ++r) {
+    for (int c = 0; c < columns; ++c) {
+      // Row-major either way: element r of `columns` components, or `columns` scalars per row.
+      const double x = output->values[r * static_cast<std::size_t>(columns) + static_cast<std::size_t>(c)];
+      if (!std::isfinite(x)) return parseError(label, what + " output value " + std::to_string(r) + " is not finite");
+      channel.values(static_cast<Eigen::Index>(r), c) = x;
+    }
+  }
+  if (path == AnimationPath::kRotation) return normalizeRotationKeys(std::move(channel), what, label);
+  return channel;
+}
+
+// Every usable channel of every animation. Weight channels must target the
+// mesh node (columns = its morph targets); others are skipped with a warning.
+Result<std::vector<Animation>> readAnimations(const tinygltf::Model& model, int mesh_node, int target_count,
+                                              const std::string& label, std::vector<std::string>& warnings) {
+  std::vector<Animation> animations;
+  for (std::size_t a = 0; a < model.animations.size(); ++a) {
+    const tinygltf::Animation& ganim = model.animations[a];
+    const std::string name = "animation " + std::to_string(a) + quoted(ganim.name);
+    Animation animation;
+    animation.name = ganim.name;
+    for (std::size_t c = 0; c < ganim.channels.size(); ++c) {
+      const tinygltf::AnimationChannel& gchannel = ganim.channels[c];
+      const std::string what = name + " channel " + std::to_string(c);
+      const int node = gchannel.target_node;
+      if (node < 0) {
+        warnings.push_back(what + " has no target node; skipped");
+        continue;
+      }
+      if (static_cast<std::size_t>(node) >= model.nodes.size()) {
+        return parseError(label, what + " targets node " + std::to_string(node) + " but the file has " +
+                                     std::to_string(model.nodes.size()) + " nodes");
+      }
+      const auto path = animationPath(gchannel.target_path);
+      if (!path) {
+        warnings.push_back(what + " animates '" + gchannel.target_path + "', which a rig does not carry; skipped");
+        continue;
+      }
+      if (*path == AnimationPath::kWeights && node != mesh_node) {
+        warnings.push_back(what + " animates the morph weights of node " + std::to_string(node) +
+                           ", not of the rig's mesh; skipped");
+        continue;
+      }
+      if (*path == AnimationPath::kWeights && target_count == 0) {
+        return parseError(label, what + " animates morph weights but the mesh has no morph targets");
+      }
+      const int columns = *path == AnimationPath::kRotation ? 4 : *path == AnimationPath::kWeights ? target_count : 3;
+      auto channel = readChannel(model, ganim, gchannel, *path, columns, what, label);
+      if (!channel) return channel.error();
+      animation.channels.push_back(std::move(*channel));
+    }
+    if (animation.channels.empty()) {
+      warnings.push_back(name + " has no usable channel; dropped");
+      continue;
+    }
+    animations.push_back(std::move(animation));
+  }
+  return animations;
+}
+
+// TEXCOORD_1.. as far as every primitive has them.
+Result<std::vector<Eigen::MatrixX2d>> readExtraUvSets(const tinygltf::Model& model, const tinygltf::Mesh& gmesh,
+                                                      const std::vector<PrimitiveRange>& ranges,
+                                                      const std::string& mesh_name, const std::string& label,
+                                                      std::vector<std::string>& warnings) {
+  std::vector<Eigen::MatrixX2d> sets;
+  for (int k = 1;; ++k) {
+    const std::string name = "TEXCOORD_" + std::to_string(k);
+    const std::vector<int> accessors = attributeAccessors(gmesh, name);
+    if (!presentInAny(accessors)) break;
+    if (!presentInAll(accessors)) {
+      warnings.push_back(name + " is missing on some primitives of " + mesh_name + "; it and later sets dropped");
+      break;
+    }
+    auto uvs = readMergedAttribute(model, accessors, ranges, 2, name, mesh_name, label);
+    if (!uvs) return uvs.error();
+    sets.emplace_back(std::move(*uvs));
+  }
+  return sets;
+}
+
+// COLOR_0 as RGBA (VEC3 gets alpha 1); 0 rows when absent.
+Result<Eigen::MatrixX4d> readColors(const tinygltf::Model& model, const tinygltf::Mesh& gmesh,
+                                    const std::vector<PrimitiveRange>& ranges, const std::string& mesh_name,
+                                    const std::string& label, std::vector<std::string>& warnings) {
+  const std::vector<int> accessors = attributeAccessors(gmesh, "COLOR_0");
+  if (!presentInAny(accessors)) return Eigen::MatrixX4d();
+  if (!presentInAll(accessors)) {
+    warnings.push_back("COLOR_0 is missing on some primitives of " + mesh_name + "; colours dropped");
+    return Eigen::MatrixX4d();
+  }
+  auto colors = readMergedAttribute(model, accessors, ranges, 0, "COLOR_0", mesh_name, label);
+  if (!colors) return colors.error();
+  if (colors->cols() != 3 && colors->cols() != 4) return parseError(label, "COLOR_0 must be VEC3 or VEC4");
+  Eigen::MatrixX4d rgba = Eigen::MatrixX4d::Ones(colors->rows(), 4);
+  rgba.leftCols(colors->cols()) = *colors;
+  return rgba;
+}
+
+// Custom attribute "_NAME": unnormalised integer SCALAR -> labels["NAME"],
+// float or normalized SCALAR..VEC4 -> fields["NAME"]; anything else warned.
+Status readCustomAttribute(const tinygltf::Model& model, const tinygltf::Mesh& gmesh,
+                           const std::vector<PrimitiveRange>& ranges, const std::string& name,
+                           const std::string& mesh_name, const std::string& label, VertexAttributes& out,
+                           std::vector<std::string>& warnings) {
+  const std::vector<int> accessors = attributeAccessors(gmesh, name);
+  if (!presentInAll(accessors)) {
+    warnings.push_back(name + " is missing on some primitives of " + mesh_name + "; dropped");
+    return Ok{};
+  }
+  auto values = readMergedAttribute(model, accessors, ranges, 0, name, mesh_name, label);
+  if (!values) return values.error();
+  // 1: label (unnormalised integer SCALAR), 2: field (float or normalized SCALAR..VEC4), 0: neither.
+  auto kind = [&](int index) {
+    const tinygltf::Accessor& a = model.accessors[static_cast<std::size_t>(index)];
+    const bool is_float = a.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT || a.normalized;
+    const bool is_vector =
+        a.type == TINYGLTF_TYPE_SCALAR || (a.type >= TINYGLTF_TYPE_VEC2 && a.type <= TINYGLTF_TYPE_VEC4);
+    if (!is_float) return a.type == TINYGLTF_TYPE_SCALAR ? 1 : 0;
+    return is_vector ? 2 : 0;
+  };
+  const int first = kind(accessors.front());
+  const bool same = std::all_of(accessors.begin(), accessors.end(), [&](int a) { return kind(a) == first; });
+  const std::string key = name.substr(1);
+  if (first == 0 || !same) {
+    warnings.push_back(name + " is neither an integer SCALAR nor a float SCALAR..VEC4 on every primitive; dropped");
+    return Ok{};
+  }
+  if (first == 2) {
+    out.fields[key] = std::move(*values);
+    return Ok{};
+  }
+  const bool fits_int = values->rows() == 0 || (values->maxCoeff() <= std::numeric_limits<int>::max() &&
+                                                 values->minCoeff() >= std::numeric_limits<int>::min());
+  if (!fits_int) {
+    warnings.push_back(name + " has values beyond the int range; dropped");
+    return Ok{};
+  }
+  out.labels[key] = values->col(0).cast<int>();
+  return Ok{};
+}
+
+bool isInfluenceOrBaseAttribute(const std::string& name) {
+  return name == "POSITION" || name == "NORMAL" || name.rfind("TEXCOORD_", 0) == 0 || name.rfind("JOINTS_", 0) == 0 ||
+         name.rfind("WEIGHTS_", 0) == 0 || name == "COLOR_0";
+}
+
+Result<VertexAttributes> readVertexAttributes(const tinygltf::Model& model, const tinygltf::Mesh& gmesh,
+                                              const std::vector<PrimitiveRange>& ranges, const std::string& mesh_name,
+                                              const std::string& label, std::vector<std::string>& warnings) {
+  VertexAttributes out;
+  auto uv_sets = readExtraUvSets(model, gmesh, ranges, mesh_name, label, warnings);
+  if (!uv_sets) return uv_sets.error();
+  out.extra_uv_sets = std::move(*uv_sets);
+  auto colors = readColors(model, gmesh, ranges, mesh_name, label, warnings);
+  if (!colors) return colors.error();
+  out.colors = std::move(*colors);
+  std::set<std::string> names;
+  for (const tinygltf::Primitive& primitive : gmesh.primitives) {
+    for (const auto& [name, accessor] : primitive.attributes) names.insert(name);
+  }
+  for (const std::string& name : names) {
+    if (isInfluenceOrBaseAttribute(name)) continue;
+    if (name.size() > 1 && name.front() == '_') {
+      if (auto ok = readCustomAttribute(model, gmesh, ranges, name, mesh_name, label, out, warnings); !ok) {
+        return ok.error();
+      }
+      continue;
+    }
+    warnings.push_back("attribute " + name + " of " + mesh_name + " is not carried by rigs; ignored");
+  }
+  return out;
+}
+
+// Skin and weights of a skinned mesh node (JOINTS/WEIGHTS of an unskinned
+// mesh are ignored with a warning).
+Status readSkinning(const tinygltf::Model& model, const MeshChoice& choice, const std::vector<PrimitiveRange>& ranges,
+                    const std::string& mesh_name, const std::string& label, Rig& rig,
+                    std::vector<std::string>& warnings) {
+  const tinygltf::Mesh& gmesh = model.meshes[static_cast<std::size_t>(choice.mesh)];
+  if (!choice.skinned) {
+    if (presentInAny(attributeAccessors(gmesh, "JOINTS_0"))) {
+      warnings.push_back("JOINTS/WEIGHTS of " + mesh_name + " ignored: no node uses it with a skin");
+    }
+    return Ok{};
+  }
+  auto skin = readSkin(model, model.nodes[static_cast<std::size_t>(choice.node)].skin, label, warnings);
+  if (!skin) return skin.error();
+  auto weights = readSkinWeights(model, gmesh, ranges, skin->joints.size(), mesh_name, label, warnings);
+  if (!weights) return weights.error();
+  rig.skin = std::move(*skin);
+  rig.weights = std::move(*weights);
+  return Ok{};
+}
+
+Status readMorphing(const tinygltf::Model& model, const MeshChoice& choice, const std::vector<PrimitiveRange>& ranges,
+                    const std::string& mesh_name, const std::string& label, Rig& rig,
+                    std::vector<std::string>& warnings) {
+  const tinygltf::Mesh& gmesh = model.meshes[static_cast<std::size_t>(choice.mesh)];
+  auto targets = readMorphTargets(model, gmesh, ranges, mesh_name, label, warnings);
+  if (!targets) return targets.error();
+  rig.morph_targets = std::move(*targets);
+  if (!choice.skinned && choice.node >= 0) {
+    auto world = worldTransform(model, choice.node, label);
+    if (!world) return world.error();
+    transformMorphTargets(*world, rig.morph_targets);
+  }
+  const tinygltf::Node* node = choice.node >= 0 ? &model.nodes[static_cast<std::size_t>(choice.node)] : nullptr;
+  rig.morph_default_weights = defaultMorphWeights(gmesh, node, rig.morph_targets.size(), mesh_name, warnings);
+  return Ok{};
+}
+
+// A rig is dense in memory (#targets x #V x 3 morph deltas, all key values),
+// and accessors without a bufferView are zeros that cost no file bytes, so a
+// small file could claim far more than any face rig. Checked before reading.
+constexpr std::size_t kMaxRigValues = std::size_t{1} << 27;  // 1 GiB of doubles
+
+std::size_t accessorValueCount(const tinygltf::Model& model, int index) {
+  if (index < 0 || static_cast<std::size_t>(index) >= model.accessors.size()) return 0;  // reported when read
+  const tinygltf::Accessor& a = model.accessors[static_cast<std::size_t>(index)];
+  const auto components = static_cast<std::size_t>(typeComponents(a.type));
+  return a.count > kMaxRigValues ? kMaxRigValues + 1 : a.count * components;
+}
+
+Status checkRigSize(const tinygltf::Model& model, const tinygltf::Mesh& gmesh, Eigen::Index vertex_count,
+                    const std::string& label) {
+  std::size_t total = 0;
+  auto add = [&](std::size_t n) { total = std::min(total + std::min(n, kMaxRigValues + 1), kMaxRigValues + 1); };
+  const std::size_t targets = gmesh.primitives.front().targets.size();
+  for (std::size_t t = 0; t < targets; ++t) add(static_cast<std::size_t>(vertex_count) * 6);  // positions, normals
+  for (const tinygltf::Animation& animation : model.animations) {
+    for (const tinygltf::AnimationChannel& channel : animation.channels) {
+      if (channel.sampler < 0 || static_cast<std::size_t>(channel.sampler) >= animation.samplers.size()) continue;
+      const tinygltf::AnimationSampler& sampler = animation.samplers[static_cast<std::size_t>(channel.sampler)];
+      add(accessorValueCount(model, sampler.input));
+      add(accessorValueCount(model, sampler.output));
+    }
+  }
+  if (total > kMaxRigValues) {
+    return makeError(ErrorCode::kUnsupported, label + ": the morph targets and animations would need more than " +
+                                                  std::to_string(kMaxRigValues) + " values in memory");
+  }
+  return Ok{};
+}
+
+// Everything beyond the mesh itself (buildMesh has read and placed that).
+Status readRigParts(const tinygltf::Model& model, const MeshChoice& choice, const std::string& label, Rig& rig,
+                    std::vector<std::string>& warnings) {
+  const tinygltf::Mesh& gmesh = model.meshes[static_cast<std::size_t>(choice.mesh)];
+  const std::string mesh_name = "mesh " + std::to_string(choice.mesh);
+  const std::vector<PrimitiveRange> ranges = primitiveRanges(model, gmesh);
+  if (auto ok = checkRigSize(model, gmesh, vertexTotal(ranges), label); !ok) return ok.error();
+  rig.mesh_name = gmesh.name;
+  rig.mesh_node = choice.node;
+  auto nodes = readNodes(model, label, warnings);
+  if (!nodes) return nodes.error();
+  rig.nodes = std::move(*nodes);
+  if (auto ok = readSkinning(model, choice, ranges, mesh_name, label, rig, warnings); !ok) return ok.error();
+  if (auto ok = readMorphing(model, choice, ranges, mesh_name, label, rig, warnings); !ok) return ok.error();
+  auto animations = readAnimations(model, choice.node, static_cast<int>(rig.morph_targets.size()), label, warnings);
+  if (!animations) return animations.error();
+  rig.animations = std::move(*animations);
+  auto attributes = readVertexAttributes(model, gmesh, ranges, mesh_name, label, warnings);
+  if (!attributes) return attributes.error();
+  rig.attributes = std::move(*attributes);
+  return Ok{};
+}
+
+Result<LoadedRig> readRigImpl(Bytes bytes, const std::string& label, bool binary,
+                              const std::optional<std::filesystem::path>& base_dir) {
+  LoadedMesh loaded_mesh;
+  auto parsed = parseGltf(bytes, label, binary, base_dir, loaded_mesh.report);
+  if (!parsed) return parsed.error();
+  auto mesh = buildMesh(parsed->model, parsed->choice, label, std::move(loaded_mesh));
+  if (!mesh) return mesh.error();
+  LoadedRig loaded;
+  loaded.rig.mesh = std::move(mesh->mesh);
+  loaded.report = std::move(mesh->report);
+  if (auto ok = readRigParts(parsed->model, parsed->choice, label, loaded.rig, loaded.report.warnings); !ok) {
+    return ok.error();
+  }
+  return loaded;
 }
 
 // ---------------------------------------------------------------------------
@@ -1084,34 +1916,49 @@ int addAccessor(tinygltf::Model& model, int buffer_view, int component_type, int
   return static_cast<int>(model.accessors.size()) - 1;
 }
 
+// Per-component min and max of `values` (count * components floats).
+std::pair<std::vector<double>, std::vector<double>> floatBounds(const std::vector<float>& values, int components) {
+  const auto n = static_cast<std::size_t>(components);
+  std::vector<double> min(n, std::numeric_limits<double>::infinity());
+  std::vector<double> max(n, -std::numeric_limits<double>::infinity());
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    min[i % n] = std::min(min[i % n], static_cast<double>(values[i]));
+    max[i % n] = std::max(max[i % n], static_cast<double>(values[i]));
+  }
+  return {min, max};
+}
+
 // Float accessor from `values` (count * components floats, row-major). With
 // `bounds`, min/max are set from the float values themselves, as the spec
 // requires for POSITION (and the validator checks exactly).
 int addFloatAccessor(tinygltf::Model& model, const std::vector<float>& values, int type, int target, bool bounds) {
-  const int components = elementShape(type).first * elementShape(type).second;
+  const int components = typeComponents(type);
   const std::size_t count = values.size() / static_cast<std::size_t>(components);
   std::vector<double> min;
   std::vector<double> max;
-  if (bounds && count > 0) {
-    min.assign(static_cast<std::size_t>(components), std::numeric_limits<double>::infinity());
-    max.assign(static_cast<std::size_t>(components), -std::numeric_limits<double>::infinity());
-    for (std::size_t i = 0; i < values.size(); ++i) {
-      const std::size_t c = i % static_cast<std::size_t>(components);
-      min[c] = std::min(min[c], static_cast<double>(values[i]));
-      max[c] = std::max(max[c], static_cast<double>(values[i]));
-    }
-  }
+  if (bounds && count > 0) std::tie(min, max) = floatBounds(values, components);
   const int view = addBufferView(model, asBytes(values), target);
   return addAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, type, count, std::move(min), std::move(max));
 }
 
-template <int Cols>
-std::vector<float> toFloats(const Eigen::Matrix<double, Eigen::Dynamic, Cols>& m) {
-  std::vector<float> out(static_cast<std::size_t>(m.rows()) * Cols);
+// Row-major float copy of a matrix.
+template <typename Derived>
+std::vector<float> toFloats(const Eigen::MatrixBase<Derived>& m) {
+  std::vector<float> out(static_cast<std::size_t>(m.rows() * m.cols()));
   for (Eigen::Index r = 0; r < m.rows(); ++r) {
-    for (int c = 0; c < Cols; ++c) out[static_cast<std::size_t>(r) * Cols + c] = static_cast<float>(m(r, c));
+    for (Eigen::Index c = 0; c < m.cols(); ++c) {
+      out[static_cast<std::size_t>(r * m.cols() + c)] = static_cast<float>(m(r, c));
+    }
   }
   return out;
+}
+
+// Index of the first value that is not finite (a finite double can still
+// overflow float32), or nullopt.
+std::optional<std::size_t> firstNonFinite(const std::vector<float>& values) {
+  const auto bad = std::find_if(values.begin(), values.end(), [](float x) { return !std::isfinite(x); });
+  if (bad == values.end()) return std::nullopt;
+  return static_cast<std::size_t>(bad - values.begin());
 }
 
 // The validator requires unit NORMALs: renormalise in float, and give zero or
@@ -1125,6 +1972,42 @@ std::vector<float> unitNormals(const Eigen::MatrixX3d& normals) {
     for (int c = 0; c < 3; ++c) out[static_cast<std::size_t>(v) * 3 + c] = static_cast<float>(n(c));
   }
   return out;
+}
+
+// POSITION (with min/max), unit NORMAL, TEXCOORD_0 and uint32 indices of a
+// validated `mesh` as one primitive, mode TRIANGLES (POINTS for a point cloud).
+Result<tinygltf::Primitive> addMeshPrimitive(tinygltf::Model& model, const Mesh& mesh, const std::string& label) {
+  const std::vector<float> positions = toFloats(mesh.positions);
+  if (const auto bad = firstNonFinite(positions)) {
+    return makeError(ErrorCode::kInvalidMesh,
+                     label + ": vertex " + std::to_string(*bad / 3) + " position exceeds the float32 range of glTF");
+  }
+  tinygltf::Primitive primitive;
+  primitive.attributes["POSITION"] =
+      addFloatAccessor(model, positions, TINYGLTF_TYPE_VEC3, TINYGLTF_TARGET_ARRAY_BUFFER, /*bounds=*/true);
+  if (mesh.normals.rows() > 0) {
+    primitive.attributes["NORMAL"] =
+        addFloatAccessor(model, unitNormals(mesh.normals), TINYGLTF_TYPE_VEC3, TINYGLTF_TARGET_ARRAY_BUFFER, false);
+  }
+  if (mesh.uvs.rows() > 0) {
+    primitive.attributes["TEXCOORD_0"] =
+        addFloatAccessor(model, toFloats(mesh.uvs), TINYGLTF_TYPE_VEC2, TINYGLTF_TARGET_ARRAY_BUFFER, false);
+  }
+  if (mesh.triangleCount() == 0) {
+    primitive.mode = TINYGLTF_MODE_POINTS;  // point cloud: every vertex drawn once
+    return primitive;
+  }
+  std::vector<std::uint32_t> indices(static_cast<std::size_t>(mesh.triangleCount()) * 3);
+  for (Eigen::Index f = 0; f < mesh.triangleCount(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      indices[static_cast<std::size_t>(f) * 3 + k] = static_cast<std::uint32_t>(mesh.triangles(f, k));
+    }
+  }
+  const int view = addBufferView(model, asBytes(indices), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+  primitive.indices =
+      addAccessor(model, view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, indices.size());
+  primitive.mode = TINYGLTF_MODE_TRIANGLES;  // explicit: tinygltf's default (-1) is invalid
+  return primitive;
 }
 
 // Serialises `model` as GLB bytes (tinygltf's writer; deterministic since its
@@ -1143,6 +2026,774 @@ Result<std::vector<std::uint8_t>> serializeGlb(const tinygltf::Model& model) {
   return std::vector<std::uint8_t>(text.begin(), text.end());
 }
 
+// ---------------------------------------------------------------------------
+// Rig writing: checks first (every rule the validator enforces that the Rig
+// type does not), then nodes, the mesh primitive, skin, morph targets and
+// animations appended to one model.
+
+const std::string kRigLabel = "rig to write";
+
+Error invalidRig(const std::string& what) { return makeError(ErrorCode::kInvalidArgument, kRigLabel + ": " + what); }
+
+std::string nodeName(const Rig& rig, int node) {
+  return "node " + std::to_string(node) + quoted(rig.nodes[static_cast<std::size_t>(node)].name);
+}
+
+Status checkRigNodes(const Rig& rig) {
+  const int n = static_cast<int>(rig.nodes.size());
+  for (int i = 0; i < n; ++i) {
+    const Node& node = rig.nodes[static_cast<std::size_t>(i)];
+    if (node.parent < -1 || node.parent >= n || node.parent == i) {
+      return invalidRig(nodeName(rig, i) + " has parent " + std::to_string(node.parent) + ", not another node");
+    }
+    if (!node.translation.allFinite() || !node.rotation.coeffs().allFinite() || !node.scale.allFinite()) {
+      return invalidRig(nodeName(rig, i) + " has a non-finite transform");
+    }
+    if (!(node.rotation.norm() > 0.0)) return invalidRig(nodeName(rig, i) + " has a zero rotation quaternion");
+  }
+  for (int i = 0; i < n; ++i) {  // every parent is a node index now
+    int steps = 0;
+    for (int p = rig.nodes[static_cast<std::size_t>(i)].parent; p >= 0;
+         p = rig.nodes[static_cast<std::size_t>(p)].parent) {
+      if (++steps > n) return invalidRig(nodeName(rig, i) + " is in a cycle of parents");
+    }
+  }
+  if (rig.mesh_node < -1 || rig.mesh_node >= n) {
+    return invalidRig("mesh_node " + std::to_string(rig.mesh_node) + " is not a node index (or -1)");
+  }
+  return Ok{};
+}
+
+Status checkRigSkin(const Rig& rig) {
+  const Eigen::Index nv = rig.mesh.vertexCount();
+  if (!rig.skin) {
+    if (rig.weights.nonZeros() > 0) return invalidRig("it has skin weights but no skin");
+    return Ok{};
+  }
+  const Skin& skin = *rig.skin;
+  const std::size_t count = skin.joints.size();
+  if (count == 0 || count > 65536) return invalidRig("the skin has " + std::to_string(count) + " joints (1..65536)");
+  std::vector<char> used(rig.nodes.size(), 0);
+  for (std::size_t j = 0; j < count; ++j) {
+    const int node = skin.joints[j];
+    if (node < 0 || static_cast<std::size_t>(node) >= rig.nodes.size()) {
+      return invalidRig("skin joint " + std::to_string(j) + " is node " + std::to_string(node) + " but the rig has " +
+                        std::to_string(rig.nodes.size()) + " nodes");
+    }
+    if (used[static_cast<std::size_t>(node)]) {
+      return invalidRig("skin joint " + std::to_string(j) + " repeats " + nodeName(rig, node));
+    }
+    used[static_cast<std::size_t>(node)] = 1;
+  }
+  if (skin.inverse_bind.size() != count) {
+    return invalidRig("the skin has " + std::to_string(count) + " joints but " +
+                      std::to_string(skin.inverse_bind.size()) + " inverse bind matrices");
+  }
+  for (std::size_t j = 0; j < count; ++j) {
+    const Eigen::Matrix4d& m = skin.inverse_bind[j];
+    const std::string joint = "skin joint " + std::to_string(j) + " (" + nodeName(rig, skin.joints[j]) + ")";
+    if (!m.allFinite() || !m.cast<float>().allFinite()) {
+      return invalidRig(joint + " inverse bind matrix is not finite in float32");
+    }
+    if ((m.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-9) {
+      return invalidRig(joint + " inverse bind matrix bottom row is not 0 0 0 1");
+    }
+  }
+  if (skin.skeleton < -1 || skin.skeleton >= static_cast<int>(rig.nodes.size())) {
+    return invalidRig("skin skeleton " + std::to_string(skin.skeleton) + " is not a node index (or -1)");
+  }
+  if (rig.weights.rows() != nv || rig.weights.cols() != static_cast<Eigen::Index>(count)) {
+    return invalidRig("skin weights are " + std::to_string(rig.weights.rows()) + " by " +
+                      std::to_string(rig.weights.cols()) + ", expected #V " + std::to_string(nv) + " by #joints " +
+                      std::to_string(count));
+  }
+  return Ok{};
+}
+
+Status checkRigMorphTargets(const Rig& rig) {
+  const Eigen::Index nv = rig.mesh.vertexCount();
+  const std::size_t count = rig.morph_targets.size();
+  for (std::size_t t = 0; t < count; ++t) {
+    const MorphTarget& target = rig.morph_targets[t];
+    const std::string what = "morph target " + std::to_string(t) + quoted(target.name);
+    if (target.position_deltas.rows() != nv) {
+      return invalidRig(what + " has " + std::to_string(target.position_deltas.rows()) + " position deltas for " +
+                        std::to_string(nv) + " vertices");
+    }
+    if (target.normal_deltas.rows() != 0 && target.normal_deltas.rows() != nv) {
+      return invalidRig(what + " has " + std::to_string(target.normal_deltas.rows()) + " normal deltas for " +
+                        std::to_string(nv) + " vertices");
+    }
+    if (target.normal_deltas.rows() > 0 && rig.mesh.normals.rows() == 0) {
+      return invalidRig(what + " has normal deltas but the mesh has no normals");
+    }
+  }
+  const Eigen::Index defaults = rig.morph_default_weights.size();
+  if ((defaults != 0 && defaults != static_cast<Eigen::Index>(count)) || !rig.morph_default_weights.allFinite()) {
+    return invalidRig("morph_default_weights has " + std::to_string(defaults) + " values for " + std::to_string(count) +
+                      " morph targets (or is not finite)");
+  }
+  return Ok{};
+}
+
+Status checkRig(const Rig& rig, const RigWriteOptions& options) {
+  if (options.max_influences < 1 || options.max_influences > 8) {
+    return invalidRig("max_influences is " + std::to_string(options.max_influences) + " (1..8)");
+  }
+  if (auto ok = validateMesh(rig.mesh, kRigLabel); !ok) return ok.error();
+  if (rig.mesh.vertexCount() == 0) return makeError(ErrorCode::kInvalidMesh, kRigLabel + ": the mesh has no vertices");
+  if (auto ok = checkRigNodes(rig); !ok) return ok.error();
+  if (auto ok = checkRigSkin(rig); !ok) return ok.error();
+  return checkRigMorphTargets(rig);
+}
+
+// Which output node carries the mesh. A skinned mesh's node must be an
+// identity root whose TRS is not animated (glTF ignores it; the validator
+// warns): the rig's node is used when it is one, reset when nothing depends
+// on its transform, else a new root node is appended for the mesh.
+struct MeshNodePlan {
+  int node = -1;          // output node index carrying the mesh (and skin)
+  bool appended = false;  // a new root node (index rig.nodes.size())
+  bool reset = false;     // rig.mesh_node written as an identity root
+};
+
+bool hasTransform(const Node& node) {
+  return node.translation != Eigen::Vector3d::Zero() || !node.rotation.normalized().vec().isZero(0.0) ||
+         node.scale != Eigen::Vector3d::Ones();
+}
+
+bool animatesTransformOf(const Rig& rig, int node) {
+  for (const Animation& animation : rig.animations) {
+    for (const AnimationChannel& channel : animation.channels) {
+      if (channel.node == node && channel.path != AnimationPath::kWeights) return true;
+    }
+  }
+  return false;
+}
+
+MeshNodePlan planMeshNode(const Rig& rig) {
+  const int appended_index = static_cast<int>(rig.nodes.size());
+  const int mesh_node = rig.mesh_node;
+  if (mesh_node < 0) return {appended_index, true, false};
+  if (!rig.skin) return {mesh_node, false, false};
+  const Node& node = rig.nodes[static_cast<std::size_t>(mesh_node)];
+  const bool animated = animatesTransformOf(rig, mesh_node);
+  if (node.parent < 0 && !hasTransform(node) && !animated) return {mesh_node, false, false};
+  const bool has_children =
+      std::any_of(rig.nodes.begin(), rig.nodes.end(), [&](const Node& n) { return n.parent == mesh_node; });
+  const bool is_joint =
+      std::find(rig.skin->joints.begin(), rig.skin->joints.end(), mesh_node) != rig.skin->joints.end();
+  if (!has_children && !is_joint && !animated) return {mesh_node, false, true};
+  return {appended_index, true, false};
+}
+
+// TRS with identity components omitted.
+tinygltf::Node toGltfNode(const Node& node) {
+  tinygltf::Node out;
+  out.name = node.name;
+  const Eigen::Vector3d& t = node.translation;
+  const Eigen::Quaterniond q = node.rotation.normalized();
+  const Eigen::Vector3d& s = node.scale;
+  if (t != Eigen::Vector3d::Zero()) out.translation = {t.x(), t.y(), t.z()};
+  if (!q.vec().isZero(0.0)) out.rotation = {q.x(), q.y(), q.z(), q.w()};
+  if (s != Eigen::Vector3d::Ones()) out.scale = {s.x(), s.y(), s.z()};
+  return out;
+}
+
+// All rig nodes (children lists from the parents), the mesh node, one scene
+// of the roots in index order.
+void addRigNodes(tinygltf::Model& model, const Rig& rig, const MeshNodePlan& plan) {
+  const int n = static_cast<int>(rig.nodes.size());
+  for (const Node& node : rig.nodes) model.nodes.push_back(toGltfNode(node));
+  if (plan.appended) {
+    tinygltf::Node mesh_node;
+    mesh_node.name = rig.mesh_name.empty() ? "mesh" : rig.mesh_name;
+    model.nodes.push_back(std::move(mesh_node));
+  }
+  tinygltf::Node& mesh_node = model.nodes[static_cast<std::size_t>(plan.node)];
+  if (plan.reset) {
+    mesh_node.translation.clear();
+    mesh_node.rotation.clear();
+    mesh_node.scale.clear();
+  }
+  mesh_node.mesh = 0;
+  if (rig.skin) mesh_node.skin = 0;
+  tinygltf::Scene scene;
+  for (int i = 0; i < n; ++i) {
+    const int parent = plan.reset && i == plan.node ? -1 : rig.nodes[static_cast<std::size_t>(i)].parent;
+    if (parent < 0) {
+      scene.nodes.push_back(i);
+    } else {
+      model.nodes[static_cast<std::size_t>(parent)].children.push_back(i);
+    }
+  }
+  if (plan.appended) scene.nodes.push_back(n);
+  model.scenes.push_back(std::move(scene));
+  // tinygltf writes a node with no property as null, which no reader accepts.
+  for (tinygltf::Node& node : model.nodes) {
+    const bool empty = node.name.empty() && node.translation.empty() && node.rotation.empty() && node.scale.empty() &&
+                       node.children.empty() && node.mesh < 0;
+    if (empty) node.translation = {0.0, 0.0, 0.0};
+  }
+  model.defaultScene = 0;
+}
+
+// World space -> the mesh node's space. The reader moves an unskinned mesh
+// into world space by its node (placeMesh), so the writer moves it back;
+// skinned meshes and meshes on a new root node need nothing.
+struct NodeSpace {
+  bool identity = true;
+  Eigen::Matrix3d linear = Eigen::Matrix3d::Identity();          // node -> world
+  Eigen::Matrix3d inverse_linear = Eigen::Matrix3d::Identity();  // world -> node
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+
+  Eigen::MatrixX3d points(const Eigen::MatrixX3d& p) const {
+    return identity ? p : Eigen::MatrixX3d((p.rowwise() - translation.transpose()) * inverse_linear.transpose());
+  }
+  Eigen::MatrixX3d vectors(const Eigen::MatrixX3d& d) const {
+    return identity ? d : Eigen::MatrixX3d(d * inverse_linear.transpose());
+  }
+  Eigen::MatrixX3d normals(const Eigen::MatrixX3d& n) const { return identity ? n : Eigen::MatrixX3d(n * linear); }
+};
+
+Result<NodeSpace> meshNodeSpace(const Rig& rig, const MeshNodePlan& plan) {
+  NodeSpace space;
+  if (rig.skin || plan.appended) return space;
+  const Eigen::Matrix4d world = nodeWorldTransforms(rig.nodes)[static_cast<std::size_t>(plan.node)];
+  if (world.isIdentity(0.0)) return space;
+  space.identity = false;
+  space.linear = world.topLeftCorner<3, 3>();
+  space.translation = world.topRightCorner<3, 1>();
+  const double det = space.linear.determinant();
+  if (!(std::abs(det) > 0.0) || !std::isfinite(det)) {
+    return invalidRig("the world transform of mesh " + nodeName(rig, plan.node) + " is singular");
+  }
+  space.inverse_linear = space.linear.inverse();
+  return space;
+}
+
+Mesh meshInNodeSpace(const Mesh& mesh, const NodeSpace& space) {
+  Mesh local = mesh;
+  local.positions = space.points(mesh.positions);
+  if (mesh.normals.rows() > 0) local.normals = space.normals(mesh.normals);
+  if (space.linear.determinant() < 0.0) local.triangles.col(1).swap(local.triangles.col(2));  // as the reader flips
+  return local;
+}
+
+// Accessor over a 1- or 2-byte per-vertex SCALAR padded to a 4-byte stride
+// (spec: vertex attribute elements are 4-byte aligned).
+int addPaddedScalarAccessor(tinygltf::Model& model, const Eigen::VectorXi& values, bool two_bytes) {
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(values.size()) * 4, 0);
+  for (Eigen::Index v = 0; v < values.size(); ++v) {
+    const auto value = static_cast<std::uint32_t>(values(v));
+    bytes[static_cast<std::size_t>(v) * 4] = static_cast<std::uint8_t>(value & 0xFF);
+    bytes[static_cast<std::size_t>(v) * 4 + 1] = static_cast<std::uint8_t>(value >> 8);
+  }
+  const int view = addBufferView(model, Bytes(bytes), TINYGLTF_TARGET_ARRAY_BUFFER);
+  model.bufferViews[static_cast<std::size_t>(view)].byteStride = 4;
+  const int type = two_bytes ? TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT : TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
+  return addAccessor(model, view, type, TINYGLTF_TYPE_SCALAR, static_cast<std::size_t>(values.size()));
+}
+
+Status addLabels(tinygltf::Model& model, const VertexAttributes& attributes, Eigen::Index nv,
+                 tinygltf::Primitive& primitive) {
+  for (const auto& [key, values] : attributes.labels) {
+    const std::string name = "_" + key;
+    if (key.empty() || attributes.fields.count(key) > 0) {
+      return invalidRig("custom attribute name '" + name + "' is empty or used twice");
+    }
+    if (values.size() != nv) {
+      return invalidRig("label " + key + " has " + std::to_string(values.size()) + " values for " + std::to_string(nv) +
+                        " vertices");
+    }
+    for (Eigen::Index v = 0; v < nv; ++v) {
+      if (values(v) < 0 || values(v) > 65535) {
+        return invalidRig("label " + key + " of vertex " + std::to_string(v) + " is " + std::to_string(values(v)) +
+                          " (0..65535)");
+      }
+    }
+    primitive.attributes[name] = addPaddedScalarAccessor(model, values, values.maxCoeff() > 255);
+  }
+  return Ok{};
+}
+
+Status addFields(tinygltf::Model& model, const VertexAttributes& attributes, Eigen::Index nv,
+                 tinygltf::Primitive& primitive) {
+  static constexpr std::array<int, 4> kTypes = {TINYGLTF_TYPE_SCALAR, TINYGLTF_TYPE_VEC2, TINYGLTF_TYPE_VEC3,
+                                                TINYGLTF_TYPE_VEC4};
+  for (const auto& [key, values] : attributes.fields) {
+    if (key.empty()) return invalidRig("custom attribute name '_' is empty");
+    if (values.rows() != nv || values.cols() < 1 || values.cols() > 4) {
+      return invalidRig("field " + key + " is " + std::to_string(values.rows()) + " by " +
+                        std::to_string(values.cols()) + ", expected #V " + std::to_string(nv) + " by 1..4");
+    }
+    const std::vector<float> floats = toFloats(values);
+    if (const auto bad = firstNonFinite(floats)) {
+      return invalidRig("field " + key + " of vertex " +
+                        std::to_string(*bad / static_cast<std::size_t>(values.cols())) + " is not finite in float32");
+    }
+    const int type = kTypes[static_cast<std::size_t>(values.cols() - 1)];
+    primitive.attributes["_" + key] = addFloatAccessor(model, floats, type, TINYGLTF_TARGET_ARRAY_BUFFER, false);
+  }
+  return Ok{};
+}
+
+// TEXCOORD_1.., COLOR_0 and the custom attributes.
+Status addVertexAttributes(tinygltf::Model& model, const Rig& rig, tinygltf::Primitive& primitive) {
+  const VertexAttributes& attributes = rig.attributes;
+  const Eigen::Index nv = rig.mesh.vertexCount();
+  if (!attributes.extra_uv_sets.empty() && rig.mesh.uvs.rows() == 0) {
+    return invalidRig("extra UV sets need mesh.uvs (TEXCOORD_0)");
+  }
+  for (std::size_t k = 0; k < attributes.extra_uv_sets.size(); ++k) {
+    const std::string name = "TEXCOORD_" + std::to_string(k + 1);
+    const std::vector<float> uvs = toFloats(attributes.extra_uv_sets[k]);
+    if (attributes.extra_uv_sets[k].rows() != nv || firstNonFinite(uvs)) {
+      return invalidRig(name + " must have " + std::to_string(nv) + " finite rows");
+    }
+    primitive.attributes[name] = addFloatAccessor(model, uvs, TINYGLTF_TYPE_VEC2, TINYGLTF_TARGET_ARRAY_BUFFER, false);
+  }
+  if (attributes.colors.rows() > 0) {
+    if (attributes.colors.rows() != nv) return invalidRig("colors must have " + std::to_string(nv) + " rows");
+    for (Eigen::Index v = 0; v < nv; ++v) {
+      const auto row = attributes.colors.row(v);
+      if (!(row.minCoeff() >= 0.0 && row.maxCoeff() <= 1.0)) {
+        return invalidRig("color of vertex " + std::to_string(v) + " is outside [0, 1]");
+      }
+    }
+    primitive.attributes["COLOR_0"] =
+        addFloatAccessor(model, toFloats(attributes.colors), TINYGLTF_TYPE_VEC4, TINYGLTF_TARGET_ARRAY_BUFFER, false);
+  }
+  if (auto ok = addLabels(model, attributes, nv, primitive); !ok) return ok.error();
+  return addFields(model, attributes, nv, primitive);
+}
+
+// Per vertex, the kept influences: `slots` (4 or 8) (joint, weight) pairs,
+// largest weight first (ties: lower joint), summing to 1; unused slots are
+// joint 0 weight 0.
+struct InfluenceTable {
+  int slots = 4;
+  std::vector<int> joints;      // #V * slots
+  std::vector<double> weights;  // #V * slots
+};
+
+Result<InfluenceTable> selectInfluences(const SkinWeights& weights, int max_influences) {
+  const auto nv = static_cast<std::size_t>(weights.rows());
+  std::vector<std::vector<std::pair<int, double>>> kept(nv);
+  int widest = 0;
+  std::vector<std::pair<int, double>> row;
+  for (std::size_t v = 0; v < nv; ++v) {
+    row.clear();
+    for (SkinWeights::InnerIterator it(weights, static_cast<Eigen::Index>(v)); it; ++it) {
+      const double w = it.value();
+      if (!std::isfinite(w) || w < 0.0) {
+        return invalidRig("vertex " + std::to_string(v) + " has weight " + std::to_string(w) + " on joint " +
+                          std::to_string(it.col()) + " (weights must be finite and >= 0)");
+      }
+      if (w > 0.0) row.emplace_back(static_cast<int>(it.col()), w);
+    }
+    if (row.empty()) return invalidRig("vertex " + std::to_string(v) + " of the skinned mesh has no skin weight");
+    std::sort(row.begin(), row.end(), [](const auto& a, const auto& b) {
+      return a.second != b.second ? a.second > b.second : a.first < b.first;
+    });
+    if (row.size() > static_cast<std::size_t>(max_influences)) row.resize(static_cast<std::size_t>(max_influences));
+    double sum = 0.0;
+    for (const auto& entry : row) sum += entry.second;
+    for (auto& entry : row) entry.second /= sum;
+    widest = std::max(widest, static_cast<int>(row.size()));
+    kept[v] = row;
+  }
+  InfluenceTable table;
+  table.slots = widest > 4 ? 8 : 4;
+  const auto slots = static_cast<std::size_t>(table.slots);
+  table.joints.assign(nv * slots, 0);
+  table.weights.assign(nv * slots, 0.0);
+  for (std::size_t v = 0; v < nv; ++v) {
+    for (std::size_t s = 0; s < kept[v].size(); ++s) {
+      table.joints[v * slots + s] = kept[v][s].first;
+      table.weights[v * slots + s] = kept[v][s].second;
+    }
+  }
+  return table;
+}
+
+// The validator's sum of one vertex's weights: float32, component-major
+// across the JOINTS_n/WEIGHTS_n sets (gltf-validator's eX.dY).
+float validatorWeightSum(const float* w, int slots) {
+  float sum = 0.0f;
+  for (int c = 0; c < 4; ++c) {
+    for (int set = 0; set < slots / 4; ++set) sum += w[set * 4 + c];
+  }
+  return sum;
+}
+
+// Float weights whose float32 sum is 1 (the largest absorbs the rounding).
+std::vector<float> encodeFloatWeights(const InfluenceTable& table, std::vector<int>& joints) {
+  std::vector<float> out(table.weights.size());
+  const auto slots = static_cast<std::size_t>(table.slots);
+  for (std::size_t base = 0; base < out.size(); base += slots) {
+    for (std::size_t s = 0; s < slots; ++s) out[base + s] = static_cast<float>(table.weights[base + s]);
+    for (int pass = 0; pass < 4 && validatorWeightSum(&out[base], table.slots) != 1.0f; ++pass) {
+      double sum = 0.0;
+      for (std::size_t s = 0; s < slots; ++s) sum += out[base + s];
+      out[base] = static_cast<float>(out[base] + (1.0 - sum));
+    }
+    for (std::size_t s = 0; s < slots; ++s) {
+      if (out[base + s] == 0.0f) joints[base + s] = 0;  // underflowed: an unused slot
+    }
+  }
+  return out;
+}
+
+// Normalized integer weights summing exactly to `scale` per vertex
+// (largest-remainder rounding; ties: earlier slot, i.e. larger weight).
+template <typename T>
+std::vector<T> quantizeWeights(const InfluenceTable& table, std::uint32_t scale, std::vector<int>& joints) {
+  std::vector<T> out(table.weights.size(), 0);
+  const auto slots = static_cast<std::size_t>(table.slots);
+  std::vector<std::pair<double, std::size_t>> remainders;
+  for (std::size_t base = 0; base < out.size(); base += slots) {
+    std::uint32_t total = 0;
+    remainders.clear();
+    for (std::size_t s = 0; s < slots; ++s) {
+      const double exact = table.weights[base + s] * scale;
+      const double floor = std::min(std::floor(exact), static_cast<double>(scale));
+      out[base + s] = static_cast<T>(floor);
+      total += static_cast<std::uint32_t>(floor);
+      if (table.weights[base + s] > 0.0) remainders.emplace_back(exact - floor, s);
+    }
+    std::stable_sort(remainders.begin(), remainders.end(),
+                     [](const auto& a, const auto& b) { return a.first > b.first; });
+    for (std::size_t i = 0; total < scale && !remainders.empty(); i = (i + 1) % remainders.size(), ++total) {
+      ++out[base + remainders[i].second];
+    }
+    for (std::size_t s = 0; s < slots; ++s) {
+      if (out[base + s] == 0) joints[base + s] = 0;  // rounded away: an unused slot
+    }
+  }
+  return out;
+}
+
+// Elements [4 * set, 4 * set + 4) of every vertex's `slots` values.
+template <typename T, typename U>
+std::vector<T> influenceSet(const std::vector<U>& values, int slots, int set) {
+  std::vector<T> out;
+  out.reserve(values.size() / static_cast<std::size_t>(slots) * 4);
+  for (std::size_t base = 0; base < values.size(); base += static_cast<std::size_t>(slots)) {
+    for (int c = 0; c < 4; ++c) out.push_back(static_cast<T>(values[base + static_cast<std::size_t>(set * 4 + c)]));
+  }
+  return out;
+}
+
+// JOINTS_n (unsigned byte below 256 joints, else short) for each set.
+void addJointSets(tinygltf::Model& model, const std::vector<int>& joints, int slots, std::size_t joint_count,
+                  tinygltf::Primitive& primitive) {
+  const std::size_t nv = joints.size() / static_cast<std::size_t>(slots);
+  for (int set = 0; set < slots / 4; ++set) {
+    int view = 0;
+    int type = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
+    if (joint_count <= 256) {
+      view =
+          addBufferView(model, asBytes(influenceSet<std::uint8_t>(joints, slots, set)), TINYGLTF_TARGET_ARRAY_BUFFER);
+    } else {
+      view =
+          addBufferView(model, asBytes(influenceSet<std::uint16_t>(joints, slots, set)), TINYGLTF_TARGET_ARRAY_BUFFER);
+      type = TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
+    }
+    primitive.attributes["JOINTS_" + std::to_string(set)] = addAccessor(model, view, type, TINYGLTF_TYPE_VEC4, nv);
+  }
+}
+
+// WEIGHTS_n in the chosen encoding; zeroes the joints of slots left empty.
+void addWeightSets(tinygltf::Model& model, const InfluenceTable& table, WeightEncoding encoding,
+                   std::vector<int>& joints, tinygltf::Primitive& primitive) {
+  const std::size_t nv = joints.size() / static_cast<std::size_t>(table.slots);
+  std::vector<float> floats;
+  std::vector<std::uint16_t> shorts;
+  std::vector<std::uint8_t> bytes;
+  if (encoding == WeightEncoding::kFloat) floats = encodeFloatWeights(table, joints);
+  if (encoding == WeightEncoding::kUnorm16) shorts = quantizeWeights<std::uint16_t>(table, 65535, joints);
+  if (encoding == WeightEncoding::kUnorm8) bytes = quantizeWeights<std::uint8_t>(table, 255, joints);
+  for (int set = 0; set < table.slots / 4; ++set) {
+    int view = 0;
+    int type = TINYGLTF_COMPONENT_TYPE_FLOAT;
+    if (encoding == WeightEncoding::kFloat) {
+      view = addBufferView(model, asBytes(influenceSet<float>(floats, table.slots, set)), TINYGLTF_TARGET_ARRAY_BUFFER);
+    } else if (encoding == WeightEncoding::kUnorm16) {
+      view = addBufferView(model, asBytes(influenceSet<std::uint16_t>(shorts, table.slots, set)),
+                           TINYGLTF_TARGET_ARRAY_BUFFER);
+      type = TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
+    } else {
+      view = addBufferView(model, asBytes(influenceSet<std::uint8_t>(bytes, table.slots, set)),
+                           TINYGLTF_TARGET_ARRAY_BUFFER);
+      type = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
+    }
+    const int accessor = addAccessor(model, view, type, TINYGLTF_TYPE_VEC4, nv);
+    model.accessors[static_cast<std::size_t>(accessor)].normalized = encoding != WeightEncoding::kFloat;
+    primitive.attributes["WEIGHTS_" + std::to_string(set)] = accessor;
+  }
+}
+
+// Inverse bind matrices as a MAT4 float accessor, bottom rows exactly 0 0 0 1.
+int addInverseBinds(tinygltf::Model& model, const Skin& skin) {
+  std::vector<float> values;
+  values.reserve(skin.inverse_bind.size() * 16);
+  for (const Eigen::Matrix4d& m : skin.inverse_bind) {
+    for (int c = 0; c < 4; ++c) {
+      for (int r = 0; r < 3; ++r) values.push_back(static_cast<float>(m(r, c)));
+      values.push_back(c == 3 ? 1.0f : 0.0f);
+    }
+  }
+  return addFloatAccessor(model, values, TINYGLTF_TYPE_MAT4, /*target=*/0, false);
+}
+
+Status addSkin(tinygltf::Model& model, const Rig& rig, const RigWriteOptions& options, tinygltf::Primitive& primitive) {
+  auto table = selectInfluences(rig.weights, options.max_influences);
+  if (!table) return table.error();
+  std::vector<int> joints = table->joints;
+  addWeightSets(model, *table, options.weight_encoding, joints, primitive);  // before the joints: may zero some
+  addJointSets(model, joints, table->slots, rig.skin->joints.size(), primitive);
+  tinygltf::Skin skin;
+  skin.name = rig.skin->name;
+  skin.joints = rig.skin->joints;
+  skin.skeleton = rig.skin->skeleton;
+  skin.inverseBindMatrices = addInverseBinds(model, *rig.skin);
+  model.skins.push_back(std::move(skin));
+  return Ok{};
+}
+
+// A morph delta accessor (#V VEC3 floats): sparse (the rows with a non-zero
+// component) when `sparse` and smaller than dense, with no data at all when
+// every row is zero. `bounds` sets min/max over all rows, the implicit zeros
+// included (the validator requires them for POSITION deltas).
+int addDeltaAccessor(tinygltf::Model& model, const std::vector<float>& deltas, bool sparse, bool bounds) {
+  const std::size_t count = deltas.size() / 3;
+  if (!sparse) return addFloatAccessor(model, deltas, TINYGLTF_TYPE_VEC3, TINYGLTF_TARGET_ARRAY_BUFFER, bounds);
+  std::vector<std::uint32_t> rows;
+  std::vector<float> values;
+  for (std::size_t r = 0; r < count; ++r) {
+    if (deltas[3 * r] == 0.0f && deltas[3 * r + 1] == 0.0f && deltas[3 * r + 2] == 0.0f) continue;
+    rows.push_back(static_cast<std::uint32_t>(r));
+    values.insert(values.end(), deltas.begin() + static_cast<std::ptrdiff_t>(3 * r),
+                  deltas.begin() + static_cast<std::ptrdiff_t>(3 * r + 3));
+  }
+  const bool short_indices = count <= 65536;
+  const std::size_t index_size = short_indices ? 2 : 4;
+  if (rows.size() * (index_size + 12) >= count * 12) {
+    return addFloatAccessor(model, deltas, TINYGLTF_TYPE_VEC3, TINYGLTF_TARGET_ARRAY_BUFFER, bounds);
+  }
+  std::vector<double> min;
+  std::vector<double> max;
+  if (bounds) std::tie(min, max) = floatBounds(deltas, 3);
+  const int accessor = addAccessor(model, -1, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, count, min, max);
+  if (rows.empty()) return accessor;  // no bufferView, no sparse: all zeros
+  const int index_view = short_indices
+                             ? addBufferView(model, asBytes(std::vector<std::uint16_t>(rows.begin(), rows.end())), 0)
+                             : addBufferView(model, asBytes(rows), 0);
+  const int value_view = addBufferView(model, asBytes(values), 0);
+  auto& s = model.accessors[static_cast<std::size_t>(accessor)].sparse;
+  s.isSparse = true;
+  s.count = static_cast<int>(rows.size());
+  s.indices.bufferView = index_view;
+  s.indices.byteOffset = 0;
+  s.indices.componentType =
+      short_indices ? TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT : TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+  s.values.bufferView = value_view;
+  s.values.byteOffset = 0;
+  return accessor;
+}
+
+// Morph targets, their names (mesh.extras.targetNames) and default weights.
+Status addMorphTargets(tinygltf::Model& model, const Rig& rig, const NodeSpace& space, bool sparse,
+                       tinygltf::Primitive& primitive, tinygltf::Mesh& gmesh) {
+  if (rig.morph_targets.empty()) return Ok{};
+  tinygltf::Value::Array names;
+  for (std::size_t t = 0; t < rig.morph_targets.size(); ++t) {
+    const MorphTarget& target = rig.morph_targets[t];
+    const std::string what = "morph target " + std::to_string(t) + quoted(target.name);
+    const std::vector<float> positions = toFloats(space.vectors(target.position_deltas));
+    if (const auto bad = firstNonFinite(positions)) {
+      return invalidRig(what + " position delta of vertex " + std::to_string(*bad / 3) + " is not finite in float32");
+    }
+    std::map<std::string, int> attributes;
+    attributes["POSITION"] = addDeltaAccessor(model, positions, sparse, /*bounds=*/true);
+    if (target.normal_deltas.rows() > 0) {
+      const std::vector<float> normals = toFloats(space.normals(target.normal_deltas));
+      if (const auto bad = firstNonFinite(normals)) {
+        return invalidRig(what + " normal delta of vertex " + std::to_string(*bad / 3) + " is not finite in float32");
+      }
+      attributes["NORMAL"] = addDeltaAccessor(model, normals, sparse, /*bounds=*/false);
+    }
+    primitive.targets.push_back(std::move(attributes));
+    names.emplace_back(target.name);
+  }
+  const Eigen::VectorXd& defaults = rig.morph_default_weights;
+  gmesh.weights.assign(rig.morph_targets.size(), 0.0);
+  for (Eigen::Index t = 0; t < defaults.size(); ++t) gmesh.weights[static_cast<std::size_t>(t)] = defaults(t);
+  tinygltf::Value::Object extras;
+  extras["targetNames"] = tinygltf::Value(std::move(names));
+  gmesh.extras = tinygltf::Value(std::move(extras));
+  return Ok{};
+}
+
+const char* pathName(AnimationPath path) {
+  switch (path) {
+    case AnimationPath::kTranslation: return "translation";
+    case AnimationPath::kRotation: return "rotation";
+    case AnimationPath::kScale: return "scale";
+    case AnimationPath::kWeights: return "weights";
+  }
+  return "translation";
+}
+
+const char* interpolationName(Interpolation interpolation) {
+  switch (interpolation) {
+    case Interpolation::kLinear: return "LINEAR";
+    case Interpolation::kStep: return "STEP";
+    case Interpolation::kCubicSpline: return "CUBICSPLINE";
+  }
+  return "LINEAR";
+}
+
+// Key times as a float SCALAR accessor with min/max (spec), shared between
+// channels with the same times.
+Result<int> addKeyTimes(tinygltf::Model& model, const Eigen::VectorXd& times, const std::string& what,
+                        std::map<std::vector<float>, int>& shared) {
+  if (times.size() == 0) return invalidRig(what + " has no keys");
+  std::vector<float> t = toFloats(times);
+  for (std::size_t k = 0; k < t.size(); ++k) {
+    if (!std::isfinite(t[k]) || t[k] < 0.0f) {
+      return invalidRig(what + " key time " + std::to_string(k) + " is negative or not finite");
+    }
+    if (k > 0 && !(t[k] > t[k - 1])) {
+      return invalidRig(what + " key times do not increase (in float32) at key " + std::to_string(k));
+    }
+  }
+  const auto it = shared.find(t);
+  if (it != shared.end()) return it->second;
+  const int accessor = addFloatAccessor(model, t, TINYGLTF_TYPE_SCALAR, /*target=*/0, /*bounds=*/true);
+  shared.emplace(std::move(t), accessor);
+  return accessor;
+}
+
+// Output values: VEC3 (translation, scale), unit VEC4 (rotation; cubic
+// tangents as they are) or #targets scalars per key (weights).
+Result<int> addKeyValues(tinygltf::Model& model, const AnimationChannel& channel, int columns,
+                         const std::string& what) {
+  const bool cubic = channel.interpolation == Interpolation::kCubicSpline;
+  const Eigen::Index rows = channel.times.size() * (cubic ? 3 : 1);
+  if (channel.values.rows() != rows || channel.values.cols() != columns) {
+    return invalidRig(what + " values are " + std::to_string(channel.values.rows()) + " by " +
+                      std::to_string(channel.values.cols()) + ", expected " + std::to_string(rows) + " by " +
+                      std::to_string(columns));
+  }
+  std::vector<float> values = toFloats(channel.values);
+  if (const auto bad = firstNonFinite(values)) {
+    return invalidRig(what + " value " + std::to_string(*bad / static_cast<std::size_t>(columns)) +
+                      " is not finite in float32");
+  }
+  if (channel.path == AnimationPath::kRotation) {
+    for (Eigen::Index r = cubic ? 1 : 0; r < rows; r += cubic ? 3 : 1) {
+      const Eigen::Vector4d q = channel.values.row(r).transpose();
+      if (!(q.norm() > 0.0)) return invalidRig(what + " rotation key " + std::to_string(r) + " is a zero quaternion");
+      for (int c = 0; c < 4; ++c) values[static_cast<std::size_t>(r * 4 + c)] = static_cast<float>(q(c) / q.norm());
+    }
+  }
+  const int type = channel.path == AnimationPath::kWeights    ? TINYGLTF_TYPE_SCALAR
+                   : channel.path == AnimationPath::kRotation ? TINYGLTF_TYPE_VEC4
+                                                              : TINYGLTF_TYPE_VEC3;
+  return addFloatAccessor(model, values, type, /*target=*/0, false);
+}
+
+// Output node of a channel: weights go to the node carrying the mesh.
+Result<int> channelNode(const Rig& rig, const AnimationChannel& channel, const MeshNodePlan& plan,
+                        const std::string& what) {
+  if (channel.node < 0 || static_cast<std::size_t>(channel.node) >= rig.nodes.size()) {
+    return invalidRig(what + " targets node " + std::to_string(channel.node) + " but the rig has " +
+                      std::to_string(rig.nodes.size()) + " nodes");
+  }
+  if (channel.path != AnimationPath::kWeights) return channel.node;
+  if (rig.morph_targets.empty() || channel.node != rig.mesh_node) {
+    return invalidRig(what + " animates morph weights of " + nodeName(rig, channel.node) +
+                      ", which does not carry the rig's morphed mesh");
+  }
+  return plan.node;
+}
+
+Status addAnimation(tinygltf::Model& model, const Rig& rig, const Animation& animation, const std::string& name,
+                    const MeshNodePlan& plan, std::map<std::vector<float>, int>& shared_times) {
+  tinygltf::Animation ganim;
+  ganim.name = animation.name;
+  std::set<std::pair<int, AnimationPath>> targets;
+  for (std::size_t c = 0; c < animation.channels.size(); ++c) {
+    const AnimationChannel& channel = animation.channels[c];
+    const std::string what = name + " channel " + std::to_string(c);
+    auto node = channelNode(rig, channel, plan, what);
+    if (!node) return node.error();
+    if (!targets.emplace(*node, channel.path).second) {
+      return invalidRig(what + " animates the same node and path as an earlier channel");
+    }
+    const int columns = channel.path == AnimationPath::kRotation  ? 4
+                        : channel.path == AnimationPath::kWeights ? static_cast<int>(rig.morph_targets.size())
+                                                                  : 3;
+    auto input = addKeyTimes(model, channel.times, what, shared_times);
+    if (!input) return input.error();
+    auto output = addKeyValues(model, channel, columns, what);
+    if (!output) return output.error();
+    tinygltf::AnimationSampler sampler;
+    sampler.input = *input;
+    sampler.output = *output;
+    sampler.interpolation = interpolationName(channel.interpolation);
+    ganim.samplers.push_back(std::move(sampler));
+    tinygltf::AnimationChannel gchannel;
+    gchannel.sampler = static_cast<int>(ganim.samplers.size()) - 1;
+    gchannel.target_node = *node;
+    gchannel.target_path = pathName(channel.path);
+    ganim.channels.push_back(std::move(gchannel));
+  }
+  model.animations.push_back(std::move(ganim));
+  return Ok{};
+}
+
+// Animations with channels (tinygltf drops empty ones; so do we).
+Status addAnimations(tinygltf::Model& model, const Rig& rig, const MeshNodePlan& plan) {
+  std::map<std::vector<float>, int> shared_times;
+  for (std::size_t a = 0; a < rig.animations.size(); ++a) {
+    const Animation& animation = rig.animations[a];
+    if (animation.channels.empty()) continue;
+    const std::string name = "animation " + std::to_string(a) + quoted(animation.name);
+    if (auto ok = addAnimation(model, rig, animation, name, plan, shared_times); !ok) return ok.error();
+  }
+  return Ok{};
+}
+
+Result<tinygltf::Model> buildRigModel(const Rig& rig, const RigWriteOptions& options) {
+  tinygltf::Model model;
+  model.asset.version = "2.0";
+  model.asset.generator = "rigport";
+  const MeshNodePlan plan = planMeshNode(rig);
+  auto space = meshNodeSpace(rig, plan);
+  if (!space) return space.error();
+  std::optional<Mesh> local;
+  if (!space->identity) local = meshInNodeSpace(rig.mesh, *space);
+  auto primitive = addMeshPrimitive(model, local ? *local : rig.mesh, kRigLabel);
+  if (!primitive) return primitive.error();
+  if (auto ok = addVertexAttributes(model, rig, *primitive); !ok) return ok.error();
+  if (rig.skin) {
+    if (auto ok = addSkin(model, rig, options, *primitive); !ok) return ok.error();
+  }
+  tinygltf::Mesh gmesh;
+  gmesh.name = rig.mesh_name;
+  if (auto ok = addMorphTargets(model, rig, *space, options.sparse_morph_targets, *primitive, gmesh); !ok) {
+    return ok.error();
+  }
+  gmesh.primitives.push_back(std::move(*primitive));
+  model.meshes.push_back(std::move(gmesh));
+  addRigNodes(model, rig, plan);
+  if (auto ok = addAnimations(model, rig, plan); !ok) return ok.error();
+  return model;
+}
+
 }  // namespace
 
 Result<LoadedMesh> readGltf(std::span<const std::uint8_t> bytes, const std::string& label, bool binary) {
@@ -1155,46 +2806,17 @@ Result<LoadedMesh> readGltfWithBaseDir(std::span<const std::uint8_t> bytes, cons
 }
 
 Result<std::vector<std::uint8_t>> encodeMeshGlb(const Mesh& mesh) {
-  if (auto ok = validateMesh(mesh, "mesh to write"); !ok) return ok.error();
-  if (mesh.vertexCount() == 0) return makeError(ErrorCode::kInvalidMesh, "mesh to write: it has no vertices");
+  const std::string label = "mesh to write";
+  if (auto ok = validateMesh(mesh, label); !ok) return ok.error();
+  if (mesh.vertexCount() == 0) return makeError(ErrorCode::kInvalidMesh, label + ": it has no vertices");
 
   tinygltf::Model model;
   model.asset.version = "2.0";
   model.asset.generator = "rigport";
-
-  // glTF stores float32: a finite double can still overflow it.
-  const std::vector<float> positions = toFloats<3>(mesh.positions);
-  if (const auto bad = std::find_if(positions.begin(), positions.end(), [](float x) { return !std::isfinite(x); });
-      bad != positions.end()) {
-    return makeError(ErrorCode::kInvalidMesh, "mesh to write: vertex " + std::to_string((bad - positions.begin()) / 3) +
-                                                  " position exceeds the float32 range of glTF");
-  }
-  tinygltf::Primitive primitive;
-  primitive.attributes["POSITION"] =
-      addFloatAccessor(model, positions, TINYGLTF_TYPE_VEC3, TINYGLTF_TARGET_ARRAY_BUFFER, /*bounds=*/true);
-  if (mesh.normals.rows() > 0) {
-    primitive.attributes["NORMAL"] =
-        addFloatAccessor(model, unitNormals(mesh.normals), TINYGLTF_TYPE_VEC3, TINYGLTF_TARGET_ARRAY_BUFFER, false);
-  }
-  if (mesh.uvs.rows() > 0) {
-    primitive.attributes["TEXCOORD_0"] =
-        addFloatAccessor(model, toFloats<2>(mesh.uvs), TINYGLTF_TYPE_VEC2, TINYGLTF_TARGET_ARRAY_BUFFER, false);
-  }
-  if (mesh.triangleCount() > 0) {
-    std::vector<std::uint32_t> indices(static_cast<std::size_t>(mesh.triangleCount()) * 3);
-    for (Eigen::Index f = 0; f < mesh.triangleCount(); ++f) {
-      for (int k = 0; k < 3; ++k) indices[static_cast<std::size_t>(f) * 3 + k] = static_cast<std::uint32_t>(mesh.triangles(f, k));
-    }
-    const int view = addBufferView(model, asBytes(indices), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
-    primitive.indices =
-        addAccessor(model, view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, indices.size());
-    primitive.mode = TINYGLTF_MODE_TRIANGLES;
-  } else {
-    primitive.mode = TINYGLTF_MODE_POINTS;  // point cloud: every vertex drawn once
-  }
-
+  auto primitive = addMeshPrimitive(model, mesh, label);
+  if (!primitive) return primitive.error();
   tinygltf::Mesh gmesh;
-  gmesh.primitives.push_back(std::move(primitive));
+  gmesh.primitives.push_back(std::move(*primitive));
   model.meshes.push_back(std::move(gmesh));
   tinygltf::Node node;
   node.mesh = 0;
@@ -1208,6 +2830,36 @@ Result<std::vector<std::uint8_t>> encodeMeshGlb(const Mesh& mesh) {
 
 Status writeMeshGlb(const Mesh& mesh, const std::filesystem::path& path) {
   auto bytes = encodeMeshGlb(mesh);
+  if (!bytes) return makeError(bytes.error().code, path.filename().string() + ": " + bytes.error().message);
+  return writeFileBytes(path, *bytes);
+}
+
+Result<LoadedRig> readRigGltf(std::span<const std::uint8_t> bytes, const std::string& label, bool binary) {
+  return readRigImpl(bytes, label, binary, std::nullopt);
+}
+
+// Like readMesh: .glb / .gltf by extension, else by the GLB magic; a .gltf may
+// use buffer files in its own directory.
+Result<LoadedRig> readRig(const std::filesystem::path& path) {
+  auto bytes = readFileBytes(path);
+  if (!bytes) return bytes.error();
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  const bool magic = bytes->size() >= 4 && std::memcmp(bytes->data(), "glTF", 4) == 0;
+  const bool binary = ext == ".glb" || (ext != ".gltf" && magic);
+  return readRigImpl(*bytes, path.filename().string(), binary, path.parent_path());
+}
+
+Result<std::vector<std::uint8_t>> encodeRigGlb(const Rig& rig, const RigWriteOptions& options) {
+  if (auto ok = checkRig(rig, options); !ok) return ok.error();
+  auto model = buildRigModel(rig, options);
+  if (!model) return model.error();
+  return serializeGlb(*model);
+}
+
+Status writeRigGlb(const Rig& rig, const std::filesystem::path& path, const RigWriteOptions& options) {
+  auto bytes = encodeRigGlb(rig, options);
   if (!bytes) return makeError(bytes.error().code, path.filename().string() + ": " + bytes.error().message);
   return writeFileBytes(path, *bytes);
 }

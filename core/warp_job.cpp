@@ -265,6 +265,18 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
     result.guide = projectToTarget(result.warped_positions, warped_normals, target_index, report.target_diagonal,
                                    projection);
   }
+  if (source.dense_factorization) {
+    const Eigen::Index nl = source.landmark_positions.rows();
+    Eigen::MatrixX3d centre_targets(source.dense_centres.rows(), 3);
+    centre_targets.topRows(nl) = result.landmark_warp.apply(source.landmark_positions);
+    for (std::size_t i = 0; i < pairs->names.size(); ++i) {
+      centre_targets.row(source.landmarks.indexOf(pairs->names[i])) = pairs->target.row(static_cast<Eigen::Index>(i));
+    }
+    for (std::size_t k = 0; k < source.dense_vertices.size(); ++k) {
+      centre_targets.row(nl + static_cast<Eigen::Index>(k)) = result.guide.positions.row(source.dense_vertices[k]);
+    }
+    result.dense_map = source.dense_factorization->fit(centre_targets);
+  }
   LocateOptions locate = options.locate;
   locate.threads = options.threads;
   result.locations = locateOnGuide(target, result.guide.positions, tris, locate);

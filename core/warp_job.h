@@ -107,6 +107,11 @@ struct WarpResult {
   TpsWarp landmark_warp;
   Eigen::MatrixX3d warped_positions;   // #Vs by 3 source after the (last) warp
   GuideModel guide;
+  // The dense map: TPS from the dense source centres to their final guide
+  // positions (landmark centres to the target landmarks). Carries everything
+  // off the surface (joints, deformer points) and, through its Jacobian,
+  // vectors. Empty (no centres) when the source was prepared without them.
+  std::optional<TpsWarp> dense_map;
   TargetLocations locations;
   WarpReport report;
 };

@@ -1,0 +1,118 @@
+#include "client/transfer_options.h"
+
+#include <set>
+
+#include <nlohmann/json.hpp>
+
+namespace client {
+
+namespace {
+
+using core::ErrorCode;
+using core::makeError;
+
+core::Result<double> number(const nlohmann::json& v, const std::string& where, double lo, double hi) {
+  if (!v.is_number()) return makeError(ErrorCode::kInvalidArgument, where + " must be a number");
+  const double x = v.get<double>();
+  if (!(x >= lo && x <= hi)) {
+    return makeError(ErrorCode::kInvalidArgument, where + " must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  }
+  return x;
+}
+
+core::Result<bool> boolean(const nlohmann::json& v, const std::string& where) {
+  if (!v.is_boolean()) return makeError(ErrorCode::kInvalidArgument, where + " must be true or false");
+  return v.get<bool>();
+}
+
+core::Status gains(const nlohmann::json& v, const std::string& where, std::map<std::string, double>& out) {
+  if (!v.is_object()) return makeError(ErrorCode::kInvalidArgument, where + " must be an object of name: factor");
+  for (const auto& [name, value] : v.items()) {
+    auto x = number(value, where + "." + name, -100.0, 100.0);
+    if (!x) return x.error();
+    out[name] = *x;
+  }
+  return core::Ok{};
+}
+
+}  // namespace
+
+core::Result<TransferSettings> parseTransferOptions(const std::string& text, const std::string& label) {
+  nlohmann::json doc;
+  try {
+    doc = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::parse_error& e) {
+    return makeError(ErrorCode::kParse, label + ": not valid JSON (" + e.what() + ")");
+  }
+  if (!doc.is_object()) return makeError(ErrorCode::kInvalidArgument, label + ": expected a JSON object");
+  TransferSettings s;
+  core::TransferOptions& t = s.transfer;
+  for (const auto& [key, value] : doc.items()) {
+    const std::string where = label + ": '" + key + "'";
+    core::Status ok = core::Ok{};
+    if (key == "components") {
+      if (!value.is_object()) return makeError(ErrorCode::kInvalidArgument, where + " must be an object");
+      const std::map<std::string, bool*> flags = {{"weights", &t.weights}, {"joints", &t.joints}, {"shapes", &t.shapes},
+                                                  {"animations", &t.animations}, {"attributes", &t.attributes}};
+      for (const auto& [name, flag] : value.items()) {
+        const auto it = flags.find(name);
+        if (it == flags.end()) return makeError(ErrorCode::kInvalidArgument, where + ": unknown component '" + name + "'");
+        auto b = boolean(flag, where + "." + name);
+        if (!b) return b.error();
+        *it->second = *b;
+      }
+    } else if (key == "uvs") {
+      auto b = boolean(value, where);
+      if (!b) return b.error();
+      t.uvs = *b;
+    } else if (key == "diagnostic_attributes") {
+      auto b = boolean(value, where);
+      if (!b) return b.error();
+      t.diagnostic_attributes = *b;
+    } else if (key == "max_influences") {
+      auto x = number(value, where, 1, 8);
+      if (!x) return x.error();
+      t.weight_options.max_influences = static_cast<int>(*x);
+      s.write.max_influences = static_cast<int>(*x);
+    } else if (key == "weight_encoding") {
+      const std::string e = value.is_string() ? value.get<std::string>() : "";
+      if (e == "float") s.write.weight_encoding = core::WeightEncoding::kFloat;
+      else if (e == "unorm16") s.write.weight_encoding = core::WeightEncoding::kUnorm16;
+      else if (e == "unorm8") s.write.weight_encoding = core::WeightEncoding::kUnorm8;
+      else return makeError(ErrorCode::kInvalidArgument, where + " must be \"float\", \"unorm16\" or \"unorm8\"");
+    } else if (key == "low_confidence_distance") {
+      auto x = number(value, where, 0.0, 1.0);
+      if (!x) return x.error();
+      t.warp.locate.low_confidence_distance = *x;
+    } else if (key == "low_confidence_angle_deg") {
+      auto x = number(value, where, 0.0, 180.0);
+      if (!x) return x.error();
+      t.warp.locate.low_confidence_angle_deg = *x;
+    } else if (key == "adaptation") {
+      const std::string a = value.is_string() ? value.get<std::string>() : "";
+      if (a == "none") t.adaptation = core::ShapeAdaptation::kNone;
+      else if (a == "rotation") t.adaptation = core::ShapeAdaptation::kRotation;
+      else if (a == "similarity") t.adaptation = core::ShapeAdaptation::kSimilarity;
+      else if (a == "local") t.adaptation = core::ShapeAdaptation::kLocal;
+      else return makeError(ErrorCode::kInvalidArgument, where + " must be \"none\", \"rotation\", \"similarity\" or \"local\"");
+    } else if (key == "exaggeration") {
+      auto x = number(value, where, -100.0, 100.0);
+      if (!x) return x.error();
+      t.exaggeration = *x;
+    } else if (key == "shape_exaggeration") {
+      ok = gains(value, where, t.shape_exaggeration);
+    } else if (key == "joint_exaggeration") {
+      ok = gains(value, where, t.joint_exaggeration);
+    } else if (key == "refine_iterations") {
+      auto x = number(value, where, 0, 20);
+      if (!x) return x.error();
+      t.warp.refine_iterations = static_cast<int>(*x);
+    } else {
+      return makeError(ErrorCode::kInvalidArgument, where + " is not a known option");
+    }
+    if (!ok) return ok.error();
+  }
+  return s;
+}
+
+}  // namespace client

@@ -1,0 +1,27 @@
+// Transfer options JSON (the `--options opts.json` file of `rigport transfer`):
+//   {"components": {"weights": true, "joints": true, "shapes": true,
+//                   "animations": true, "attributes": true},
+//    "uvs": false, "max_influences": 4, "weight_encoding": "float",
+//    "low_confidence_distance": 0.05, "low_confidence_angle_deg": 30,
+//    "adaptation": "rotation", "exaggeration": 1.0,
+//    "shape_exaggeration": {"jawOpen": 1.5}, "joint_exaggeration": {"jaw": 1.2},
+//    "diagnostic_attributes": false, "refine_iterations": 3}
+// Unknown keys are errors (a typo must not be silently ignored).
+#pragma once
+
+#include <string>
+
+#include "core/error.h"
+#include "core/rig_io.h"
+#include "core/transfer.h"
+
+namespace client {
+
+struct TransferSettings {
+  core::TransferOptions transfer;
+  core::RigWriteOptions write;
+};
+
+core::Result<TransferSettings> parseTransferOptions(const std::string& json_text, const std::string& label);
+
+}  // namespace client

@@ -1,0 +1,27 @@
+// Vertex attribute transfer (papers 004 sec. 3.5): UV sets seam-aware (the
+// UVs of the containing source triangle's own corners, so never across a UV
+// seam), integer labels by barycentric-weighted majority, float fields by
+// interpolation.
+#pragma once
+
+#include "core/correspondence.h"
+#include "core/rig.h"
+
+namespace core {
+
+struct AttributeTransferOptions {
+  bool uvs = false;  // replace the target's TEXCOORD_0 (and extra sets) with the source's
+};
+
+struct TransferredAttributes {
+  Eigen::MatrixX2d uvs;                 // #Vt by 2 when uvs were transferred, else 0 rows
+  VertexAttributes attributes;          // labels and fields (+ extra UV sets when asked)
+};
+
+// Mismatched target vertices (see TargetLocations) take labels by majority of
+// their neighbours and fields/colours by harmonic inpainting over `target`.
+TransferredAttributes transferAttributes(const Mesh& source_mesh, const VertexAttributes& source,
+                                         const TargetLocations& locations, const Mesh& target,
+                                         const AttributeTransferOptions& options = {});
+
+}  // namespace core

@@ -1,0 +1,32 @@
+// Blend shape (morph target) transfer: each target vertex takes the source
+// delta interpolated at its location on the source, mapped by a 3x3
+// adaptation (rotation, similarity or local Jacobian of the source -> target
+// map: "adapted to the target model proportions", papers 000 ch. 4.7) and
+// scaled by the exaggeration factor (000 sec. 5.4.2).
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/correspondence.h"
+#include "core/rig.h"
+
+namespace core {
+
+struct ShapeTransferOptions {
+  double exaggeration = 1.0;                    // applied to every delta
+  std::map<std::string, double> per_shape;      // overrides `exaggeration` by target name
+  bool inpaint_untrusted = true;                // harmonic deltas at mismatched vertices
+};
+
+// adaptation: #Vt matrices (one per target vertex) or a single one for all.
+// Normal deltas, when the source has them, are recomputed on the target from
+// the transferred position deltas.
+std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& source,
+                                              const Eigen::MatrixX3i& source_triangles,
+                                              const TargetLocations& locations,
+                                              const std::vector<Eigen::Matrix3d>& adaptation, const Mesh& target,
+                                              const ShapeTransferOptions& options = {});
+
+}  // namespace core

@@ -1,0 +1,207 @@
+#include <Eigen/LU>
+
+#include "core/transfer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numbers>
+
+#include "core/similarity.h"
+
+namespace core {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+}  // namespace
+
+std::size_t PreparedRig::memoryBytes() const {
+  std::size_t bytes = surface.memoryBytes();
+  for (const auto& t : rig.morph_targets) bytes += static_cast<std::size_t>(t.position_deltas.size() + t.normal_deltas.size()) * sizeof(double);
+  bytes += static_cast<std::size_t>(rig.weights.nonZeros()) * (sizeof(double) + sizeof(int));
+  for (const auto& a : rig.animations) for (const auto& c : a.channels) bytes += static_cast<std::size_t>(c.values.size() + c.times.size()) * sizeof(double);
+  return bytes;
+}
+
+Result<PreparedRig> prepareRig(Rig rig, LandmarkSet landmarks, const std::string& label, const PrepareOptions& options) {
+  if (rig.skin && rig.weights.rows() != rig.mesh.vertexCount()) {
+    return makeError(ErrorCode::kInvalidMesh, label + ": skin weights cover " + std::to_string(rig.weights.rows()) +
+                                                  " vertices but the mesh has " + std::to_string(rig.mesh.vertexCount()));
+  }
+  for (const auto& t : rig.morph_targets) {
+    if (t.position_deltas.rows() != rig.mesh.vertexCount()) {
+      return makeError(ErrorCode::kInvalidMesh, label + ": morph target '" + t.name + "' has the wrong vertex count");
+    }
+  }
+  for (const auto& a : rig.animations) {
+    for (std::size_t c = 0; c < a.channels.size(); ++c) {
+      if (!a.channels[c].values.allFinite() || !a.channels[c].times.allFinite()) {
+        return makeError(ErrorCode::kInvalidMesh, label + ": animation '" + a.name + "' channel " + std::to_string(c) +
+                                                      " has non-finite keys");
+      }
+    }
+  }
+  auto surface = prepareSource(rig.mesh, std::move(landmarks), label, options);
+  if (!surface) return surface.error();
+  PreparedRig prepared;
+  prepared.rig = std::move(rig);
+  prepared.rig.mesh.normals = surface->mesh.normals;
+  prepared.surface = std::move(*surface);
+  return prepared;
+}
+
+Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target, const LandmarkSet& target_landmarks,
+                                   const std::string& target_label, const TransferOptions& options) {
+  const auto t_start = Clock::now();
+  const Rig& src = source.rig;
+  if ((options.weights || options.joints) && !src.skin) {
+    return makeError(ErrorCode::kInvalidMesh, source.surface.label + ": the rig has no skin (nothing to transfer "
+                                                                     "weights or joints from); turn weights/joints off");
+  }
+
+  // --- warp + correspond (+ the dense map)
+  WarpOptions warp_options = options.warp;
+  warp_options.threads = options.threads;
+  auto warp = runWarp(source.surface, target, target_landmarks, target_label, warp_options);
+  if (!warp) return warp.error();
+  TransferResult result;
+  TransferReport& report = result.report;
+  report.warp = warp->report;
+  report.prepare_ms = source.surface.prepare_ms;
+  const TargetLocations& locations = warp->locations;
+  for (const auto& sp : locations.on_source) report.unlocated_vertices += sp.found() ? 0 : 1;
+  const Mesh& src_mesh = source.surface.mesh;
+
+  // --- dense map products: global similarity and per-vertex adaptation
+  auto t0 = Clock::now();
+  Eigen::MatrixX3d src_landmarks(static_cast<Eigen::Index>(warp->report.landmark_residuals.size()), 3);
+  Eigen::MatrixX3d tgt_landmarks(src_landmarks.rows(), 3);
+  for (Eigen::Index i = 0; i < src_landmarks.rows(); ++i) {
+    const std::string& name = warp->report.landmark_residuals[static_cast<std::size_t>(i)].name;
+    src_landmarks.row(i) = source.surface.landmark_positions.row(source.surface.landmarks.indexOf(name));
+    tgt_landmarks.row(i) = warp->landmark_warp.apply(Eigen::Vector3d(src_landmarks.row(i).transpose())).transpose();
+  }
+  Similarity similarity = fitSimilarity(src_landmarks, tgt_landmarks);
+  report.global_scale = similarity.scale;
+  report.global_rotation_deg =
+      std::acos(std::clamp((similarity.rotation.trace() - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / std::numbers::pi;
+  report.rotation_applied = report.global_rotation_deg >= options.min_rotation_deg;
+  if (!report.rotation_applied) similarity.rotation.setIdentity();
+  const TpsWarp& dense_map = warp->dense_map ? *warp->dense_map : warp->landmark_warp;
+  std::optional<TpsWarp> smooth_map;
+  if (options.adaptation == ShapeAdaptation::kLocal) {
+    TpsOptions smooth;
+    smooth.regularization = options.local_smoothing * source.surface.diagonal;
+    smooth.leave_one_out = false;
+    smooth.threads = options.threads;
+    auto fitted = fitTps(source.surface.dense_centres, dense_map.apply(source.surface.dense_centres), smooth);
+    if (!fitted) return fitted.error();
+    smooth_map = std::move(*fitted);
+  }
+  auto adaptationAt = [&](const Eigen::Vector3d& p) -> Eigen::Matrix3d {
+    switch (options.adaptation) {
+      case ShapeAdaptation::kNone: return Eigen::Matrix3d::Identity();
+      case ShapeAdaptation::kRotation: return similarity.rotation;
+      case ShapeAdaptation::kSimilarity: return similarity.scale * similarity.rotation;
+      case ShapeAdaptation::kLocal: return smooth_map->jacobian(p);
+    }
+    return Eigen::Matrix3d::Identity();
+  };
+  std::vector<Eigen::Matrix3d> vertex_adaptation;
+  if (options.adaptation == ShapeAdaptation::kLocal) {
+    Eigen::MatrixX3d at(target.vertexCount(), 3);
+    for (Eigen::Index v = 0; v < target.vertexCount(); ++v) {
+      const SurfacePoint& sp = locations.on_source[static_cast<std::size_t>(v)];
+      Eigen::RowVector3d p = Eigen::RowVector3d::Zero();
+      if (sp.found()) for (int k = 0; k < 3; ++k) p += sp.barycentric(k) * src_mesh.positions.row(src_mesh.triangles(sp.face, k));
+      at.row(v) = p;
+    }
+    vertex_adaptation = smooth_map->jacobians(at);
+  } else {
+    vertex_adaptation = {adaptationAt(Eigen::Vector3d::Zero())};
+  }
+  report.dense_map_ms = msSince(t0);
+
+  // --- assemble the target rig as we go: the target keeps its topology
+  Rig& out = result.rig;
+  out.mesh = target;
+  out.mesh.normals = computeVertexNormals(target.positions, target.triangles);
+  out.mesh_name = src.mesh_name;
+  out.nodes = src.nodes;
+  out.mesh_node = src.mesh_node;
+
+  // --- weights
+  t0 = Clock::now();
+  TransferredWeights weights;
+  if (options.weights) {
+    auto w = transferSkinWeights(src.weights, src_mesh.triangles, locations, target, options.weight_options);
+    if (!w) return w.error();
+    weights = std::move(*w);
+    out.weights = weights.weights;
+    report.inpainted_vertices = weights.inpainted_vertices;
+    report.pruned_vertices = weights.pruned_vertices;
+    report.max_influences = weights.max_influences;
+  }
+  report.weights_ms = msSince(t0);
+
+  // --- joints (+ animations: their translation keys need the same frames)
+  t0 = Clock::now();
+  if (options.joints && src.skin) {
+    SkeletonTransferOptions skeleton_options;
+    skeleton_options.exaggeration = options.exaggeration;
+    skeleton_options.per_joint = options.joint_exaggeration;
+    TransferredSkeleton skeleton = transferSkeleton(src, dense_map, similarity.rotation, adaptationAt, skeleton_options);
+    out.nodes = std::move(skeleton.nodes);
+    out.skin = std::move(skeleton.skin);
+    if (options.animations) out.animations = std::move(skeleton.animations);
+    report.joints = static_cast<int>(out.skin->joints.size());
+  } else if (options.animations) {
+    out.animations = src.animations;
+  }
+  report.joints_ms = msSince(t0);
+
+  // --- shapes
+  t0 = Clock::now();
+  if (options.shapes) {
+    ShapeTransferOptions shape_options;
+    shape_options.exaggeration = options.exaggeration;
+    shape_options.per_shape = options.shape_exaggeration;
+    out.morph_targets = transferMorphTargets(src.morph_targets, src_mesh.triangles, locations, vertex_adaptation,
+                                             target, shape_options);
+    out.morph_default_weights = src.morph_default_weights;
+    report.shapes = static_cast<int>(out.morph_targets.size());
+  } else {
+    // Morph-weight channels would point at targets that no longer exist.
+    for (auto& a : out.animations) {
+      std::erase_if(a.channels, [](const AnimationChannel& c) { return c.path == AnimationPath::kWeights; });
+    }
+    std::erase_if(out.animations, [](const Animation& a) { return a.channels.empty(); });
+  }
+  report.shapes_ms = msSince(t0);
+  report.animations = static_cast<int>(out.animations.size());
+
+  // --- attributes (+ diagnostics as data)
+  t0 = Clock::now();
+  if (options.attributes || options.uvs) {
+    AttributeTransferOptions attribute_options;
+    attribute_options.uvs = options.uvs;
+    TransferredAttributes attrs = transferAttributes(src_mesh, src.attributes, locations, target, attribute_options);
+    if (options.uvs && attrs.uvs.rows() > 0) out.mesh.uvs = attrs.uvs;
+    if (!options.uvs) attrs.attributes.extra_uv_sets.clear();
+    if (options.attributes) out.attributes = std::move(attrs.attributes);
+  }
+  if (options.diagnostic_attributes) {
+    out.attributes.fields["CONFIDENCE"] = locations.confidence;
+    out.attributes.fields["INPAINTED"] =
+        weights.inpainted.size() == target.vertexCount() ? weights.inpainted.cast<double>().eval()
+                                                          : Eigen::VectorXd::Zero(target.vertexCount()).eval();
+  }
+  report.attributes_ms = msSince(t0);
+  report.total_ms = msSince(t_start);
+  return result;
+}
+
+}  // namespace core

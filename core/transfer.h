@@ -1,0 +1,92 @@
+// transferRig: the main job, read top to bottom (papers 000 ch. 4.7-4.8, 004
+// sec. 5): prepare (cacheable, per source rig) -> warp -> correspond -> dense
+// map -> weights -> joints -> shapes -> animations -> attributes -> assemble.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/attributes.h"
+#include "core/blendshapes.h"
+#include "core/rig.h"
+#include "core/skeleton.h"
+#include "core/skin_weights.h"
+#include "core/warp_job.h"
+
+namespace core {
+
+// How source deltas (shapes, animated joint translations) are mapped to the target.
+enum class ShapeAdaptation {
+  kNone,        // raw copy
+  kRotation,    // turned by the global rotation between the faces (default)
+  kSimilarity,  // rotation and the global uniform scale
+  kLocal,       // local Jacobian of the smoothed dense map: follows proportions
+};
+
+struct TransferOptions {
+  WarpOptions warp;
+  bool weights = true;
+  bool joints = true;
+  bool shapes = true;
+  bool animations = true;
+  bool attributes = true;          // labels, fields, colours (UVs only with `uvs`)
+  bool uvs = false;                // replace the target's UVs with the source's
+  SkinWeightOptions weight_options;
+  ShapeAdaptation adaptation = ShapeAdaptation::kRotation;
+  // kRotation/kSimilarity: a global rotation below this angle (degrees) is
+  // read as face-shape variation (an identity's tilt), not a pose, and not
+  // applied to deltas. Measured: ICT identities tilt up to ~4 degrees while
+  // their expressions stay unrotated.
+  double min_rotation_deg = 6.0;
+  // kLocal: regularisation of the smoothed map, fraction of the source diagonal.
+  double local_smoothing = 0.5;
+  double exaggeration = 1.0;                      // shapes and animated deltas
+  std::map<std::string, double> shape_exaggeration;  // by morph target name
+  std::map<std::string, double> joint_exaggeration;  // by joint name
+  bool diagnostic_attributes = false;             // add _CONFIDENCE and _INPAINTED to the output
+  int threads = 0;
+};
+
+struct PreparedRig {
+  Rig rig;
+  PreparedSource surface;
+  std::size_t memoryBytes() const;
+};
+
+Result<PreparedRig> prepareRig(Rig rig, LandmarkSet landmarks, const std::string& label,
+                               const PrepareOptions& options = {});
+
+struct TransferReport {
+  WarpReport warp;
+  int inpainted_vertices = 0;
+  int pruned_vertices = 0;
+  int max_influences = 0;
+  int shapes = 0;
+  int joints = 0;
+  int animations = 0;
+  int unlocated_vertices = 0;     // target vertices with no location on the source
+  double global_scale = 1.0;      // similarity scale source -> target landmarks
+  double global_rotation_deg = 0.0;  // similarity rotation source -> target landmarks
+  bool rotation_applied = false;     // deltas turned (above min_rotation_deg)
+  std::vector<std::string> warnings;
+  // milliseconds
+  double prepare_ms = 0.0;
+  double dense_map_ms = 0.0;
+  double weights_ms = 0.0;
+  double joints_ms = 0.0;
+  double shapes_ms = 0.0;
+  double animations_ms = 0.0;
+  double attributes_ms = 0.0;
+  double total_ms = 0.0;
+};
+
+struct TransferResult {
+  Rig rig;
+  TransferReport report;
+};
+
+Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target, const LandmarkSet& target_landmarks,
+                                   const std::string& target_label, const TransferOptions& options = {});
+
+}  // namespace core

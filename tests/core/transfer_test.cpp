@@ -1,0 +1,258 @@
+#include "core/transfer.h"
+
+#include <gtest/gtest.h>
+
+#include "core/skinning.h"
+#include "core/synthetic_rig.h"
+#include "tests/test_support.h"
+
+namespace {
+
+using rigport_test::matricesNear;
+
+const core::SyntheticRig& sourceRig() {
+  static const core::SyntheticRig rig = core::generateRig(core::HeadShape{}, core::HeadResolution{96, 88});
+  return rig;
+}
+
+const core::PreparedRig& preparedSource() {
+  static const core::PreparedRig prepared = [] {
+    auto p = core::prepareRig(sourceRig().rig, sourceRig().landmarks, "source");
+    EXPECT_TRUE(p) << (p ? "" : p.error().message);
+    return std::move(*p);
+  }();
+  return prepared;
+}
+
+Eigen::MatrixX3d jointWorldPositions(const core::Rig& rig) {
+  const auto world = core::nodeWorldTransforms(rig.nodes);
+  Eigen::MatrixX3d p(static_cast<Eigen::Index>(rig.skin->joints.size()), 3);
+  for (std::size_t j = 0; j < rig.skin->joints.size(); ++j) {
+    p.row(static_cast<Eigen::Index>(j)) = world[static_cast<std::size_t>(rig.skin->joints[j])].topRightCorner<3, 1>().transpose();
+  }
+  return p;
+}
+
+TEST(TransferRig, OntoItsOwnMeshComesBackEqual) {
+  const core::Rig& src = sourceRig().rig;
+  auto result = core::transferRig(preparedSource(), src.mesh, sourceRig().landmarks, "self");
+  ASSERT_TRUE(result) << result.error().message;
+  const core::Rig& out = result->rig;
+  const double diag = core::boundingBoxDiagonal(src.mesh.positions);
+  EXPECT_TRUE(matricesNear(Eigen::MatrixXd(out.weights), Eigen::MatrixXd(src.weights), 1e-4));
+  EXPECT_TRUE(matricesNear(jointWorldPositions(out), jointWorldPositions(src), 1e-6 * diag));
+  ASSERT_EQ(out.morph_targets.size(), src.morph_targets.size());
+  for (std::size_t k = 0; k < out.morph_targets.size(); ++k) {
+    EXPECT_TRUE(matricesNear(out.morph_targets[k].position_deltas, src.morph_targets[k].position_deltas, 1e-4 * diag))
+        << out.morph_targets[k].name;
+  }
+  for (std::size_t j = 0; j < src.skin->joints.size(); ++j) {
+    EXPECT_TRUE(matricesNear(out.skin->inverse_bind[j], src.skin->inverse_bind[j], 1e-6 * diag)) << "joint " << j;
+  }
+  EXPECT_EQ(result->report.inpainted_vertices, 0);
+}
+
+TEST(TransferRig, IsEquivariantUnderRotationTranslationAndUniformScale) {
+  const core::Rig& src = sourceRig().rig;
+  const Eigen::Matrix3d rotation = Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.2, 1.0, 0.1).normalized()).toRotationMatrix();
+  const double scale = 1.7;
+  const Eigen::Vector3d shift(0.3, -0.1, 0.25);
+  core::Mesh target = src.mesh;
+  target.positions = ((scale * src.mesh.positions * rotation.transpose()).rowwise() + shift.transpose()).eval();
+  target.normals = core::computeVertexNormals(target.positions, target.triangles);
+  core::TransferOptions options;
+  options.adaptation = core::ShapeAdaptation::kSimilarity;
+  auto result = core::transferRig(preparedSource(), target, sourceRig().landmarks, "moved", options);
+  ASSERT_TRUE(result) << result.error().message;
+  const core::Rig& out = result->rig;
+  const double diag = core::boundingBoxDiagonal(target.positions);
+  EXPECT_NEAR(result->report.global_scale, scale, 1e-9);
+  // Joints moved with the mesh.
+  const Eigen::MatrixX3d expected_joints = ((scale * jointWorldPositions(src) * rotation.transpose()).rowwise() + shift.transpose()).eval();
+  EXPECT_TRUE(matricesNear(jointWorldPositions(out), expected_joints, 1e-6 * diag));
+  // Shape deltas rotated and scaled.
+  for (std::size_t k = 0; k < out.morph_targets.size(); ++k) {
+    const Eigen::MatrixX3d expected = scale * src.morph_targets[k].position_deltas * rotation.transpose();
+    EXPECT_TRUE(matricesNear(out.morph_targets[k].position_deltas, expected, 1e-4 * diag)) << out.morph_targets[k].name;
+  }
+  // Joint translation keys: the delta from rest scaled by the same factor.
+  for (std::size_t c = 0; c < src.animations[0].channels.size(); ++c) {
+    const auto& sc = src.animations[0].channels[c];
+    if (sc.path != core::AnimationPath::kTranslation) continue;
+    const auto& oc = out.animations[0].channels[c];
+    const Eigen::RowVector3d rest = src.nodes[static_cast<std::size_t>(sc.node)].translation.transpose();
+    const Eigen::RowVector3d rest_out = out.nodes[static_cast<std::size_t>(sc.node)].translation.transpose();
+    for (Eigen::Index k = 0; k < sc.values.rows(); ++k) {
+      EXPECT_TRUE(matricesNear(oc.values.row(k) - rest_out, scale * (sc.values.row(k) - rest), 1e-9)) << "key " << k;
+    }
+  }
+  // The posed target equals the posed source moved the same way.
+  const core::Pose ps = core::samplePose(src, src.animations[0], 0.5);
+  const core::Pose po = core::samplePose(out, out.animations[0], 0.5);
+  const Eigen::MatrixX3d posed_src = core::poseMesh(src, ps);
+  const Eigen::MatrixX3d expected_posed = ((scale * posed_src * rotation.transpose()).rowwise() + shift.transpose()).eval();
+  EXPECT_TRUE(matricesNear(core::poseMesh(out, po), expected_posed, 1e-4 * diag));
+}
+
+TEST(TransferRig, WeightsAreNormalisedPrunedAndShapesSparseOnAnotherFace) {
+  core::HeadResolution res;
+  res.columns = 70;
+  res.rows = 66;
+  res.alternate_diagonals = true;
+  res.jitter = 0.25;
+  res.seed = 9;
+  const core::SyntheticRig target = core::generateRig(core::randomHeadShape(9, 0.2), res);
+  core::TransferOptions options;
+  options.weight_options.max_influences = 2;
+  options.diagnostic_attributes = true;
+  auto result = core::transferRig(preparedSource(), target.rig.mesh, target.landmarks, "other", options);
+  ASSERT_TRUE(result) << result.error().message;
+  const core::Rig& out = result->rig;
+  ASSERT_EQ(out.weights.rows(), target.rig.mesh.vertexCount());
+  for (Eigen::Index v = 0; v < out.weights.rows(); ++v) {
+    double sum = 0;
+    int count = 0;
+    for (core::SkinWeights::InnerIterator it(out.weights, v); it; ++it) {
+      EXPECT_GE(it.value(), 0.0);
+      sum += it.value();
+      ++count;
+    }
+    ASSERT_NEAR(sum, 1.0, 1e-12) << "vertex " << v;
+    ASSERT_LE(count, 2);
+  }
+  EXPECT_LE(result->report.max_influences, 2);
+  EXPECT_TRUE(out.attributes.fields.count("CONFIDENCE") && out.attributes.fields.count("INPAINTED"));
+  // The eyeBlink shape stays zero away from the lids.
+  const auto& blink = out.morph_targets[5];
+  EXPECT_EQ(blink.name, "eyeBlink_R");
+  EXPECT_LT((blink.position_deltas.rowwise().norm().array() > 0).count(), out.mesh.vertexCount() / 10);
+}
+
+TEST(TransferRig, LowerLipNeverTakesTheUpperLip) {
+  core::HeadResolution res;
+  res.columns = 84;
+  res.rows = 80;
+  res.alternate_diagonals = true;
+  res.jitter = 0.2;
+  res.seed = 4;
+  const core::SyntheticRig target = core::generateRig(core::randomHeadShape(4, 0.15), res);
+  core::TransferOptions lip_options;
+  lip_options.diagnostic_attributes = true;
+  auto result = core::transferRig(preparedSource(), target.rig.mesh, target.landmarks, "other", lip_options);
+  ASSERT_TRUE(result) << result.error().message;
+  const Eigen::VectorXi& truth = target.rig.attributes.labels.at("REGION");
+  const Eigen::VectorXi& moved = result->rig.attributes.labels.at("REGION");
+  int lower = 0, wrong = 0;
+  for (Eigen::Index v = 0; v < truth.size(); ++v) {
+    if (truth(v) == core::kRegionLowerLip) {
+      ++lower;
+      wrong += moved(v) == core::kRegionUpperLip;
+    }
+    if (truth(v) == core::kRegionUpperLip) wrong += moved(v) == core::kRegionLowerLip;
+
+  }
+  EXPECT_GT(lower, 20);
+  EXPECT_EQ(wrong, 0);
+  // jawOpen moves the lower lip, not the upper one.
+  const auto& jaw = result->rig.morph_targets[0].position_deltas;
+  double upper = 0, lower_motion = 0;
+  int nu = 0, nl = 0;
+  for (Eigen::Index v = 0; v < truth.size(); ++v) {
+    if (truth(v) == core::kRegionUpperLip) upper += jaw.row(v).norm(), ++nu;
+    if (truth(v) == core::kRegionLowerLip) lower_motion += jaw.row(v).norm(), ++nl;
+  }
+  EXPECT_LT(upper / nu, 0.1 * lower_motion / nl);
+}
+
+TEST(TransferRig, ExaggerationScalesShapesAndAnimatedDeltas) {
+  const core::Rig& src = sourceRig().rig;
+  core::TransferOptions options;
+  options.shape_exaggeration["jawOpen"] = 2.0;
+  options.joint_exaggeration["jaw"] = 3.0;
+  auto result = core::transferRig(preparedSource(), src.mesh, sourceRig().landmarks, "self", options);
+  ASSERT_TRUE(result);
+  const double diag = core::boundingBoxDiagonal(src.mesh.positions);
+  EXPECT_TRUE(matricesNear(result->rig.morph_targets[0].position_deltas, 2.0 * src.morph_targets[0].position_deltas, 1e-4 * diag));
+  EXPECT_TRUE(matricesNear(result->rig.morph_targets[1].position_deltas, src.morph_targets[1].position_deltas, 1e-4 * diag));
+  const auto& sc = src.animations[0].channels[1];
+  const auto& oc = result->rig.animations[0].channels[1];
+  ASSERT_EQ(sc.path, core::AnimationPath::kTranslation);
+  const Eigen::RowVector3d rest = src.nodes[3].translation.transpose();
+  EXPECT_TRUE(matricesNear(oc.values.row(30) - rest, 3.0 * (sc.values.row(30) - rest), 1e-6 * diag));
+}
+
+TEST(TransferRig, BadInputsGiveClearErrors) {
+  core::Rig unskinned = sourceRig().rig;
+  unskinned.skin.reset();
+  unskinned.weights.resize(0, 0);
+  auto prepared = core::prepareRig(unskinned, sourceRig().landmarks, "noskin.glb");
+  ASSERT_TRUE(prepared);
+  auto r = core::transferRig(*prepared, sourceRig().rig.mesh, sourceRig().landmarks, "t");
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("no skin"), std::string::npos) << r.error().message;
+
+  core::LandmarkSet renamed = sourceRig().landmarks;
+  for (auto& lm : renamed.landmarks) lm.name = "x_" + lm.name;
+  auto m = core::transferRig(preparedSource(), sourceRig().rig.mesh, renamed, "renamed.json");
+  ASSERT_FALSE(m);
+  EXPECT_NE(m.error().message.find("not in the source"), std::string::npos);
+
+  core::LandmarkSet three;
+  three.landmarks.assign(sourceRig().landmarks.landmarks.begin(), sourceRig().landmarks.landmarks.begin() + 3);
+  auto f = core::transferRig(preparedSource(), sourceRig().rig.mesh, three, "three.json");
+  ASSERT_FALSE(f);
+  EXPECT_NE(f.error().message.find("at least 4"), std::string::npos);
+
+  core::Rig nan_keys = sourceRig().rig;
+  nan_keys.animations[0].channels[0].values(3, 1) = std::numeric_limits<double>::quiet_NaN();
+  auto n = core::prepareRig(nan_keys, sourceRig().landmarks, "nan.glb");
+  ASSERT_FALSE(n);
+  EXPECT_NE(n.error().message.find("non-finite"), std::string::npos);
+}
+
+// Drops morph-weight channels: the skinned (joint) motion alone.
+core::Rig skinnedOnly(core::Rig rig) {
+  for (auto& a : rig.animations) {
+    std::erase_if(a.channels, [](const core::AnimationChannel& c) { return c.path == core::AnimationPath::kWeights; });
+  }
+  return rig;
+}
+
+TEST(TransferRig, AnimationStrainFollowsTheSource) {
+  // Papers 000 sec. 5.3.1: eps = (l1 - l0) / l0 of the mouth opening (inner
+  // lip midpoints) over the skinned clip, source vs target.
+  // Same proportions (strain depends on the lever arm over the rest gap),
+  // other topology and size: the relative opening must follow.
+  core::SyntheticRig target = core::generateRig(core::HeadShape{}, core::HeadResolution{80, 76, true, 0.2, 21});
+  target.rig.mesh.positions *= 1.3;
+  auto result = core::transferRig(preparedSource(), target.rig.mesh, target.landmarks, "other");
+  ASSERT_TRUE(result) << result.error().message;
+  auto lipGap = [](const core::Rig& rig, const core::LandmarkSet& lms, const Eigen::MatrixX3d& posed) {
+    auto at = [&](const char* name) {
+      const auto& l = lms.landmarks[static_cast<std::size_t>(lms.indexOf(name))];
+      Eigen::RowVector3d p = Eigen::RowVector3d::Zero();
+      for (int k = 0; k < 3; ++k) p += l.barycentric(k) * posed.row(rig.mesh.triangles(l.face, k));
+      return p;
+    };
+    return (at("mouth_inner_2") - at("mouth_inner_6")).norm();
+  };
+  const core::Rig src = skinnedOnly(sourceRig().rig);
+  const core::Rig out = skinnedOnly(result->rig);
+  const double l0s = lipGap(src, sourceRig().landmarks, src.mesh.positions);
+  const double l0t = lipGap(out, target.landmarks, target.rig.mesh.positions);
+  std::vector<double> es, et;
+  for (int k = 0; k <= 60; ++k) {
+    const double t = k / 30.0;
+    es.push_back(lipGap(src, sourceRig().landmarks, core::poseMesh(src, core::samplePose(src, src.animations[0], t))) / l0s - 1);
+    et.push_back(lipGap(out, target.landmarks, core::poseMesh(out, core::samplePose(out, out.animations[0], t))) / l0t - 1);
+  }
+  const Eigen::Map<Eigen::VectorXd> a(es.data(), static_cast<Eigen::Index>(es.size())), b(et.data(), static_cast<Eigen::Index>(et.size()));
+  const Eigen::VectorXd ac = a.array() - a.mean(), bc = b.array() - b.mean();
+  const double correlation = ac.dot(bc) / (ac.norm() * bc.norm());
+  const double amplitude = (b.maxCoeff() - b.minCoeff()) / (a.maxCoeff() - a.minCoeff());
+  std::printf("strain correlation %.4f amplitude ratio %.3f\n", correlation, amplitude);
+  EXPECT_GE(correlation, 0.99);
+  EXPECT_NEAR(amplitude, 1.0, 0.1);
+}
+
+}  // namespace
