@@ -34,6 +34,31 @@ core::Status writeText(const std::filesystem::path& path, const std::string& tex
   return core::writeFileBytes(path, std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
 }
 
+// Writes the diagnostics file and/or prints them; warns about suspicious landmarks.
+core::Status emitDiagnostics(const std::string& diagnostics, const std::filesystem::path& file, bool print,
+                             const std::vector<std::string>& suspicious) {
+  if (!file.empty()) {
+    if (auto ok = writeText(file, diagnostics); !ok) return ok;
+  }
+  if (print) std::fputs(diagnostics.c_str(), stdout);
+  if (!suspicious.empty()) {
+    std::string names;
+    for (const auto& n : suspicious) names += (names.empty() ? "" : ", ") + n;
+    spdlog::warn("suspicious landmarks (the others cannot explain them; swapped or misplaced?): {}", names);
+  }
+  return core::Ok{};
+}
+
+core::DiagnosticsContext diagnosticsContext(const core::MeshReadReport& source, const core::MeshReadReport& target,
+                                            double read_ms, double write_ms, Clock::time_point t_start) {
+  core::DiagnosticsContext context;
+  context.source_read = &source;
+  context.target_read = &target;
+  context.extra_timings_ms = {{"read", read_ms}, {"write", write_ms}};
+  context.total_ms = msSince(t_start);
+  return context;
+}
+
 }  // namespace
 
 int runWarp(const WarpArgs& args) {
@@ -72,27 +97,17 @@ int runWarp(const WarpArgs& args) {
   if (auto ok = core::writeMeshGlb(guide, args.output); !ok) return fail(ok.error());
   const double write_ms = msSince(t0);
 
-  core::DiagnosticsContext context;
-  context.source_read = &source->report;
-  context.target_read = &target->report;
-  context.extra_timings_ms = {{"read", read_ms}, {"write", write_ms}};
-  context.total_ms = msSince(t_start);
-  const std::string diagnostics = core::formatWarpDiagnostics(result->report, context);
-  if (!args.diagnostics.empty()) {
-    if (auto ok = writeText(args.diagnostics, diagnostics); !ok) return fail(ok.error());
-  }
-  if (args.print_diagnostics) std::fputs(diagnostics.c_str(), stdout);
+  const core::DiagnosticsContext context = diagnosticsContext(source->report, target->report, read_ms, write_ms, t_start);
   const auto& r = result->report;
+  if (auto ok = emitDiagnostics(core::formatWarpDiagnostics(r, context), args.diagnostics, args.print_diagnostics,
+                                r.suspicious_landmarks); !ok) {
+    return fail(ok.error());
+  }
   spdlog::info("warp: {} landmarks, rms residual {:.3g}, suspicious {}; correspondence p95 {:.4g} ({:.3f}% of diagonal), "
                "{} flipped triangles, {} low-confidence target vertices; {:.1f} ms",
                r.landmark_count, r.landmark_rms_residual, r.suspicious_landmarks.size(), r.p95_distance,
                100.0 * r.p95_distance / r.target_diagonal, r.flipped_triangles, r.low_confidence_vertices,
                context.total_ms);
-  if (!r.suspicious_landmarks.empty()) {
-    std::string names;
-    for (const auto& n : r.suspicious_landmarks) names += (names.empty() ? "" : ", ") + n;
-    spdlog::warn("suspicious landmarks (the others cannot explain them; swapped or misplaced?): {}", names);
-  }
   spdlog::info("wrote {}{}", args.output.string(), args.diagnostics.empty() ? "" : " and " + args.diagnostics.string());
   return 0;
 }
@@ -136,26 +151,16 @@ int runTransfer(const TransferArgs& args) {
   if (auto ok = core::writeRigGlb(result->rig, args.output, settings.write); !ok) return fail(ok.error());
   const double write_ms = msSince(t0);
 
-  core::DiagnosticsContext context;
-  context.source_read = &source->report;
-  context.target_read = &target->report;
-  context.extra_timings_ms = {{"read", read_ms}, {"write", write_ms}};
-  context.total_ms = msSince(t_start);
-  const std::string diagnostics = core::formatTransferDiagnostics(result->report, context);
-  if (!args.diagnostics.empty()) {
-    if (auto ok = writeText(args.diagnostics, diagnostics); !ok) return fail(ok.error());
-  }
-  if (args.print_diagnostics) std::fputs(diagnostics.c_str(), stdout);
+  const core::DiagnosticsContext context = diagnosticsContext(source->report, target->report, read_ms, write_ms, t_start);
   const auto& r = result->report;
+  if (auto ok = emitDiagnostics(core::formatTransferDiagnostics(r, context), args.diagnostics, args.print_diagnostics,
+                                r.warp.suspicious_landmarks); !ok) {
+    return fail(ok.error());
+  }
   spdlog::info("transfer: {} joints, {} shapes, {} animations; {} vertices inpainted, {} pruned; "
                "landmark rms {:.3g}, correspondence p95 {:.3f}% of diagonal, {} flipped; {:.1f} ms",
                r.joints, r.shapes, r.animations, r.inpainted_vertices, r.pruned_vertices, r.warp.landmark_rms_residual,
                100.0 * r.warp.p95_distance / r.warp.target_diagonal, r.warp.flipped_triangles, context.total_ms);
-  if (!r.warp.suspicious_landmarks.empty()) {
-    std::string names;
-    for (const auto& n : r.warp.suspicious_landmarks) names += (names.empty() ? "" : ", ") + n;
-    spdlog::warn("suspicious landmarks (the others cannot explain them; swapped or misplaced?): {}", names);
-  }
   spdlog::info("wrote {}{}", args.output.string(), args.diagnostics.empty() ? "" : " and " + args.diagnostics.string());
   return 0;
 }
