@@ -55,23 +55,41 @@ TpsWarp::TpsWarp(Eigen::MatrixX3d centres, Eigen::MatrixX3d kernel_weights, Eige
 Eigen::MatrixX3d TpsWarp::apply(const Eigen::MatrixX3d& points) const {
   Eigen::MatrixX3d out(points.rows(), 3);
   const Eigen::Index n = centres_.rows();
-  // Column-contiguous copies keep the inner loop over centres vectorisable.
-  const Eigen::VectorXd cx = centres_.col(0), cy = centres_.col(1), cz = centres_.col(2);
-  const Eigen::VectorXd wx = kernel_weights_.col(0), wy = kernel_weights_.col(1), wz = kernel_weights_.col(2);
+  const double* cx = centres_.col(0).data();
+  const double* cy = centres_.col(1).data();
+  const double* cz = centres_.col(2).data();
+  const double* wx = kernel_weights_.col(0).data();
+  const double* wy = kernel_weights_.col(1).data();
+  const double* wz = kernel_weights_.col(2).data();
+  // Points in blocks, centres outside, points inside: the inner loop has
+  // independent outputs and vectorises, while each point still sums its
+  // centres in order 0..n-1 (results do not depend on blocking or threads).
+  constexpr std::ptrdiff_t kBlock = 64;
   parallelFor(points.rows(), threads_, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
-    for (std::ptrdiff_t p = begin; p < end; ++p) {
-      const double x = points(p, 0), y = points(p, 1), z = points(p, 2);
-      double sx = 0.0, sy = 0.0, sz = 0.0;
-      for (Eigen::Index i = 0; i < n; ++i) {
-        const double dx = x - cx[i], dy = y - cy[i], dz = z - cz[i];
-        const double r = std::sqrt(dx * dx + dy * dy + dz * dz);
-        sx += wx[i] * r;
-        sy += wy[i] * r;
-        sz += wz[i] * r;
+    alignas(64) double x[kBlock], y[kBlock], z[kBlock], sx[kBlock], sy[kBlock], sz[kBlock];
+    for (std::ptrdiff_t b = begin; b < end; b += kBlock) {
+      const std::ptrdiff_t m = std::min(kBlock, end - b);
+      for (std::ptrdiff_t j = 0; j < m; ++j) {
+        x[j] = points(b + j, 0);
+        y[j] = points(b + j, 1);
+        z[j] = points(b + j, 2);
+        sx[j] = sy[j] = sz[j] = 0.0;
       }
-      out(p, 0) = sx + affine_(0, 0) * x + affine_(1, 0) * y + affine_(2, 0) * z + affine_(3, 0);
-      out(p, 1) = sy + affine_(0, 1) * x + affine_(1, 1) * y + affine_(2, 1) * z + affine_(3, 1);
-      out(p, 2) = sz + affine_(0, 2) * x + affine_(1, 2) * y + affine_(2, 2) * z + affine_(3, 2);
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const double px = cx[i], py = cy[i], pz = cz[i], ax = wx[i], ay = wy[i], az = wz[i];
+        for (std::ptrdiff_t j = 0; j < m; ++j) {
+          const double dx = x[j] - px, dy = y[j] - py, dz = z[j] - pz;
+          const double r = std::sqrt(dx * dx + dy * dy + dz * dz);
+          sx[j] += ax * r;
+          sy[j] += ay * r;
+          sz[j] += az * r;
+        }
+      }
+      for (std::ptrdiff_t j = 0; j < m; ++j) {
+        out(b + j, 0) = sx[j] + affine_(0, 0) * x[j] + affine_(1, 0) * y[j] + affine_(2, 0) * z[j] + affine_(3, 0);
+        out(b + j, 1) = sy[j] + affine_(0, 1) * x[j] + affine_(1, 1) * y[j] + affine_(2, 1) * z[j] + affine_(3, 1);
+        out(b + j, 2) = sz[j] + affine_(0, 2) * x[j] + affine_(1, 2) * y[j] + affine_(2, 2) * z[j] + affine_(3, 2);
+      }
     }
   }, 64);
   return out;
