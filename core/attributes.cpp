@@ -56,6 +56,9 @@ TransferredAttributes transferAttributes(const Mesh& source_mesh, const VertexAt
     trusted[static_cast<std::size_t>(v)] = locations.mismatched(v) == 0;
     any_untrusted = any_untrusted || !trusted[static_cast<std::size_t>(v)];
   }
+  const bool has_values = !source.labels.empty() || !source.fields.empty() || source.colors.rows() > 0 ||
+                          (options.uvs && (source_mesh.uvs.rows() > 0 || !source.extra_uv_sets.empty()));
+  any_untrusted = any_untrusted && has_values;
   const Eigen::SparseMatrix<double> laplacian =
       any_untrusted ? uniformLaplacian(nt, target.triangles) : Eigen::SparseMatrix<double>(nt, nt);
   auto inpaint = [&](const Eigen::MatrixXd& values) -> Eigen::MatrixXd {

@@ -1,30 +1,36 @@
 #include "core/inpainting.h"
 
 #include <Eigen/SparseCholesky>
+#include <algorithm>
 
 namespace core {
 
 Eigen::SparseMatrix<double> uniformLaplacian(Eigen::Index vertex_count, const Eigen::MatrixX3i& triangles) {
-  std::vector<Eigen::Triplet<double>> edges;
-  edges.reserve(static_cast<std::size_t>(triangles.rows()) * 6);
+  // Unique undirected edges first (an interior edge appears in two faces).
+  std::vector<std::pair<int, int>> edges;
+  edges.reserve(static_cast<std::size_t>(triangles.rows()) * 3);
   for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
     for (int k = 0; k < 3; ++k) {
       const int a = triangles(f, k), b = triangles(f, (k + 1) % 3);
-      if (a == b) continue;
-      edges.emplace_back(a, b, 1.0);
-      edges.emplace_back(b, a, 1.0);
+      if (a != b) edges.emplace_back(std::min(a, b), std::max(a, b));
     }
   }
-  Eigen::SparseMatrix<double> adjacency(vertex_count, vertex_count);
-  adjacency.setFromTriplets(edges.begin(), edges.end());
-  // Interior edges were added twice: binarise.
-  for (int k = 0; k < adjacency.outerSize(); ++k) {
-    for (Eigen::SparseMatrix<double>::InnerIterator it(adjacency, k); it; ++it) it.valueRef() = 1.0;
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  // One triplet pass, diagonal included: inserting into a compressed matrix
+  // afterwards costs O(nnz) per entry.
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(edges.size() * 2 + static_cast<std::size_t>(vertex_count));
+  Eigen::VectorXd degree = Eigen::VectorXd::Zero(vertex_count);
+  for (const auto& [a, b] : edges) {
+    triplets.emplace_back(a, b, -1.0);
+    triplets.emplace_back(b, a, -1.0);
+    degree(a) += 1.0;
+    degree(b) += 1.0;
   }
-  Eigen::SparseMatrix<double> laplacian = -adjacency;
-  const Eigen::VectorXd degree = adjacency * Eigen::VectorXd::Ones(vertex_count);
-  for (Eigen::Index v = 0; v < vertex_count; ++v) laplacian.coeffRef(v, v) += degree(v);
-  laplacian.makeCompressed();
+  for (Eigen::Index v = 0; v < vertex_count; ++v) triplets.emplace_back(static_cast<int>(v), static_cast<int>(v), degree(v));
+  Eigen::SparseMatrix<double> laplacian(vertex_count, vertex_count);
+  laplacian.setFromTriplets(triplets.begin(), triplets.end());
   return laplacian;
 }
 
