@@ -152,31 +152,20 @@ struct TpsFactorization::Data {
   TpsOptions options;
 };
 
-Result<TpsFactorization> TpsFactorization::create(const Eigen::MatrixX3d& centres, const TpsOptions& options,
-                                                  const std::vector<std::string>& names) {
+Status checkTpsCentres(const Eigen::MatrixX3d& centres, const TpsOptions& options,
+                       const std::vector<std::string>& names) {
   const Eigen::Index n = centres.rows();
   if (n < 4) {
     return makeError(ErrorCode::kInvalidLandmarks,
                      "thin-plate spline needs at least 4 landmarks, got " + std::to_string(n));
   }
   if (!centres.allFinite()) return makeError(ErrorCode::kInvalidLandmarks, "landmark positions are not finite");
-  if (!(options.regularization >= 0.0) || !std::isfinite(options.regularization)) {
-    return makeError(ErrorCode::kInvalidArgument, "TPS regularization must be a finite value >= 0");
+  const Eigen::MatrixX3d centred = centres.rowwise() - centres.colwise().mean();
+  if (!(centred.rowwise().squaredNorm().mean() > 0.0)) {
+    return makeError(ErrorCode::kIllConditioned, "all landmarks are at the same position");
   }
-
-  auto data = std::make_shared<Data>();
-  data->centres = centres;
-  data->threads = options.threads;
-  data->outlier_spacing_ratio = options.outlier_spacing_ratio;
-  data->options = options;
-  data->centroid = centres.colwise().mean();
-  const Eigen::MatrixX3d centred = centres.rowwise() - data->centroid;
-  data->scale = std::sqrt(centred.rowwise().squaredNorm().mean());
-  if (!(data->scale > 0.0)) return makeError(ErrorCode::kIllConditioned, "all landmarks are at the same position");
-
   // Duplicates make K singular; name the pair rather than report a bad solve.
-  const double diag = boundingBoxDiagonal(centres);
-  const double dup = options.duplicate_tolerance * diag;
+  const double dup = options.duplicate_tolerance * boundingBoxDiagonal(centres);
   for (Eigen::Index i = 0; i < n; ++i) {
     for (Eigen::Index j = i + 1; j < n; ++j) {
       if ((centres.row(i) - centres.row(j)).squaredNorm() <= dup * dup) {
@@ -195,6 +184,25 @@ Result<TpsFactorization> TpsFactorization::create(const Eigen::MatrixX3d& centre
         << " of the largest; at least 4 landmarks must span 3D";
     return makeError(ErrorCode::kIllConditioned, msg.str());
   }
+  return Ok{};
+}
+
+Result<TpsFactorization> TpsFactorization::create(const Eigen::MatrixX3d& centres, const TpsOptions& options,
+                                                  const std::vector<std::string>& names) {
+  const Eigen::Index n = centres.rows();
+  if (auto ok = checkTpsCentres(centres, options, names); !ok) return ok.error();
+  if (!(options.regularization >= 0.0) || !std::isfinite(options.regularization)) {
+    return makeError(ErrorCode::kInvalidArgument, "TPS regularization must be a finite value >= 0");
+  }
+
+  auto data = std::make_shared<Data>();
+  data->centres = centres;
+  data->threads = options.threads;
+  data->outlier_spacing_ratio = options.outlier_spacing_ratio;
+  data->options = options;
+  data->centroid = centres.colwise().mean();
+  const Eigen::MatrixX3d centred = centres.rowwise() - data->centroid;
+  data->scale = std::sqrt(centred.rowwise().squaredNorm().mean());
 
   data->centres_normal = centred / data->scale;
   data->lambda_normal = options.regularization / data->scale;

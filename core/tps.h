@@ -97,6 +97,12 @@ class TpsFactorization {
   std::shared_ptr<const Data> data_;  // immutable, shared by copies
 };
 
+// The geometric checks of TpsFactorization::create without factorising: at
+// least 4 finite centres, no two at the same position (named), not (nearly)
+// coplanar. Use it to validate a landmark set that is not itself factorised.
+Status checkTpsCentres(const Eigen::MatrixX3d& centres, const TpsOptions& options = {},
+                       const std::vector<std::string>& names = {});
+
 // One-off convenience: factorise and fit.
 Result<TpsWarp> fitTps(const Eigen::MatrixX3d& source, const Eigen::MatrixX3d& target, const TpsOptions& options = {});
 

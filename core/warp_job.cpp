@@ -93,13 +93,12 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
   prepared.landmarks = std::move(landmarks);
   prepared.landmark_positions = std::move(*positions);
   {
+    // The full landmark set must span 3D on its own (names in errors).
     std::vector<std::string> names;
     for (const auto& lm : prepared.landmarks.landmarks) names.push_back(lm.name);
-    TpsOptions check;
-    check.leave_one_out = false;
-    // The full landmark set must make a valid TPS on its own (names in errors).
-    auto f = TpsFactorization::create(prepared.landmark_positions, check, names);
-    if (!f) return Error{f.error().code, label + ": " + f.error().message};
+    if (auto ok = checkTpsCentres(prepared.landmark_positions, {}, names); !ok) {
+      return Error{ok.error().code, label + ": " + ok.error().message};
+    }
   }
 
   // Dense map centres: landmarks first (so they can be pinned to the target's),
@@ -178,12 +177,9 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   tps_options.leave_one_out = true;
   auto factorization = TpsFactorization::create(pairs->source, tps_options, pairs->names);
   if (!factorization) return Error{factorization.error().code, target_label + ": " + factorization.error().message};
-  {
-    // Target landmarks must span 3D as well, or the warp flattens the face.
-    TpsOptions check = tps_options;
-    check.leave_one_out = false;
-    auto t = TpsFactorization::create(pairs->target, check, pairs->names);
-    if (!t) return Error{t.error().code, target_label + ": " + t.error().message};
+  // Target landmarks must span 3D as well, or the warp flattens the face.
+  if (auto ok = checkTpsCentres(pairs->target, tps_options, pairs->names); !ok) {
+    return Error{ok.error().code, target_label + ": " + ok.error().message};
   }
   result.landmark_warp = factorization->fit(pairs->target);
   const TpsLeaveOneOut loo = factorization->leaveOneOut(pairs->target);
