@@ -204,6 +204,12 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   projection.threads = options.threads;
   const Eigen::MatrixX3i& tris = source.mesh.triangles;
   Eigen::MatrixX3d warped_normals = computeVertexNormals(result.warped_positions, tris);
+  // Targets of the dense map's landmark centres: the job's target landmarks,
+  // and the warp's image for source landmarks the target does not use.
+  Eigen::MatrixX3d pinned = result.landmark_warp.apply(source.landmark_positions);
+  for (std::size_t i = 0; i < pairs->names.size(); ++i) {
+    pinned.row(source.landmarks.indexOf(pairs->names[i])) = pairs->target.row(static_cast<Eigen::Index>(i));
+  }
   if (source.dense_factorization && options.refine_iterations > 0) {
     // Non-rigid ICP on the dense centres only: project them, fit the dense map
     // to the trusted projections, move the centres (and their normals, by the
@@ -219,10 +225,6 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
       const int v = source.dense_vertices[k];
       centre_positions.row(nl + static_cast<Eigen::Index>(k)) = result.warped_positions.row(v);
       centre_normals.row(nl + static_cast<Eigen::Index>(k)) = warped_normals.row(v);
-    }
-    Eigen::MatrixX3d pinned = centre_positions.topRows(nl);
-    for (std::size_t i = 0; i < pairs->names.size(); ++i) {
-      pinned.row(source.landmarks.indexOf(pairs->names[i])) = pairs->target.row(static_cast<Eigen::Index>(i));
     }
     TpsWarp dense;
     for (int it = 0; it < options.refine_iterations; ++it) {
@@ -264,10 +266,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   if (source.dense_factorization) {
     const Eigen::Index nl = source.landmark_positions.rows();
     Eigen::MatrixX3d centre_targets(source.dense_centres.rows(), 3);
-    centre_targets.topRows(nl) = result.landmark_warp.apply(source.landmark_positions);
-    for (std::size_t i = 0; i < pairs->names.size(); ++i) {
-      centre_targets.row(source.landmarks.indexOf(pairs->names[i])) = pairs->target.row(static_cast<Eigen::Index>(i));
-    }
+    centre_targets.topRows(nl) = pinned;
     for (std::size_t k = 0; k < source.dense_vertices.size(); ++k) {
       centre_targets.row(nl + static_cast<Eigen::Index>(k)) = result.guide.positions.row(source.dense_vertices[k]);
     }
