@@ -1,5 +1,6 @@
 #include "core/attributes.h"
 
+#include <cassert>
 #include <map>
 
 #include "core/inpainting.h"
@@ -46,21 +47,18 @@ void fillUntrustedLabels(Eigen::VectorXi& labels, std::vector<char> assigned, co
 }  // namespace
 
 TransferredAttributes transferAttributes(const Mesh& source_mesh, const VertexAttributes& source,
-                                         const TargetLocations& locations, const Mesh& target,
+                                         const TargetLocations& locations, const Eigen::SparseMatrix<double>& target_laplacian,
                                          const AttributeTransferOptions& options) {
   TransferredAttributes out;
-  const Eigen::Index nt = target.vertexCount();
+  const Eigen::Index nt = locations.confidence.size();
   std::vector<char> trusted(static_cast<std::size_t>(nt));
   bool any_untrusted = false;
   for (Eigen::Index v = 0; v < nt; ++v) {
     trusted[static_cast<std::size_t>(v)] = locations.mismatched(v) == 0;
     any_untrusted = any_untrusted || !trusted[static_cast<std::size_t>(v)];
   }
-  const bool has_values = !source.labels.empty() || !source.fields.empty() || source.colors.rows() > 0 ||
-                          (options.uvs && (source_mesh.uvs.rows() > 0 || !source.extra_uv_sets.empty()));
-  any_untrusted = any_untrusted && has_values;
-  const Eigen::SparseMatrix<double> laplacian =
-      any_untrusted ? uniformLaplacian(nt, target.triangles) : Eigen::SparseMatrix<double>(nt, nt);
+  assert(!any_untrusted || target_laplacian.rows() == nt);
+  const Eigen::SparseMatrix<double>& laplacian = target_laplacian;
   auto inpaint = [&](const Eigen::MatrixXd& values) -> Eigen::MatrixXd {
     if (!any_untrusted) return values;
     auto solved = inpaintHarmonic(laplacian, trusted, values);

@@ -4,6 +4,8 @@
 // interpolation.
 #pragma once
 
+#include <Eigen/SparseCore>
+
 #include "core/correspondence.h"
 #include "core/rig.h"
 
@@ -19,9 +21,11 @@ struct TransferredAttributes {
 };
 
 // Mismatched target vertices (see TargetLocations) take labels by majority of
-// their neighbours and fields/colours by harmonic inpainting over `target`.
+// their neighbours and fields/colours by harmonic inpainting. target_laplacian:
+// uniformLaplacian of the target (#Vt by #Vt; may be empty when no vertex is
+// mismatched).
 TransferredAttributes transferAttributes(const Mesh& source_mesh, const VertexAttributes& source,
-                                         const TargetLocations& locations, const Mesh& target,
+                                         const TargetLocations& locations, const Eigen::SparseMatrix<double>& target_laplacian,
                                          const AttributeTransferOptions& options = {});
 
 }  // namespace core

@@ -1,5 +1,7 @@
 #include "core/blendshapes.h"
 
+#include <cassert>
+
 #include "core/inpainting.h"
 #include "core/parallel.h"
 
@@ -9,6 +11,7 @@ std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& so
                                               const Eigen::MatrixX3i& source_triangles,
                                               const TargetLocations& locations,
                                               const std::vector<Eigen::Matrix3d>& adaptation, const Mesh& target,
+                                              const Eigen::SparseMatrix<double>& target_laplacian,
                                               const ShapeTransferOptions& options) {
   const Eigen::Index nt = target.vertexCount();
   std::vector<MorphTarget> out(source.size());
@@ -52,7 +55,8 @@ std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& so
   if (options.inpaint_untrusted && unknown > 0 && unknown < static_cast<std::size_t>(nt) && !out.empty()) {
     Eigen::MatrixXd stacked(nt, 3 * static_cast<Eigen::Index>(out.size()));
     for (std::size_t k = 0; k < out.size(); ++k) stacked.middleCols<3>(3 * static_cast<Eigen::Index>(k)) = out[k].position_deltas;
-    auto solved = inpaintHarmonic(uniformLaplacian(nt, target.triangles), known, stacked);
+    assert(target_laplacian.rows() == nt);
+    auto solved = inpaintHarmonic(target_laplacian, known, stacked);
     if (solved) {
       for (std::size_t k = 0; k < out.size(); ++k) {
         MorphTarget& t = out[k];

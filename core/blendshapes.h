@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/SparseCore>
+
 #include "core/correspondence.h"
 #include "core/rig.h"
 
@@ -22,11 +24,13 @@ struct ShapeTransferOptions {
 
 // adaptation: #Vt matrices (one per target vertex) or a single one for all.
 // Normal deltas, when the source has them, are recomputed on the target from
-// the transferred position deltas.
+// the transferred position deltas. target_laplacian: uniformLaplacian of the
+// target (may be empty when no vertex is mismatched).
 std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& source,
                                               const Eigen::MatrixX3i& source_triangles,
                                               const TargetLocations& locations,
                                               const std::vector<Eigen::Matrix3d>& adaptation, const Mesh& target,
+                                              const Eigen::SparseMatrix<double>& target_laplacian,
                                               const ShapeTransferOptions& options = {});
 
 }  // namespace core

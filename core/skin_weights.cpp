@@ -1,9 +1,10 @@
 #include "core/skin_weights.h"
 
-#include "core/inpainting.h"
-
 #include <algorithm>
+#include <cassert>
 #include <vector>
+
+#include "core/inpainting.h"
 
 namespace core {
 
@@ -29,12 +30,12 @@ std::vector<std::pair<int, double>> pruneRow(std::vector<std::pair<int, double>>
 
 Result<TransferredWeights> transferSkinWeights(const SkinWeights& source_weights,
                                                const Eigen::MatrixX3i& source_triangles,
-                                               const TargetLocations& locations, const Mesh& target,
+                                               const TargetLocations& locations, Eigen::Index nt,
+                                               const Eigen::SparseMatrix<double>& target_laplacian,
                                                const SkinWeightOptions& options) {
   if (options.max_influences < 1 || options.max_influences > 8) {
     return makeError(ErrorCode::kInvalidArgument, "max_influences must be between 1 and 8");
   }
-  const Eigen::Index nt = target.vertexCount();
   const Eigen::Index nj = source_weights.cols();
   TransferredWeights out;
   out.inpainted = Eigen::VectorXi::Zero(nt);
@@ -56,7 +57,8 @@ Result<TransferredWeights> transferSkinWeights(const SkinWeights& source_weights
   if (options.inpaint) {
     const std::size_t unknown = static_cast<std::size_t>(std::count(known.begin(), known.end(), 0));
     if (unknown > 0 && unknown < known.size()) {
-      auto solved = inpaintHarmonic(uniformLaplacian(nt, target.triangles), known, dense);
+      assert(target_laplacian.rows() == nt);
+      auto solved = inpaintHarmonic(target_laplacian, known, dense);
       if (!solved) return solved.error();
       for (Eigen::Index v = 0; v < nt; ++v) {
         if (known[static_cast<std::size_t>(v)]) continue;

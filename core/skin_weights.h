@@ -30,10 +30,13 @@ struct TransferredWeights {
 
 // source_weights: #Vs by #joints; locations: every target vertex on the source
 // (from locateOnGuide); a vertex is "confident" when its confidence > 0.
-// Untrusted vertices are inpainted (harmonic) from confident ones.
+// Untrusted vertices are inpainted (harmonic) from confident ones over
+// target_laplacian (uniformLaplacian of the target; may be empty when every
+// vertex is confident).
 Result<TransferredWeights> transferSkinWeights(const SkinWeights& source_weights,
                                                const Eigen::MatrixX3i& source_triangles,
-                                               const TargetLocations& locations, const Mesh& target,
+                                               const TargetLocations& locations, Eigen::Index target_vertices,
+                                               const Eigen::SparseMatrix<double>& target_laplacian,
                                                const SkinWeightOptions& options = {});
 
 }  // namespace core

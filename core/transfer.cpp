@@ -7,6 +7,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "core/inpainting.h"
 #include "core/similarity.h"
 
 namespace core {
@@ -133,11 +134,18 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   out.nodes = src.nodes;
   out.mesh_node = src.mesh_node;
 
+  // One graph Laplacian of the target for every stage that inpaints
+  // untrusted vertices (mismatched vertices are also low-confidence).
+  const Eigen::SparseMatrix<double> target_laplacian =
+      locations.low_confidence > 0 ? uniformLaplacian(target.vertexCount(), target.triangles)
+                                   : Eigen::SparseMatrix<double>();
+
   // --- weights
   t0 = Clock::now();
   TransferredWeights weights;
   if (options.weights) {
-    auto w = transferSkinWeights(src.weights, src_mesh.triangles, locations, target, options.weight_options);
+    auto w = transferSkinWeights(src.weights, src_mesh.triangles, locations, target.vertexCount(), target_laplacian,
+                                 options.weight_options);
     if (!w) return w.error();
     weights = std::move(*w);
     out.weights = weights.weights;
@@ -170,7 +178,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
     shape_options.exaggeration = options.exaggeration;
     shape_options.per_shape = options.shape_exaggeration;
     out.morph_targets = transferMorphTargets(src.morph_targets, src_mesh.triangles, locations, vertex_adaptation,
-                                             target, shape_options);
+                                             target, target_laplacian, shape_options);
     out.morph_default_weights = src.morph_default_weights;
     report.shapes = static_cast<int>(out.morph_targets.size());
   } else {
@@ -188,7 +196,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   if (options.attributes || options.uvs) {
     AttributeTransferOptions attribute_options;
     attribute_options.uvs = options.uvs;
-    TransferredAttributes attrs = transferAttributes(src_mesh, src.attributes, locations, target, attribute_options);
+    TransferredAttributes attrs = transferAttributes(src_mesh, src.attributes, locations, target_laplacian, attribute_options);
     if (options.uvs && attrs.uvs.rows() > 0) out.mesh.uvs = attrs.uvs;
     if (!options.uvs) attrs.attributes.extra_uv_sets.clear();
     if (options.attributes) out.attributes = std::move(attrs.attributes);
