@@ -17,11 +17,6 @@ core::Mesh transformed(const core::Mesh& m, const Eigen::Matrix3d& a, const Eige
   return out;
 }
 
-core::LandmarkSet asVertexLandmarks(const core::SyntheticHead& head) {
-  // Same landmarks; positions resolve identically on a transformed copy.
-  return head.landmarks;
-}
-
 TEST(Correspondence, AffineCopyGivesAnExactGuideAndNoFolds) {
   const auto head = core::generateHead(core::HeadShape{}, core::HeadResolution{64, 56});
   Eigen::Matrix3d a;
@@ -29,7 +24,8 @@ TEST(Correspondence, AffineCopyGivesAnExactGuideAndNoFolds) {
   const core::Mesh target = transformed(head.mesh, a, Eigen::RowVector3d(0.1, -0.2, 0.3));
   auto prepared = core::prepareSource(head.mesh, head.landmarks, "head");
   ASSERT_TRUE(prepared) << prepared.error().message;
-  auto result = core::runWarp(*prepared, target, asVertexLandmarks(head), "copy");
+  // face + barycentric landmarks resolve identically on the transformed copy
+  auto result = core::runWarp(*prepared, target, head.landmarks, "copy");
   ASSERT_TRUE(result) << result.error().message;
   const double diag = result->report.target_diagonal;
   EXPECT_TRUE(rigport_test::matricesNear(result->guide.positions, target.positions, 1e-6 * diag));

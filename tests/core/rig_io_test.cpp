@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "tests/gltf_builder.h"
 #include "tests/test_support.h"
 
 namespace {
@@ -30,49 +31,11 @@ using core::LoadedRig;
 using core::Rig;
 using core::RigWriteOptions;
 using core::WeightEncoding;
-using json = nlohmann::json;
-using ByteVector = std::vector<std::uint8_t>;
+using namespace rigport_test::gltf;
 using rigport_test::matricesNear;
-
-constexpr int kFloat = 5126;
-constexpr int kUnsignedByte = 5121;
-constexpr int kUnsignedShort = 5123;
 
 // ---------------------------------------------------------------------------
 // Helpers
-
-void appendLe32(ByteVector& out, std::uint32_t v) {
-  for (int i = 0; i < 4; ++i) out.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
-}
-
-// GLB container around a JSON document and a BIN chunk (both padded to 4).
-ByteVector makeGlb(const json& doc, ByteVector bin) {
-  std::string text = doc.dump();
-  while (text.size() % 4 != 0) text += ' ';
-  while (bin.size() % 4 != 0) bin.push_back(0);
-  ByteVector out = {'g', 'l', 'T', 'F'};
-  appendLe32(out, 2);
-  appendLe32(out, static_cast<std::uint32_t>(12 + 8 + text.size() + (bin.empty() ? 0 : 8 + bin.size())));
-  appendLe32(out, static_cast<std::uint32_t>(text.size()));
-  appendLe32(out, 0x4E4F534A);
-  out.insert(out.end(), text.begin(), text.end());
-  if (!bin.empty()) {
-    appendLe32(out, static_cast<std::uint32_t>(bin.size()));
-    appendLe32(out, 0x004E4942);
-    out.insert(out.end(), bin.begin(), bin.end());
-  }
-  return out;
-}
-
-// The JSON and BIN chunks of a GLB.
-std::pair<json, ByteVector> splitGlb(const ByteVector& glb) {
-  std::uint32_t json_length = 0;
-  std::memcpy(&json_length, glb.data() + 12, 4);
-  json doc = json::parse(glb.begin() + 20, glb.begin() + 20 + json_length);
-  ByteVector bin;
-  if (20 + json_length + 8 <= glb.size()) bin.assign(glb.begin() + 20 + json_length + 8, glb.end());
-  return {doc, bin};
-}
 
 // Element `i`, component `c` of an accessor with a bufferView (no sparse), as
 // the raw integer or float the file holds.
@@ -92,42 +55,6 @@ double rawComponent(const json& doc, const ByteVector& bin, int accessor, std::s
   if (type == kUnsignedShort) return bin[offset] | bin[offset + 1] << 8;
   return bin[offset];
 }
-
-// A small glTF document builder over one buffer.
-class GltfBuilder {
- public:
-  GltfBuilder() { doc_ = {{"asset", {{"version", "2.0"}}}}; }
-
-  template <typename T>
-  int view(const std::vector<T>& values) {
-    while (bin_.size() % 4 != 0) bin_.push_back(0);
-    const auto* p = reinterpret_cast<const std::uint8_t*>(values.data());
-    doc_["bufferViews"].push_back(
-        {{"buffer", 0}, {"byteOffset", bin_.size()}, {"byteLength", values.size() * sizeof(T)}});
-    bin_.insert(bin_.end(), p, p + values.size() * sizeof(T));
-    return static_cast<int>(doc_["bufferViews"].size()) - 1;
-  }
-
-  int accessor(int view, int component_type, std::size_t count, const std::string& type, json extra = json::object()) {
-    json a = {{"componentType", component_type}, {"count", count}, {"type", type}};
-    if (view >= 0) a["bufferView"] = view;
-    a.update(extra);
-    doc_["accessors"].push_back(a);
-    return static_cast<int>(doc_["accessors"].size()) - 1;
-  }
-
-  json& doc() { return doc_; }
-
-  ByteVector glb() const {
-    json d = doc_;
-    d["buffers"] = json::array({{{"byteLength", bin_.size()}}});
-    return makeGlb(d, bin_);
-  }
-
- private:
-  json doc_;
-  ByteVector bin_;
-};
 
 // One triangle skinned to two joints (identity inverse binds) with the given
 // JOINTS_0 (unsigned byte) and WEIGHTS_0 (float) for its 3 vertices.

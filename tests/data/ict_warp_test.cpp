@@ -12,10 +12,6 @@
 
 namespace {
 
-struct IctSource {
-  core::PreparedSource prepared;
-};
-
 // Loaded and prepared once for the whole suite (7.5 MB GLB).
 const core::PreparedSource* ictSource(const std::filesystem::path& data) {
   static std::optional<core::PreparedSource> prepared;
