@@ -95,18 +95,35 @@ Result<LoadedMesh> readMeshFromMemory(std::span<const std::uint8_t> bytes, MeshF
   return makeError(ErrorCode::kInvalidArgument, label + ": unknown mesh format");
 }
 
-Result<LoadedMesh> readMesh(const std::filesystem::path& path) {
-  const std::string label = path.filename().string();
-  auto bytes = readFileBytes(path);
-  if (!bytes) return bytes.error();
+namespace {
 
-  std::optional<MeshFormat> format = formatFromExtension(lowerExtension(path));
-  if (!format) format = formatFromMagic(*bytes);
+Result<MeshFormat> detectMeshFormat(std::span<const std::uint8_t> bytes, const std::filesystem::path& file_name,
+                                    const std::string& label) {
+  std::optional<MeshFormat> format = formatFromExtension(lowerExtension(file_name));
+  if (!format) format = formatFromMagic(bytes);
   if (!format) {
     return makeError(ErrorCode::kUnsupported,
                      label + ": unrecognised mesh format (expected .glb, .gltf, .obj or .ply, and the content is not "
                              "binary glTF, glTF JSON or PLY)");
   }
+  return *format;
+}
+
+}  // namespace
+
+Result<LoadedMesh> readMeshFromMemory(std::span<const std::uint8_t> bytes, const std::filesystem::path& file_name,
+                                      const std::string& label) {
+  auto format = detectMeshFormat(bytes, file_name, label);
+  if (!format) return format.error();
+  return readMeshFromMemory(bytes, *format, label);
+}
+
+Result<LoadedMesh> readMesh(const std::filesystem::path& path) {
+  const std::string label = path.filename().string();
+  auto bytes = readFileBytes(path);
+  if (!bytes) return bytes.error();
+  auto format = detectMeshFormat(*bytes, path, label);
+  if (!format) return format.error();
   // A glTF read from disk may use buffer files beside it.
   if (*format == MeshFormat::kGltf || *format == MeshFormat::kGlb) {
     return readGltfWithBaseDir(*bytes, label, /*binary=*/*format == MeshFormat::kGlb, path.parent_path());

@@ -40,6 +40,10 @@ Result<LoadedMesh> readMesh(const std::filesystem::path& path);
 // Reads from memory; `format` is required because there is no file name. `label`
 // names the data in error messages (for example the upload's field name).
 Result<LoadedMesh> readMeshFromMemory(std::span<const std::uint8_t> bytes, MeshFormat format, const std::string& label);
+// The same with the format chosen as readMesh does: from `file_name`'s
+// extension (an upload's file name), else from the content's magic bytes.
+Result<LoadedMesh> readMeshFromMemory(std::span<const std::uint8_t> bytes, const std::filesystem::path& file_name,
+                                      const std::string& label);
 
 // Format readers (also used by readMesh). A glTF node transform is applied to
 // positions and normals. The mesh chosen from a multi-mesh glTF is the first

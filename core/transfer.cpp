@@ -63,7 +63,16 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
                                                                      "weights or joints from); turn weights/joints off");
   }
 
+  // Stage boundaries: where a caller may stop the job (cancellation, time limit).
+  auto stopBefore = [&](std::string_view stage, double fraction) {
+    return options.on_stage && !options.on_stage(stage, fraction);
+  };
+  auto stopped = [&](std::string_view stage) {
+    return makeError(ErrorCode::kCancelled, target_label + ": transfer stopped before stage '" + std::string(stage) + "'");
+  };
+
   // --- warp + correspond (+ the dense map)
+  if (stopBefore("warp", 0.0)) return stopped("warp");
   WarpOptions warp_options = options.warp;
   warp_options.threads = options.threads;
   auto warp = runWarp(source.surface, target, target_landmarks, target_label, warp_options);
@@ -77,6 +86,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   const Mesh& src_mesh = source.surface.mesh;
 
   // --- dense map products: global similarity and per-vertex adaptation
+  if (stopBefore("dense_map", 0.5)) return stopped("dense_map");
   auto t0 = Clock::now();
   Eigen::MatrixX3d src_landmarks(static_cast<Eigen::Index>(warp->report.landmark_residuals.size()), 3);
   Eigen::MatrixX3d tgt_landmarks(src_landmarks.rows(), 3);
@@ -141,6 +151,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
                                    : Eigen::SparseMatrix<double>();
 
   // --- weights
+  if (stopBefore("weights", 0.6)) return stopped("weights");
   t0 = Clock::now();
   TransferredWeights weights;
   if (options.weights) {
@@ -156,6 +167,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   report.weights_ms = msSince(t0);
 
   // --- joints (+ animations: their translation keys need the same frames)
+  if (stopBefore("joints", 0.7)) return stopped("joints");
   t0 = Clock::now();
   if (options.joints && src.skin) {
     SkeletonTransferOptions skeleton_options;
@@ -172,6 +184,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   report.joints_ms = msSince(t0);
 
   // --- shapes
+  if (stopBefore("shapes", 0.75)) return stopped("shapes");
   t0 = Clock::now();
   if (options.shapes) {
     ShapeTransferOptions shape_options;
@@ -192,6 +205,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   report.animations = static_cast<int>(out.animations.size());
 
   // --- attributes (+ diagnostics as data)
+  if (stopBefore("attributes", 0.9)) return stopped("attributes");
   t0 = Clock::now();
   if (options.attributes || options.uvs) {
     AttributeTransferOptions attribute_options;

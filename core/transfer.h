@@ -3,8 +3,10 @@
 // map -> weights -> joints -> shapes -> animations -> attributes -> assemble.
 #pragma once
 
+#include <functional>
 #include <map>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "core/attributes.h"
@@ -46,6 +48,11 @@ struct TransferOptions {
   std::map<std::string, double> joint_exaggeration;  // by joint name
   bool diagnostic_attributes = false;             // add _CONFIDENCE and _INPAINTED to the output
   int threads = 0;
+  // Called at each stage boundary with the stage about to run ("warp",
+  // "dense_map", "weights", "joints", "shapes", "attributes") and the fraction
+  // of the transfer done (0-1). Returning false stops the transfer there with
+  // ErrorCode::kCancelled (cancellation, time limits). Empty = run to the end.
+  std::function<bool(std::string_view stage, double fraction)> on_stage;
 };
 
 struct PreparedRig {

@@ -1,17 +1,15 @@
-#include "client/transfer_options.h"
+#include "core/transfer_options.h"
 
 #include <set>
 
 #include <nlohmann/json.hpp>
 
-namespace client {
+namespace core {
 
 namespace {
 
-using core::ErrorCode;
-using core::makeError;
 
-core::Result<double> number(const nlohmann::json& v, const std::string& where, double lo, double hi) {
+Result<double> number(const nlohmann::json& v, const std::string& where, double lo, double hi) {
   if (!v.is_number()) return makeError(ErrorCode::kInvalidArgument, where + " must be a number");
   const double x = v.get<double>();
   if (!(x >= lo && x <= hi)) {
@@ -20,24 +18,24 @@ core::Result<double> number(const nlohmann::json& v, const std::string& where, d
   return x;
 }
 
-core::Result<bool> boolean(const nlohmann::json& v, const std::string& where) {
+Result<bool> boolean(const nlohmann::json& v, const std::string& where) {
   if (!v.is_boolean()) return makeError(ErrorCode::kInvalidArgument, where + " must be true or false");
   return v.get<bool>();
 }
 
-core::Status gains(const nlohmann::json& v, const std::string& where, std::map<std::string, double>& out) {
+Status gains(const nlohmann::json& v, const std::string& where, std::map<std::string, double>& out) {
   if (!v.is_object()) return makeError(ErrorCode::kInvalidArgument, where + " must be an object of name: factor");
   for (const auto& [name, value] : v.items()) {
     auto x = number(value, where + "." + name, -100.0, 100.0);
     if (!x) return x.error();
     out[name] = *x;
   }
-  return core::Ok{};
+  return Ok{};
 }
 
 }  // namespace
 
-core::Result<TransferSettings> parseTransferOptions(const std::string& text, const std::string& label) {
+Result<TransferSettings> parseTransferOptions(const std::string& text, const std::string& label) {
   nlohmann::json doc;
   try {
     doc = nlohmann::json::parse(text);
@@ -46,10 +44,10 @@ core::Result<TransferSettings> parseTransferOptions(const std::string& text, con
   }
   if (!doc.is_object()) return makeError(ErrorCode::kInvalidArgument, label + ": expected a JSON object");
   TransferSettings s;
-  core::TransferOptions& t = s.transfer;
+  TransferOptions& t = s.transfer;
   for (const auto& [key, value] : doc.items()) {
     const std::string where = label + ": '" + key + "'";
-    core::Status ok = core::Ok{};
+    Status ok = Ok{};
     if (key == "components") {
       if (!value.is_object()) return makeError(ErrorCode::kInvalidArgument, where + " must be an object");
       const std::map<std::string, bool*> flags = {{"weights", &t.weights}, {"joints", &t.joints}, {"shapes", &t.shapes},
@@ -76,9 +74,9 @@ core::Result<TransferSettings> parseTransferOptions(const std::string& text, con
       s.write.max_influences = static_cast<int>(*x);
     } else if (key == "weight_encoding") {
       const std::string e = value.is_string() ? value.get<std::string>() : "";
-      if (e == "float") s.write.weight_encoding = core::WeightEncoding::kFloat;
-      else if (e == "unorm16") s.write.weight_encoding = core::WeightEncoding::kUnorm16;
-      else if (e == "unorm8") s.write.weight_encoding = core::WeightEncoding::kUnorm8;
+      if (e == "float") s.write.weight_encoding = WeightEncoding::kFloat;
+      else if (e == "unorm16") s.write.weight_encoding = WeightEncoding::kUnorm16;
+      else if (e == "unorm8") s.write.weight_encoding = WeightEncoding::kUnorm8;
       else return makeError(ErrorCode::kInvalidArgument, where + " must be \"float\", \"unorm16\" or \"unorm8\"");
     } else if (key == "low_confidence_distance") {
       auto x = number(value, where, 0.0, 1.0);
@@ -90,10 +88,10 @@ core::Result<TransferSettings> parseTransferOptions(const std::string& text, con
       t.warp.locate.low_confidence_angle_deg = *x;
     } else if (key == "adaptation") {
       const std::string a = value.is_string() ? value.get<std::string>() : "";
-      if (a == "none") t.adaptation = core::ShapeAdaptation::kNone;
-      else if (a == "rotation") t.adaptation = core::ShapeAdaptation::kRotation;
-      else if (a == "similarity") t.adaptation = core::ShapeAdaptation::kSimilarity;
-      else if (a == "local") t.adaptation = core::ShapeAdaptation::kLocal;
+      if (a == "none") t.adaptation = ShapeAdaptation::kNone;
+      else if (a == "rotation") t.adaptation = ShapeAdaptation::kRotation;
+      else if (a == "similarity") t.adaptation = ShapeAdaptation::kSimilarity;
+      else if (a == "local") t.adaptation = ShapeAdaptation::kLocal;
       else return makeError(ErrorCode::kInvalidArgument, where + " must be \"none\", \"rotation\", \"similarity\" or \"local\"");
     } else if (key == "exaggeration") {
       auto x = number(value, where, -100.0, 100.0);
@@ -115,4 +113,4 @@ core::Result<TransferSettings> parseTransferOptions(const std::string& text, con
   return s;
 }
 
-}  // namespace client
+}  // namespace core

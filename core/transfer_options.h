@@ -1,4 +1,5 @@
-// Transfer options JSON (the `--options opts.json` file of `rigport transfer`):
+// Transfer options JSON (the `--options opts.json` file of `rigport transfer`,
+// and the "options" of a transfer job spec on the service):
 //   {"components": {"weights": true, "joints": true, "shapes": true,
 //                   "animations": true, "attributes": true},
 //    "uvs": false, "max_influences": 4, "weight_encoding": "float",
@@ -6,7 +7,8 @@
 //    "adaptation": "rotation", "exaggeration": 1.0,
 //    "shape_exaggeration": {"jawOpen": 1.5}, "joint_exaggeration": {"jaw": 1.2},
 //    "diagnostic_attributes": false, "refine_iterations": 3}
-// Unknown keys are errors (a typo must not be silently ignored).
+// Unknown keys are errors (a typo must not be silently ignored). nlohmann is
+// used privately in the .cpp, as in core/diagnostics_json.cpp.
 #pragma once
 
 #include <string>
@@ -15,13 +17,14 @@
 #include "core/rig_io.h"
 #include "core/transfer.h"
 
-namespace client {
+namespace core {
 
 struct TransferSettings {
-  core::TransferOptions transfer;
-  core::RigWriteOptions write;
+  TransferOptions transfer;
+  RigWriteOptions write;
 };
 
-core::Result<TransferSettings> parseTransferOptions(const std::string& json_text, const std::string& label);
+// `label` names the source (file name, or "spec.options") in every message.
+Result<TransferSettings> parseTransferOptions(const std::string& json_text, const std::string& label);
 
-}  // namespace client
+}  // namespace core
