@@ -1,0 +1,53 @@
+#include "api/error_codes.h"
+
+namespace api {
+
+namespace {
+
+struct Row {
+  WireError error;
+  int status;
+  const char* slug;
+  const char* title;
+};
+
+// The single table: wire code -> HTTP status, slug, title.
+constexpr Row kTable[] = {
+    {WireError::kMalformedRequest, 400, "malformed-request", "Malformed request"},
+    {WireError::kMalformedFile, 400, "malformed-file", "Uploaded file is not a valid file of its format"},
+    {WireError::kInvalidOption, 400, "invalid-option", "Option out of range"},
+    {WireError::kUnauthorized, 401, "unauthorized", "Missing or unknown API key"},
+    {WireError::kNotFound, 404, "not-found", "Not found"},
+    {WireError::kConflict, 409, "conflict", "Conflict with the resource's state"},
+    {WireError::kPayloadTooLarge, 413, "payload-too-large", "Request over a size limit"},
+    {WireError::kUnsupportedMediaType, 415, "unsupported-media-type", "Unsupported media type"},
+    {WireError::kInvalidMesh, 422, "invalid-mesh", "Mesh unusable"},
+    {WireError::kInvalidLandmarks, 422, "invalid-landmarks", "Landmarks unusable"},
+    {WireError::kIllConditioned, 422, "ill-conditioned", "Landmarks make an ill-conditioned warp"},
+    {WireError::kUnsupportedFeature, 422, "unsupported-feature", "File uses an unsupported feature"},
+    {WireError::kQueueFull, 429, "queue-full", "Job queue full; retry later"},
+    {WireError::kJobCancelled, 409, "job-cancelled", "Job cancelled"},
+    {WireError::kJobTimeout, 504, "job-timeout", "Job exceeded its time limit"},
+    {WireError::kInternal, 500, "internal", "Internal error"},
+    {WireError::kNotReady, 503, "not-ready", "Service not ready"},
+};
+
+const Row& row(WireError error) {
+  for (const Row& r : kTable) {
+    if (r.error == error) return r;
+  }
+  return kTable[sizeof(kTable) / sizeof(kTable[0]) - 2];  // kInternal
+}
+
+}  // namespace
+
+int httpStatus(WireError error) { return row(error).status; }
+const char* wireErrorSlug(WireError error) { return row(error).slug; }
+std::string problemType(WireError error) { return std::string("urn:rigport:problem:") + row(error).slug; }
+
+Problem makeProblem(WireError error, std::string detail, std::string instance) {
+  const Row& r = row(error);
+  return Problem{problemType(error), r.title, r.status, std::move(detail), std::move(instance)};
+}
+
+}  // namespace api

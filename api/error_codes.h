@@ -1,0 +1,38 @@
+// Wire error codes of the contract and the one table mapping each to its HTTP
+// status, problem type URI and title. Client errors come before server errors.
+#pragma once
+
+#include <string>
+
+#include "api/types.h"
+
+namespace api {
+
+enum class WireError {
+  // 4xx: the caller can fix it
+  kMalformedRequest,      // 400 bad multipart/JSON, unknown or missing field
+  kMalformedFile,         // 400 an uploaded file is not the format it claims (truncated, garbage)
+  kInvalidOption,         // 400 an option out of its documented range
+  kUnauthorized,          // 401 missing or unknown API key
+  kNotFound,              // 404 unknown route, rig or job (or another tenant's)
+  kConflict,              // 409 e.g. result of a job that has not succeeded
+  kPayloadTooLarge,       // 413 body, vertex or landmark count over the limit
+  kUnsupportedMediaType,  // 415 not multipart/form-data where files are expected
+  kInvalidMesh,           // 422 NaN/Inf, bad indices, no faces
+  kInvalidLandmarks,      // 422 unknown/duplicate names, too few shared, off the mesh
+  kIllConditioned,        // 422 duplicate or coplanar landmarks
+  kUnsupportedFeature,    // 422 valid file using a feature rigport does not handle
+  kQueueFull,             // 429 with Retry-After
+  // 5xx and job outcomes
+  kJobCancelled,          // 409 (job error) cancelled on request
+  kJobTimeout,            // 504 (job error) over the per-job time limit
+  kInternal,              // 500
+  kNotReady,              // 503 starting up or shutting down
+};
+
+int httpStatus(WireError error);
+const char* wireErrorSlug(WireError error);   // "invalid-mesh"
+std::string problemType(WireError error);     // "urn:rigport:problem:invalid-mesh"
+Problem makeProblem(WireError error, std::string detail, std::string instance = {});
+
+}  // namespace api

@@ -1,0 +1,192 @@
+#include "api/json.h"
+
+namespace api {
+
+namespace {
+
+using nlohmann::json;
+
+// Field readers: each returns an error string naming `where.key`, or empty.
+std::string readString(const json& j, const char* key, std::string& out, const std::string& where, bool required) {
+  const auto it = j.find(key);
+  if (it == j.end() || it->is_null()) return required ? where + "." + key + ": required" : "";
+  if (!it->is_string()) return where + "." + key + ": expected a string";
+  out = it->get<std::string>();
+  return "";
+}
+
+template <typename Number>
+std::string readNumber(const json& j, const char* key, Number& out, const std::string& where, bool required) {
+  const auto it = j.find(key);
+  if (it == j.end() || it->is_null()) return required ? where + "." + key + ": required" : "";
+  if (!it->is_number()) return where + "." + key + ": expected a number";
+  out = it->get<Number>();
+  return "";
+}
+
+std::string readBool(const json& j, const char* key, bool& out, const std::string& where) {
+  const auto it = j.find(key);
+  if (it == j.end() || it->is_null()) return "";
+  if (!it->is_boolean()) return where + "." + key + ": expected true or false";
+  out = it->get<bool>();
+  return "";
+}
+
+json nullIfEmpty(const std::string& s) { return s.empty() ? json(nullptr) : json(s); }
+
+template <typename T>
+bool failed(const Parsed<T>& p) { return std::holds_alternative<std::string>(p); }
+
+}  // namespace
+
+json toJson(const Problem& p) {
+  json j = {{"type", p.type}, {"title", p.title}, {"status", p.status}, {"detail", p.detail}};
+  if (!p.instance.empty()) j["instance"] = p.instance;
+  return j;
+}
+
+json toJson(const RigInfo& r) {
+  return {{"id", r.id}, {"name", r.name}, {"size_bytes", r.size_bytes}, {"vertices", r.vertices},
+          {"joints", r.joints}, {"morph_targets", r.morph_targets}, {"landmarks", r.landmarks},
+          {"has_components", r.has_components}, {"created_at", r.created_at}};
+}
+
+json toJson(const JobSpec& s) {
+  json j = {{"kind", s.kind}, {"options", s.options}};
+  if (!s.rig.empty()) j["rig"] = s.rig;
+  return j;
+}
+
+json toJson(const JobInfo& job) {
+  json j = {{"id", job.id},
+            {"kind", job.kind},
+            {"rig", nullIfEmpty(job.rig)},
+            {"status", jobStatusName(job.status)},
+            {"stage", job.stage},
+            {"progress", job.progress},
+            {"attempts", job.attempts},
+            {"cache_hit", job.cache_hit},
+            {"created_at", job.created_at},
+            {"started_at", nullIfEmpty(job.started_at)},
+            {"finished_at", nullIfEmpty(job.finished_at)},
+            {"timings_ms", job.timings_ms}};
+  j["error"] = job.error ? toJson(*job.error) : json(nullptr);
+  return j;
+}
+
+json toJson(const JobPage& page) {
+  json items = json::array();
+  for (const auto& job : page.items) items.push_back(toJson(job));
+  return {{"items", items}, {"next", nullIfEmpty(page.next)}};
+}
+
+json toJson(const RigPage& page) {
+  json items = json::array();
+  for (const auto& rig : page.items) items.push_back(toJson(rig));
+  return {{"items", items}};
+}
+
+Parsed<Problem> problemFromJson(const json& j) {
+  if (!j.is_object()) return std::string("problem: expected an object");
+  Problem p;
+  for (const std::string& e : {readString(j, "type", p.type, "problem", true), readString(j, "title", p.title, "problem", false),
+                               readNumber(j, "status", p.status, "problem", true),
+                               readString(j, "detail", p.detail, "problem", false),
+                               readString(j, "instance", p.instance, "problem", false)}) {
+    if (!e.empty()) return e;
+  }
+  return p;
+}
+
+Parsed<RigInfo> rigInfoFromJson(const json& j) {
+  if (!j.is_object()) return std::string("rig: expected an object");
+  RigInfo r;
+  for (const std::string& e :
+       {readString(j, "id", r.id, "rig", true), readString(j, "name", r.name, "rig", false),
+        readNumber(j, "size_bytes", r.size_bytes, "rig", false), readNumber(j, "vertices", r.vertices, "rig", false),
+        readNumber(j, "joints", r.joints, "rig", false), readNumber(j, "morph_targets", r.morph_targets, "rig", false),
+        readNumber(j, "landmarks", r.landmarks, "rig", false), readBool(j, "has_components", r.has_components, "rig"),
+        readString(j, "created_at", r.created_at, "rig", false)}) {
+    if (!e.empty()) return e;
+  }
+  return r;
+}
+
+Parsed<JobSpec> jobSpecFromJson(const json& j) {
+  if (!j.is_object()) return std::string("spec: expected a JSON object {\"kind\":..., \"rig\":..., \"options\":{...}}");
+  JobSpec s;
+  for (const auto& [key, value] : j.items()) {
+    if (key != "kind" && key != "rig" && key != "options") return "spec." + key + ": not a known field (kind, rig, options)";
+  }
+  for (const std::string& e : {readString(j, "kind", s.kind, "spec", true), readString(j, "rig", s.rig, "spec", false)}) {
+    if (!e.empty()) return e;
+  }
+  if (const auto it = j.find("options"); it != j.end() && !it->is_null()) {
+    if (!it->is_object()) return std::string("spec.options: expected an object");
+    s.options = *it;
+  }
+  return s;
+}
+
+Parsed<JobInfo> jobInfoFromJson(const json& j) {
+  if (!j.is_object()) return std::string("job: expected an object");
+  JobInfo job;
+  std::string status;
+  for (const std::string& e :
+       {readString(j, "id", job.id, "job", true), readString(j, "kind", job.kind, "job", false),
+        readString(j, "rig", job.rig, "job", false), readString(j, "status", status, "job", true),
+        readString(j, "stage", job.stage, "job", false), readNumber(j, "progress", job.progress, "job", false),
+        readNumber(j, "attempts", job.attempts, "job", false), readBool(j, "cache_hit", job.cache_hit, "job"),
+        readString(j, "created_at", job.created_at, "job", false),
+        readString(j, "started_at", job.started_at, "job", false),
+        readString(j, "finished_at", job.finished_at, "job", false)}) {
+    if (!e.empty()) return e;
+  }
+  const auto parsed_status = parseJobStatus(status);
+  if (!parsed_status) return "job.status: unknown status '" + status + "'";
+  job.status = *parsed_status;
+  if (const auto it = j.find("timings_ms"); it != j.end() && it->is_object()) {
+    for (const auto& [stage, ms] : it->items()) {
+      if (ms.is_number()) job.timings_ms[stage] = ms.get<double>();
+    }
+  }
+  if (const auto it = j.find("error"); it != j.end() && !it->is_null()) {
+    auto problem = problemFromJson(*it);
+    if (failed(problem)) return "job.error: " + std::get<std::string>(problem);
+    job.error = std::get<Problem>(std::move(problem));
+  }
+  return job;
+}
+
+Parsed<JobPage> jobPageFromJson(const json& j) {
+  if (!j.is_object() || !j.contains("items") || !j["items"].is_array()) return std::string("page: expected {\"items\": [...]}");
+  JobPage page;
+  for (const auto& item : j["items"]) {
+    auto job = jobInfoFromJson(item);
+    if (failed(job)) return std::get<std::string>(job);
+    page.items.push_back(std::get<JobInfo>(std::move(job)));
+  }
+  if (const std::string e = readString(j, "next", page.next, "page", false); !e.empty()) return e;
+  return page;
+}
+
+Parsed<RigPage> rigPageFromJson(const json& j) {
+  if (!j.is_object() || !j.contains("items") || !j["items"].is_array()) return std::string("page: expected {\"items\": [...]}");
+  RigPage page;
+  for (const auto& item : j["items"]) {
+    auto rig = rigInfoFromJson(item);
+    if (failed(rig)) return std::get<std::string>(rig);
+    page.items.push_back(std::get<RigInfo>(std::move(rig)));
+  }
+  return page;
+}
+
+Parsed<json> parseJsonText(const std::string& text, const std::string& label) {
+  try {
+    return json::parse(text);
+  } catch (const json::parse_error& e) {
+    return label + ": not valid JSON (byte " + std::to_string(e.byte) + ")";
+  }
+}
+
+}  // namespace api

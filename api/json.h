@@ -1,0 +1,36 @@
+// JSON of the wire types (api/types.h), at this edge only. Readers return
+// std::nullopt-free results: a parse failure names the field at fault.
+#pragma once
+
+#include <string>
+#include <variant>
+
+#include <nlohmann/json.hpp>
+
+#include "api/types.h"
+
+namespace api {
+
+// A value or the name of what is wrong ("spec.rig: expected a string").
+template <typename T>
+using Parsed = std::variant<T, std::string>;
+
+nlohmann::json toJson(const Problem& problem);
+nlohmann::json toJson(const RigInfo& rig);
+nlohmann::json toJson(const JobSpec& spec);
+nlohmann::json toJson(const JobInfo& job);
+nlohmann::json toJson(const JobPage& page);
+nlohmann::json toJson(const RigPage& page);
+
+Parsed<Problem> problemFromJson(const nlohmann::json& json);
+Parsed<RigInfo> rigInfoFromJson(const nlohmann::json& json);
+// Shape only (kind/rig are strings, options an object); semantic checks in api/validate.h.
+Parsed<JobSpec> jobSpecFromJson(const nlohmann::json& json);
+Parsed<JobInfo> jobInfoFromJson(const nlohmann::json& json);
+Parsed<JobPage> jobPageFromJson(const nlohmann::json& json);
+Parsed<RigPage> rigPageFromJson(const nlohmann::json& json);
+
+// Parses text; errors name `label` ("spec: not valid JSON at byte 12").
+Parsed<nlohmann::json> parseJsonText(const std::string& text, const std::string& label);
+
+}  // namespace api
