@@ -1,0 +1,41 @@
+// Server configuration: every limit in one place, with its default and unit.
+// Filled by server/main.cpp from the command line; tests build it directly.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+
+namespace server {
+
+struct ServerConfig {
+  std::string host = "127.0.0.1";
+  int port = 8080;                       // 0 = any free port (tests)
+  std::filesystem::path data_dir = "rigport-data";  // SQLite file, blobs, upload spool
+  int workers = 0;                       // job worker threads; 0 = hardware threads
+  int threads_per_job = 1;               // core threads inside one job (parallelism is across jobs)
+  std::size_t cache_bytes = 512ull << 20;  // prepared-rig cache bound
+  std::filesystem::path api_keys_file;   // "key tenant" per line; empty + no env = auth off
+  bool auth = true;                      // false: every request is tenant "" (local use, demo)
+
+  // HTTP: cpp-httplib blocks one thread per connection, so the pool is sized
+  // explicitly and keep-alive is bounded, so idle clients cannot pin it.
+  int http_threads = 32;
+  int keep_alive_max_count = 100;        // requests per connection
+  int keep_alive_timeout_s = 2;          // idle keep-alive connection closed after this
+  int read_timeout_s = 30;               // stalled uploads time out
+  int write_timeout_s = 30;
+
+  // Limits
+  std::size_t max_body_bytes = 256ull << 20;   // one request body
+  std::int64_t max_vertices = 2'000'000;       // per mesh
+  int max_landmarks = 10'000;
+  int max_concurrent_uploads = 16;             // multipart bodies being received (and checked) at once
+  int queue_capacity = 256;                    // queued jobs; beyond -> 429
+  int retry_after_s = 1;                       // Retry-After of a 429
+  double job_time_limit_s = 300.0;             // a running job is stopped at its next stage after this
+  double shutdown_grace_s = 30.0;              // SIGTERM: running jobs get this long to finish
+};
+
+}  // namespace server

@@ -1,0 +1,210 @@
+#include "server/convert.h"
+
+#include <chrono>
+
+#include "core/diagnostics_json.h"
+#include "core/landmarks.h"
+#include "core/mesh_io.h"
+#include "core/rig_io.h"
+#include "core/tps.h"
+#include "core/transfer.h"
+#include "core/transfer_options.h"
+
+namespace server {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+std::string_view asText(Bytes bytes) { return {reinterpret_cast<const char*>(bytes.data()), bytes.size()}; }
+
+bool isGlb(Bytes bytes) { return bytes.size() >= 4 && asText(bytes.first(4)) == "glTF"; }
+
+std::optional<api::Problem> checkCounts(const core::Mesh& mesh, std::size_t landmarks, const std::string& label,
+                                        const ServerConfig& limits) {
+  if (mesh.vertexCount() > limits.max_vertices) {
+    return api::makeProblem(api::WireError::kPayloadTooLarge, label + ": " + std::to_string(mesh.vertexCount()) +
+                                                                  " vertices, over the limit of " +
+                                                                  std::to_string(limits.max_vertices));
+  }
+  if (landmarks > static_cast<std::size_t>(limits.max_landmarks)) {
+    return api::makeProblem(api::WireError::kPayloadTooLarge, label + ": " + std::to_string(landmarks) +
+                                                                  " landmarks, over the limit of " +
+                                                                  std::to_string(limits.max_landmarks));
+  }
+  return std::nullopt;
+}
+
+core::Result<core::LoadedRig> readRigBytes(Bytes bytes, const std::string& label) {
+  return core::readRigGltf(bytes, label, isGlb(bytes));
+}
+
+// Inputs of a transfer job, read from their blobs.
+struct TransferInputs {
+  core::LoadedMesh target;
+  core::LandmarkSet target_landmarks;
+  core::TransferSettings settings;
+};
+
+}  // namespace
+
+api::WireError wireErrorOf(core::ErrorCode code) {
+  switch (code) {
+    case core::ErrorCode::kIo: return api::WireError::kInternal;
+    case core::ErrorCode::kParse: return api::WireError::kMalformedFile;
+    case core::ErrorCode::kUnsupported: return api::WireError::kUnsupportedFeature;
+    case core::ErrorCode::kInvalidMesh: return api::WireError::kInvalidMesh;
+    case core::ErrorCode::kInvalidLandmarks: return api::WireError::kInvalidLandmarks;
+    case core::ErrorCode::kIllConditioned: return api::WireError::kIllConditioned;
+    case core::ErrorCode::kInvalidArgument: return api::WireError::kInvalidOption;
+    case core::ErrorCode::kCancelled: return api::WireError::kJobCancelled;
+  }
+  return api::WireError::kInternal;
+}
+
+api::Problem problemFromCoreError(const core::Error& error, const std::string& instance) {
+  return api::makeProblem(wireErrorOf(error.code), error.message, instance);
+}
+
+std::variant<api::RigInfo, api::Problem> checkRigUpload(Bytes rig_bytes, const std::string& rig_name, Bytes landmark_bytes,
+                                                        const std::optional<Bytes>& components,
+                                                        const ServerConfig& limits) {
+  auto rig = readRigBytes(rig_bytes, "rig '" + rig_name + "'");
+  if (!rig) return problemFromCoreError(rig.error(), "/v1/rigs");
+  auto landmarks = core::parseLandmarks(asText(landmark_bytes), "landmarks");
+  if (!landmarks) return problemFromCoreError(landmarks.error(), "/v1/rigs");
+  if (auto p = checkCounts(rig->rig.mesh, landmarks->landmarks.size(), "rig '" + rig_name + "'", limits)) return *p;
+  auto positions = core::resolveLandmarks(*landmarks, rig->rig.mesh, "landmarks");
+  if (!positions) return problemFromCoreError(positions.error(), "/v1/rigs");
+  std::vector<std::string> names;
+  for (const auto& l : landmarks->landmarks) names.push_back(l.name);
+  if (auto ok = core::checkTpsCentres(*positions, {}, names); !ok) return problemFromCoreError(ok.error(), "/v1/rigs");
+  if (components) {
+    const auto json = nlohmann::json::parse(asText(*components), nullptr, /*allow_exceptions=*/false);
+    if (json.is_discarded() || !json.is_object()) {
+      return api::makeProblem(api::WireError::kMalformedFile, "components: expected a JSON object", "/v1/rigs");
+    }
+  }
+  api::RigInfo info;
+  info.name = rig_name;
+  info.size_bytes = static_cast<std::int64_t>(rig_bytes.size());
+  info.vertices = static_cast<int>(rig->rig.mesh.vertexCount());
+  info.joints = rig->rig.skin ? static_cast<int>(rig->rig.skin->joints.size()) : 0;
+  info.morph_targets = static_cast<int>(rig->rig.morph_targets.size());
+  info.landmarks = static_cast<int>(landmarks->landmarks.size());
+  info.has_components = components.has_value();
+  return info;
+}
+
+std::optional<api::Problem> checkJobInputs(const api::JobSpec& spec,
+                                           const std::map<std::string, std::pair<std::string, Bytes>>& files,
+                                           const ServerConfig& limits) {
+  const std::string instance = "/v1/jobs";
+  if (spec.kind == "transfer") {
+    auto settings = core::parseTransferOptions(spec.options.dump(), "spec.options");
+    if (!settings) return problemFromCoreError(settings.error(), instance);
+    const auto& [target_name, target_bytes] = files.at("target");
+    auto target = core::readMeshFromMemory(target_bytes, target_name, "target '" + target_name + "'");
+    if (!target) return problemFromCoreError(target.error(), instance);
+    auto landmarks = core::parseLandmarks(asText(files.at("target_landmarks").second), "target_landmarks");
+    if (!landmarks) return problemFromCoreError(landmarks.error(), instance);
+    if (auto p = checkCounts(target->mesh, landmarks->landmarks.size(), "target '" + target_name + "'", limits)) return p;
+    auto positions = core::resolveLandmarks(*landmarks, target->mesh, "target_landmarks");
+    if (!positions) return problemFromCoreError(positions.error(), instance);
+    return std::nullopt;
+  }
+  return api::makeProblem(api::WireError::kMalformedRequest, "spec.kind: '" + spec.kind + "' is not served yet", instance);
+}
+
+std::variant<JobOutput, core::Error> runJob(const JobRecord& job, const RigRecord* rig_record, const BlobStore& blobs,
+                                            RigCache& cache, const StageHook& on_stage, int threads) {
+  const auto t_start = Clock::now();
+  if (job.kind != "transfer" || rig_record == nullptr) {
+    return core::makeError(core::ErrorCode::kInvalidArgument, "job " + job.id + ": kind '" + job.kind + "' cannot run");
+  }
+  auto blob = [&](const std::string& field) { return blobs.read(job.inputs.at(field)); };
+  const auto name = [&](const std::string& field) {
+    const auto it = job.input_names.find(field);
+    return it == job.input_names.end() ? field : it->second;
+  };
+
+  // --- read the job's inputs
+  if (!on_stage("read", 0.02)) return core::makeError(core::ErrorCode::kCancelled, "job " + job.id + ": cancelled before reading inputs");
+  auto t0 = Clock::now();
+  const auto spec_json = nlohmann::json::parse(job.spec_json, nullptr, false);
+  auto settings = core::parseTransferOptions(spec_json.is_object() && spec_json.contains("options") ? spec_json["options"].dump() : "{}",
+                                             "spec.options");
+  if (!settings) return settings.error();
+  settings->transfer.threads = threads;
+  auto target_bytes = blob("target");
+  if (!target_bytes) return target_bytes.error();
+  auto target = core::readMeshFromMemory(*target_bytes, name("target"), name("target"));
+  if (!target) return target.error();
+  auto landmark_bytes = blob("target_landmarks");
+  if (!landmark_bytes) return landmark_bytes.error();
+  auto target_landmarks = core::parseLandmarks(asText(*landmark_bytes), name("target_landmarks"));
+  if (!target_landmarks) return target_landmarks.error();
+  const double read_ms = msSince(t0);
+
+  // --- prepare (cached per rig content id; a hit skips all source-only work)
+  if (!on_stage("prepare", 0.05)) return core::makeError(core::ErrorCode::kCancelled, "job " + job.id + ": cancelled before prepare");
+  t0 = Clock::now();
+  core::MeshReadReport source_read;
+  auto prepared = cache.get(rig_record->info.id, [&]() -> core::Result<core::PreparedRig> {
+    auto rig_bytes = blobs.read(rig_record->rig_blob);
+    if (!rig_bytes) return rig_bytes.error();
+    auto rig = readRigBytes(*rig_bytes, rig_record->info.name);
+    if (!rig) return rig.error();
+    source_read = rig->report;
+    auto source_landmark_bytes = blobs.read(rig_record->landmarks_blob);
+    if (!source_landmark_bytes) return source_landmark_bytes.error();
+    auto source_landmarks = core::parseLandmarks(asText(*source_landmark_bytes), "landmarks");
+    if (!source_landmarks) return source_landmarks.error();
+    core::PrepareOptions prepare_options;
+    prepare_options.threads = threads;
+    return core::prepareRig(std::move(rig->rig), std::move(*source_landmarks), rig_record->info.name, prepare_options);
+  });
+  if (!prepared) return prepared.error();
+  const double prepare_ms = msSince(t0);
+
+  // --- transfer (core reports its own stages; progress 0.1 .. 0.9)
+  settings->transfer.on_stage = [&](std::string_view stage, double fraction) {
+    return on_stage(stage, 0.1 + 0.8 * fraction);
+  };
+  auto result = core::transferRig(*prepared->rig, target->mesh, *target_landmarks, name("target"), settings->transfer);
+  if (!result) return result.error();
+  if (rig_record->info.has_components) {
+    result->report.warnings.push_back("rig components (components JSON) are stored but not transferred yet");
+  }
+
+  // --- assemble
+  if (!on_stage("write", 0.92)) return core::makeError(core::ErrorCode::kCancelled, "job " + job.id + ": cancelled before write");
+  t0 = Clock::now();
+  auto glb = core::encodeRigGlb(result->rig, settings->write);
+  if (!glb) return glb.error();
+  const double write_ms = msSince(t0);
+
+  JobOutput out;
+  out.cache_hit = prepared->hit;
+  out.result = std::move(*glb);
+  core::TransferReport& r = result->report;
+  if (prepared->hit) r.prepare_ms = 0.0;  // the cached preparation was paid by an earlier job
+  core::DiagnosticsContext context;
+  context.source_read = prepared->hit ? nullptr : &source_read;
+  context.target_read = &target->report;
+  context.extra_timings_ms = {{"read", read_ms}, {"write", write_ms}};
+  context.total_ms = msSince(t_start);
+  context.cache_hit = prepared->hit;
+  out.diagnostics = core::formatTransferDiagnostics(r, context);
+  out.timings_ms = {{"read", read_ms},
+                    {"prepare", prepared->hit ? 0.0 : prepare_ms},
+                    {"warp", r.warp.warp_ms},
+                    {"correspond", r.warp.correspond_ms},
+                    {"transfer", r.dense_map_ms + r.weights_ms + r.joints_ms + r.shapes_ms + r.attributes_ms},
+                    {"write", write_ms},
+                    {"total", context.total_ms}};
+  return out;
+}
+
+}  // namespace server

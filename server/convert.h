@@ -1,0 +1,60 @@
+// The only server file that sees both api:: and core:: types: core errors as
+// wire problems, upload checks before anything is stored or queued, and the
+// worker's run of a job (inputs from the store -> core -> GLB + diagnostics).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <variant>
+#include <vector>
+
+#include "api/error_codes.h"
+#include "api/types.h"
+#include "core/error.h"
+#include "server/config.h"
+#include "server/rig_cache.h"
+#include "server/store.h"
+
+namespace server {
+
+// The one mapping of core error codes to wire errors.
+api::WireError wireErrorOf(core::ErrorCode code);
+api::Problem problemFromCoreError(const core::Error& error, const std::string& instance);
+
+using Bytes = std::span<const std::uint8_t>;
+
+// An uploaded rig: the GLB reads as a rig, the landmarks parse, lie on its
+// mesh and make a well-conditioned TPS; counts within the limits. On success
+// the rig's summary (id and created_at left to the caller).
+std::variant<api::RigInfo, api::Problem> checkRigUpload(Bytes rig, const std::string& rig_name, Bytes landmarks,
+                                                        const std::optional<Bytes>& components,
+                                                        const ServerConfig& limits);
+
+// A job's inputs before it is queued: the kind's options parse, its files read
+// and lie within the limits. `files` maps multipart field -> (file name, bytes).
+std::optional<api::Problem> checkJobInputs(const api::JobSpec& spec,
+                                           const std::map<std::string, std::pair<std::string, Bytes>>& files,
+                                           const ServerConfig& limits);
+
+struct JobOutput {
+  std::vector<std::uint8_t> result;       // GLB
+  std::string diagnostics;                // JSON
+  std::map<std::string, double> timings_ms;
+  bool cache_hit = false;
+};
+
+// Called at stage boundaries with the job's stage and progress (0-1); false
+// stops the job (ErrorCode::kCancelled).
+using StageHook = std::function<bool(std::string_view stage, double progress)>;
+
+// Runs a queued job on the calling (worker) thread. `rig` is the job's rig
+// record (nullptr for kinds without one).
+std::variant<JobOutput, core::Error> runJob(const JobRecord& job, const RigRecord* rig, const BlobStore& blobs,
+                                            RigCache& cache, const StageHook& on_stage, int threads);
+
+}  // namespace server

@@ -1,0 +1,290 @@
+#include "server/jobs.h"
+
+#include <chrono>
+
+#include "api/error_codes.h"
+#include "api/json.h"
+#include "server/convert.h"
+
+namespace server {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+
+}  // namespace
+
+api::JobInfo jobInfoOf(const JobRecord& job, const std::optional<LiveProgress>& live) {
+  api::JobInfo info;
+  info.id = job.id;
+  info.kind = job.kind;
+  info.rig = job.rig;
+  info.status = job.status;
+  info.stage = job.stage;
+  info.progress = job.status == api::JobStatus::kSucceeded ? 1.0 : 0.0;
+  if (job.status == api::JobStatus::kRunning && live) {
+    info.stage = live->stage;
+    info.progress = live->progress;
+  }
+  info.attempts = job.attempts;
+  info.cache_hit = job.cache_hit;
+  info.created_at = formatTimestamp(job.created_ms);
+  info.started_at = formatTimestamp(job.started_ms);
+  info.finished_at = formatTimestamp(job.finished_ms);
+  if (!job.timings_json.empty()) {
+    const auto timings = nlohmann::json::parse(job.timings_json, nullptr, false);
+    if (timings.is_object()) {
+      for (const auto& [stage, ms] : timings.items()) {
+        if (ms.is_number()) info.timings_ms[stage] = ms.get<double>();
+      }
+    }
+  }
+  if (!job.error_json.empty()) {
+    const auto error = nlohmann::json::parse(job.error_json, nullptr, false);
+    auto problem = api::problemFromJson(error);
+    if (std::holds_alternative<api::Problem>(problem)) info.error = std::get<api::Problem>(std::move(problem));
+  }
+  return info;
+}
+
+JobManager::JobManager(MetadataStore& store, BlobStore& blobs, RigCache& cache, Metrics& metrics,
+                       const ServerConfig& config, JsonLog log)
+    : store_(store), blobs_(blobs), cache_(cache), metrics_(metrics), config_(config), log_(std::move(log)) {}
+
+JobManager::~JobManager() { stop(0.0); }
+
+void JobManager::start() {
+  std::vector<JobRecord> unfinished = store_.unfinishedJobs();
+  int requeued = 0;
+  {
+    std::lock_guard lock(mutex_);
+    for (const JobRecord& job : unfinished) {
+      if (job.status == api::JobStatus::kRunning) {
+        // Interrupted by a crash or a stop past its grace: run it again from its inputs.
+        if (auto ok = store_.requeue(job.id); !ok) {
+          log_.error("job_requeue_failed", {{"job", job.id}, {"tenant", job.tenant}, {"detail", ok.error().message}});
+          continue;
+        }
+        ++requeued;
+      }
+      queue_.emplace_back(job.tenant, job.id);
+    }
+  }
+  log_.info("jobs_recovered", {{"queued", unfinished.size()}, {"requeued_running", requeued}});
+  const int n = config_.workers > 0 ? config_.workers : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  for (int i = 0; i < n; ++i) workers_.emplace_back([this] { workerLoop(); });
+}
+
+std::variant<std::pair<JobRecord, bool>, api::Problem> JobManager::submit(const JobRecord& job) {
+  {
+    std::lock_guard lock(mutex_);
+    if (stopping_) return api::makeProblem(api::WireError::kNotReady, "the service is shutting down", "/v1/jobs");
+    if (static_cast<int>(queue_.size()) + reserved_ >= config_.queue_capacity) {
+      return api::makeProblem(api::WireError::kQueueFull,
+                              "the job queue is full (" + std::to_string(config_.queue_capacity) +
+                                  " jobs waiting); retry after " + std::to_string(config_.retry_after_s) + " s",
+                              "/v1/jobs");
+    }
+    ++reserved_;  // holds a slot while the row is committed outside the lock
+  }
+  auto inserted = store_.insertJob(job);
+  std::lock_guard lock(mutex_);
+  --reserved_;
+  if (!inserted) {
+    return api::makeProblem(api::WireError::kInternal, "could not store the job: " + inserted.error().message, "/v1/jobs");
+  }
+  if (inserted->second) {
+    queue_.emplace_back(inserted->first.tenant, inserted->first.id);
+    wake_.notify_one();
+  }
+  return std::move(*inserted);
+}
+
+std::variant<JobRecord, api::Problem> JobManager::cancel(const std::string& tenant, const std::string& id) {
+  const std::string instance = "/v1/jobs/" + id;
+  std::unique_lock lock(mutex_);  // excludes a worker starting this job meanwhile
+  auto job = store_.getJob(tenant, id);
+  if (!job) return api::makeProblem(api::WireError::kNotFound, "no job " + id, instance);
+  if (api::isFinal(job->status)) {
+    return api::makeProblem(api::WireError::kConflict,
+                            "job " + id + " is already " + api::jobStatusName(job->status) + "; nothing to cancel", instance);
+  }
+  if (auto it = running_.find(id); it != running_.end()) {
+    it->second->cancel = true;  // the worker stops at the next stage boundary
+    log_.info("job_cancel_requested", {{"job", id}, {"tenant", tenant}});
+    return *job;
+  }
+  std::erase_if(queue_, [&](const auto& entry) { return entry.second == id; });
+  job->status = api::JobStatus::kCancelled;
+  job->stage = "cancelled";
+  job->finished_ms = nowMs();
+  job->error_json = api::toJson(api::makeProblem(api::WireError::kJobCancelled, "cancelled while queued", instance)).dump();
+  if (auto ok = store_.markFinished(*job); !ok) {
+    return api::makeProblem(api::WireError::kInternal, "could not cancel: " + ok.error().message, instance);
+  }
+  metrics_.countJobOutcome("cancelled");
+  log_.info("job_cancelled", {{"job", id}, {"tenant", tenant}, {"while", "queued"}});
+  return *job;
+}
+
+std::optional<LiveProgress> JobManager::live(const std::string& id) const {
+  std::lock_guard lock(mutex_);
+  const auto it = running_.find(id);
+  if (it == running_.end()) return std::nullopt;
+  return LiveProgress{it->second->stage, it->second->progress, it->second->cancel.load()};
+}
+
+int JobManager::queueDepth() const {
+  std::lock_guard lock(mutex_);
+  return static_cast<int>(queue_.size());
+}
+
+int JobManager::runningJobs() const {
+  std::lock_guard lock(mutex_);
+  return static_cast<int>(running_.size());
+}
+
+bool JobManager::stop(double grace_s) {
+  std::unique_lock lock(mutex_);
+  stopping_ = true;
+  wake_.notify_all();
+  const bool finished = idle_.wait_for(lock, std::chrono::duration<double>(grace_s), [&] { return running_.empty(); });
+  if (!finished) {
+    // Past the grace period: stop them at their next stage boundary and put
+    // them back in the queue of the store (not cancelled: nobody asked).
+    abandoning_ = true;
+    for (auto& [id, r] : running_) r->cancel = true;
+  }
+  lock.unlock();
+  for (auto& w : workers_) {
+    if (w.joinable()) w.join();
+  }
+  workers_.clear();
+  return finished;
+}
+
+void JobManager::workerLoop() {
+  for (;;) {
+    std::pair<std::string, std::string> next;
+    {
+      std::unique_lock lock(mutex_);
+      wake_.wait(lock, [&] { return stopping_ || !queue_.empty(); });
+      if (stopping_) return;  // queued jobs stay queued in the store
+      next = std::move(queue_.front());
+      queue_.pop_front();
+      running_.emplace(next.second, std::make_shared<Running>());
+    }
+    runOne(next.first, next.second);
+    std::lock_guard lock(mutex_);
+    running_.erase(next.second);
+    if (running_.empty()) idle_.notify_all();
+  }
+}
+
+void JobManager::runOne(const std::string& tenant, const std::string& id) {
+  std::shared_ptr<Running> state;
+  {
+    std::lock_guard lock(mutex_);
+    state = running_.at(id);
+  }
+  auto job = store_.getJob(tenant, id);
+  if (!job || api::isFinal(job->status)) return;  // cancelled while queued, or deleted
+  const std::string instance = "/v1/jobs/" + id;
+  const std::int64_t started_ms = nowMs();
+  if (auto ok = store_.markRunning(id, started_ms, false); !ok) {
+    log_.error("job_start_failed", {{"job", id}, {"tenant", tenant}, {"detail", ok.error().message}});
+    return;
+  }
+  job->status = api::JobStatus::kRunning;
+  job->attempts += 1;
+  job->started_ms = started_ms;
+  metrics_.observeStage("queue", static_cast<double>(started_ms - job->created_ms) / 1000.0);
+  log_.info("job_started", {{"job", id}, {"tenant", tenant}, {"kind", job->kind}, {"attempt", job->attempts}});
+
+  const auto t_start = Clock::now();
+  const auto deadline = t_start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(config_.job_time_limit_s));
+  bool timed_out = false;
+  auto stage_start = t_start;
+  std::string stage_name;
+  StageHook on_stage = [&](std::string_view stage, double progress) {
+    const auto now = Clock::now();
+    if (!stage_name.empty()) metrics_.observeStage(stage_name, std::chrono::duration<double>(now - stage_start).count());
+    stage_name = stage;
+    stage_start = now;
+    {
+      std::lock_guard lock(mutex_);
+      state->stage = stage;
+      state->progress = progress;
+    }
+    if (now > deadline) timed_out = true;
+    return !(state->cancel.load() || timed_out);
+  };
+
+  std::optional<RigRecord> rig;
+  if (!job->rig.empty()) rig = store_.getRig(tenant, job->rig);
+  auto outcome = (!job->rig.empty() && !rig)
+                     ? std::variant<JobOutput, core::Error>(core::makeError(
+                           core::ErrorCode::kInvalidArgument, "rig " + job->rig + " was deleted before the job ran"))
+                     : runJob(*job, rig ? &*rig : nullptr, blobs_, cache_, on_stage, config_.threads_per_job);
+  if (!stage_name.empty()) metrics_.observeStage(stage_name, std::chrono::duration<double>(Clock::now() - stage_start).count());
+
+  job->finished_ms = nowMs();
+  if (auto* out = std::get_if<JobOutput>(&outcome)) {
+    // Results are durable before the row points at them: a crash in between
+    // leaves the job running (requeued), never half-written.
+    auto result_blob = blobs_.put(out->result);
+    auto diagnostics_blob = blobs_.put(std::span(reinterpret_cast<const std::uint8_t*>(out->diagnostics.data()),
+                                                 out->diagnostics.size()));
+    if (!result_blob || !diagnostics_blob) {
+      const core::Error& e = !result_blob ? result_blob.error() : diagnostics_blob.error();
+      outcome = core::makeError(core::ErrorCode::kIo, "storing the result: " + e.message);
+    } else {
+      job->status = api::JobStatus::kSucceeded;
+      job->stage = "done";
+      job->result_blob = *result_blob;
+      job->diagnostics_blob = *diagnostics_blob;
+      job->cache_hit = out->cache_hit;
+      job->timings_json = nlohmann::json(out->timings_ms).dump();
+    }
+  }
+  if (auto* error = std::get_if<core::Error>(&outcome)) {
+    bool abandoned = false;
+    {
+      std::lock_guard lock(mutex_);
+      abandoned = abandoning_ && error->code == core::ErrorCode::kCancelled;
+    }
+    if (abandoned) {
+      if (auto ok = store_.requeue(id); !ok) {
+        log_.error("job_requeue_failed", {{"job", id}, {"tenant", tenant}, {"detail", ok.error().message}});
+      }
+      log_.warn("job_requeued_at_shutdown", {{"job", id}, {"tenant", tenant}});
+      return;
+    }
+    api::Problem problem = problemFromCoreError(*error, instance);
+    if (error->code == core::ErrorCode::kCancelled && timed_out) {
+      problem = api::makeProblem(api::WireError::kJobTimeout,
+                                 "job " + id + " exceeded the time limit of " + std::to_string(config_.job_time_limit_s) +
+                                     " s (stopped before stage '" + stage_name + "')",
+                                 instance);
+    }
+    job->status = error->code == core::ErrorCode::kCancelled && !timed_out ? api::JobStatus::kCancelled
+                                                                           : api::JobStatus::kFailed;
+    job->stage = stage_name.empty() ? "failed" : stage_name;
+    job->error_json = api::toJson(problem).dump();
+  }
+  if (auto ok = store_.markFinished(*job); !ok) {
+    log_.error("job_finish_failed", {{"job", id}, {"tenant", tenant}, {"detail", ok.error().message}});
+    return;
+  }
+  metrics_.countJobOutcome(api::jobStatusName(job->status));
+  const double total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t_start).count();
+  if (job->status == api::JobStatus::kSucceeded) {
+    log_.info("job_succeeded", {{"job", id}, {"tenant", tenant}, {"ms", total_ms}, {"cache_hit", job->cache_hit}});
+  } else {
+    log_.warn("job_" + std::string(api::jobStatusName(job->status)),
+              {{"job", id}, {"tenant", tenant}, {"ms", total_ms}, {"error", nlohmann::json::parse(job->error_json)}});
+  }
+}
+
+}  // namespace server

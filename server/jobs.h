@@ -1,0 +1,97 @@
+// Jobs: a bounded in-memory queue of accepted job ids in front of a worker
+// pool. The store is the truth (a job is accepted once its row is committed);
+// the queue only orders work. Workers run one job each (core work never runs
+// on an HTTP thread), report stage and progress, honour cancellation and the
+// per-job time limit at stage boundaries, and write results to the store
+// before the job is marked finished.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <utility>
+#include <variant>
+#include <vector>
+
+#include "api/types.h"
+#include "server/config.h"
+#include "server/json_log.h"
+#include "server/metrics.h"
+#include "server/rig_cache.h"
+#include "server/store.h"
+#include "server/timestamps.h"
+
+namespace server {
+
+struct LiveProgress {
+  std::string stage;
+  double progress = 0.0;
+  bool cancel_requested = false;
+};
+
+class JobManager {
+ public:
+  JobManager(MetadataStore& store, BlobStore& blobs, RigCache& cache, Metrics& metrics, const ServerConfig& config,
+             JsonLog log);
+  ~JobManager();  // stop(0): workers abandon nothing durable, queued/running rows stay for the next start
+  JobManager(const JobManager&) = delete;
+  JobManager& operator=(const JobManager&) = delete;
+
+  // Recovery (running -> queued, every unfinished job queued in submission
+  // order) and the worker threads.
+  void start();
+
+  // Commits the job (or finds the earlier one with its Idempotency-Key) and
+  // queues it. A full queue is a 429 problem; nothing is stored then.
+  std::variant<std::pair<JobRecord, bool>, api::Problem> submit(const JobRecord& job);
+
+  // Queued: cancelled now. Running: stops at its next stage boundary. Final: 409.
+  std::variant<JobRecord, api::Problem> cancel(const std::string& tenant, const std::string& id);
+
+  // Stage and progress of a running job (the store has the rest).
+  std::optional<LiveProgress> live(const std::string& id) const;
+  int queueDepth() const;
+  int runningJobs() const;
+
+  // Graceful stop: no new jobs start; running ones get `grace_s` to finish.
+  // Returns true when every running job finished in time (the others stay
+  // `running` in the store and are requeued at the next start).
+  bool stop(double grace_s);
+
+ private:
+  struct Running {
+    std::string stage = "queued";
+    double progress = 0.0;
+    std::atomic<bool> cancel{false};
+  };
+  void workerLoop();
+  void runOne(const std::string& tenant, const std::string& id);
+
+  MetadataStore& store_;
+  BlobStore& blobs_;
+  RigCache& cache_;
+  Metrics& metrics_;
+  const ServerConfig config_;
+  JsonLog log_;
+
+  mutable std::mutex mutex_;
+  std::condition_variable wake_;
+  std::condition_variable idle_;
+  std::deque<std::pair<std::string, std::string>> queue_;   // (tenant, id)
+  int reserved_ = 0;                                         // submissions between capacity check and commit
+  std::map<std::string, std::shared_ptr<Running>> running_;  // by job id
+  bool stopping_ = false;
+  bool abandoning_ = false;                                  // stop() past its grace period
+  std::vector<std::thread> workers_;
+};
+
+// The wire view of a stored job (with live stage/progress when running).
+api::JobInfo jobInfoOf(const JobRecord& job, const std::optional<LiveProgress>& live);
+
+}  // namespace server

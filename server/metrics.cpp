@@ -1,0 +1,93 @@
+#include "server/metrics.h"
+
+#include <cctype>
+#include <sstream>
+
+namespace server {
+
+void Metrics::countRequest(const std::string& method, const std::string& route, int status) {
+  std::lock_guard lock(mutex_);
+  ++requests_[{method, {route, status}}];
+}
+
+void Metrics::observeStage(const std::string& stage, double seconds) {
+  std::lock_guard lock(mutex_);
+  Histogram& h = stages_[stage];
+  for (std::size_t i = 0; i < kBuckets.size(); ++i) {
+    if (seconds <= kBuckets[i]) {
+      ++h.buckets[i];
+      break;
+    }
+  }
+  ++h.count;
+  h.sum += seconds;
+}
+
+void Metrics::countJobOutcome(const std::string& status) {
+  std::lock_guard lock(mutex_);
+  ++outcomes_[status];
+}
+
+std::string Metrics::render(const GaugeSnapshot& g) const {
+  std::ostringstream out;
+  out.precision(10);
+  out << "# HELP rigport_jobs Jobs in the store by state.\n# TYPE rigport_jobs gauge\n";
+  for (const auto& [state, n] : g.jobs_by_state) out << "rigport_jobs{state=\"" << state << "\"} " << n << "\n";
+  out << "# HELP rigport_queue_depth Jobs waiting for a worker.\n# TYPE rigport_queue_depth gauge\n"
+      << "rigport_queue_depth " << g.queue_depth << "\n"
+      << "# HELP rigport_running_jobs Jobs on a worker now.\n# TYPE rigport_running_jobs gauge\n"
+      << "rigport_running_jobs " << g.running_jobs << "\n"
+      << "# HELP rigport_cache_bytes Bytes held by the prepared-rig cache.\n# TYPE rigport_cache_bytes gauge\n"
+      << "rigport_cache_bytes " << g.cache_bytes << "\n"
+      << "# HELP rigport_cache_capacity_bytes Bound of the prepared-rig cache.\n# TYPE rigport_cache_capacity_bytes gauge\n"
+      << "rigport_cache_capacity_bytes " << g.cache_capacity_bytes << "\n"
+      << "# HELP rigport_cache_entries Prepared rigs in the cache.\n# TYPE rigport_cache_entries gauge\n"
+      << "rigport_cache_entries " << g.cache_entries << "\n"
+      << "# HELP rigport_cache_hits_total Jobs that found their rig prepared.\n# TYPE rigport_cache_hits_total counter\n"
+      << "rigport_cache_hits_total " << g.cache_hits << "\n"
+      << "# HELP rigport_cache_misses_total Rig preparations.\n# TYPE rigport_cache_misses_total counter\n"
+      << "rigport_cache_misses_total " << g.cache_misses << "\n"
+      << "# HELP rigport_cache_evictions_total Prepared rigs evicted by the byte bound.\n# TYPE rigport_cache_evictions_total counter\n"
+      << "rigport_cache_evictions_total " << g.cache_evictions << "\n";
+  std::lock_guard lock(mutex_);
+  out << "# HELP rigport_job_outcomes_total Jobs finished since start, by final state.\n# TYPE rigport_job_outcomes_total counter\n";
+  for (const auto& [status, n] : outcomes_) out << "rigport_job_outcomes_total{status=\"" << status << "\"} " << n << "\n";
+  out << "# HELP rigport_http_requests_total HTTP requests by method, route and status.\n# TYPE rigport_http_requests_total counter\n";
+  for (const auto& [key, n] : requests_) {
+    out << "rigport_http_requests_total{method=\"" << key.first << "\",route=\"" << key.second.first << "\",status=\""
+        << key.second.second << "\"} " << n << "\n";
+  }
+  out << "# HELP rigport_stage_seconds Job stage latency.\n# TYPE rigport_stage_seconds histogram\n";
+  for (const auto& [stage, h] : stages_) {
+    std::uint64_t cumulative = 0;
+    for (std::size_t i = 0; i < kBuckets.size(); ++i) {
+      cumulative += h.buckets[i];
+      out << "rigport_stage_seconds_bucket{stage=\"" << stage << "\",le=\"" << kBuckets[i] << "\"} " << cumulative << "\n";
+    }
+    out << "rigport_stage_seconds_bucket{stage=\"" << stage << "\",le=\"+Inf\"} " << h.count << "\n"
+        << "rigport_stage_seconds_sum{stage=\"" << stage << "\"} " << h.sum << "\n"
+        << "rigport_stage_seconds_count{stage=\"" << stage << "\"} " << h.count << "\n";
+  }
+  return out.str();
+}
+
+std::string routePattern(const std::string& path) {
+  std::string out;
+  std::size_t i = 0;
+  while (i < path.size()) {
+    const std::size_t slash = path.find('/', i + 1);
+    const std::size_t end = slash == std::string::npos ? path.size() : slash;
+    std::string segment = path.substr(i, end - i);  // starts with '/'
+    // An id segment: 16+ hex digits, optionally followed by ":verb".
+    const std::size_t colon = segment.find(':');
+    const std::string head = segment.substr(1, colon == std::string::npos ? std::string::npos : colon - 1);
+    bool hex = head.size() >= 16;
+    for (char c : head) hex = hex && std::isxdigit(static_cast<unsigned char>(c));
+    if (hex) segment = "/{id}" + (colon == std::string::npos ? std::string() : segment.substr(colon));
+    out += segment;
+    i = end;
+  }
+  return out.empty() ? "/" : out;
+}
+
+}  // namespace server

@@ -1,0 +1,52 @@
+// Prometheus text exposition (format 0.0.4) of the service's counters and
+// histograms. Counters are recorded as events happen; gauges (jobs by state,
+// queue depth, cache) are read when /metrics is scraped. Thread-safe.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <mutex>
+#include <string>
+#include <utility>
+
+namespace server {
+
+struct GaugeSnapshot {
+  std::map<std::string, std::int64_t> jobs_by_state;  // state name -> count (store)
+  std::int64_t queue_depth = 0;
+  std::int64_t running_jobs = 0;
+  std::int64_t cache_bytes = 0;
+  std::int64_t cache_entries = 0;
+  std::int64_t cache_capacity_bytes = 0;
+  std::int64_t cache_hits = 0;
+  std::int64_t cache_misses = 0;
+  std::int64_t cache_evictions = 0;
+};
+
+class Metrics {
+ public:
+  // `route` is the route pattern ("/v1/jobs/{id}"), never a raw path, so the
+  // label set stays bounded.
+  void countRequest(const std::string& method, const std::string& route, int status);
+  void observeStage(const std::string& stage, double seconds);
+  void countJobOutcome(const std::string& status);
+  std::string render(const GaugeSnapshot& gauges) const;
+
+ private:
+  static constexpr std::array<double, 12> kBuckets = {0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30};
+  struct Histogram {
+    std::array<std::uint64_t, kBuckets.size()> buckets{};  // cumulative at render time
+    std::uint64_t count = 0;
+    double sum = 0.0;
+  };
+  mutable std::mutex mutex_;
+  std::map<std::pair<std::string, std::pair<std::string, int>>, std::uint64_t> requests_;  // (method, (route, status))
+  std::map<std::string, Histogram> stages_;
+  std::map<std::string, std::uint64_t> outcomes_;
+};
+
+// The route pattern of a request path: hex ids become {id} ("/v1/jobs/{id}/result").
+std::string routePattern(const std::string& path);
+
+}  // namespace server

@@ -1,0 +1,444 @@
+#include "server/routes.h"
+
+#include <fstream>
+#include <random>
+#include <set>
+
+#include "api/content_id.h"
+#include "api/error_codes.h"
+#include "api/json.h"
+#include "api/openapi_document.h"
+#include "core/mesh_io.h"
+#include "server/convert.h"
+#include "server/uploads.h"
+
+namespace server {
+
+namespace {
+
+using httplib::Request;
+using httplib::Response;
+using nlohmann::json;
+
+void sendProblem(Response& res, const api::Problem& problem, const RouteContext& ctx) {
+  res.status = problem.status;
+  if (problem.status == 429) res.set_header("Retry-After", std::to_string(ctx.config.retry_after_s));
+  res.set_content(api::toJson(problem).dump(), "application/problem+json");
+}
+
+void sendJson(Response& res, int status, const json& body) {
+  res.status = status;
+  res.set_content(body.dump(), "application/json");
+}
+
+// The tenant of the request, or a 401 problem sent.
+std::optional<std::string> authenticate(const Request& req, Response& res, const RouteContext& ctx) {
+  auto tenant = ctx.keys.tenantFor(req.get_header_value("Authorization"));
+  if (!tenant) {
+    res.set_header("WWW-Authenticate", "Bearer");
+    sendProblem(res,
+                api::makeProblem(api::WireError::kUnauthorized,
+                                 req.has_header("Authorization") ? "unknown API key"
+                                                                 : "missing 'Authorization: Bearer <api key>' header",
+                                 req.path),
+                ctx);
+  }
+  return tenant;
+}
+
+std::string randomJobId() {
+  thread_local std::mt19937_64 rng{std::random_device{}()};
+  char buf[33];
+  std::snprintf(buf, sizeof(buf), "%016llx%016llx", static_cast<unsigned long long>(rng()),
+                static_cast<unsigned long long>(rng()));
+  return buf;
+}
+
+bool isHexId(const std::string& s, std::size_t length) {
+  if (s.size() != length) return false;
+  for (char c : s) {
+    if (!((c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'))) return false;
+  }
+  return true;
+}
+
+// Counts a multipart body being received; over the limit -> 429.
+class UploadSlot {
+ public:
+  explicit UploadSlot(std::atomic<int>& counter, int limit) : counter_(counter) { ok_ = ++counter_ <= limit; }
+  ~UploadSlot() { --counter_; }
+  bool ok() const { return ok_; }
+
+ private:
+  std::atomic<int>& counter_;
+  bool ok_ = false;
+};
+
+std::string_view asText(const std::vector<std::uint8_t>& bytes) {
+  return {reinterpret_cast<const char*>(bytes.data()), bytes.size()};
+}
+
+// The spooled parts read into memory (they are parsed before anything is stored).
+struct LoadedParts {
+  std::map<std::string, std::vector<std::uint8_t>> bytes;
+};
+
+std::variant<LoadedParts, api::Problem> loadParts(const SpooledUpload& upload, const std::set<std::string>& required,
+                                                  const std::set<std::string>& optional, const std::string& path) {
+  for (const auto& name : required) {
+    if (!upload.parts.count(name)) {
+      return api::makeProblem(api::WireError::kMalformedRequest, "multipart field '" + name + "' is required", path);
+    }
+  }
+  LoadedParts loaded;
+  for (const auto& [field, part] : upload.parts) {
+    if (!required.count(field) && !optional.count(field)) {
+      std::string known;
+      for (const auto& n : required) known += (known.empty() ? "" : ", ") + n;
+      for (const auto& n : optional) known += ", " + n;
+      return api::makeProblem(api::WireError::kMalformedRequest,
+                              "multipart field '" + field + "' is not known here (expected " + known + ")", path);
+    }
+    auto bytes = core::readFileBytes(part.path);
+    if (!bytes) return api::makeProblem(api::WireError::kInternal, "reading the spooled upload failed", path);
+    loaded.bytes[field] = std::move(*bytes);
+  }
+  return loaded;
+}
+
+const std::set<std::string>& knownRoutes() {
+  static const std::set<std::string> routes = {
+      "/healthz", "/readyz", "/metrics", "/openapi.json", "/v1/rigs", "/v1/rigs/{id}", "/v1/jobs", "/v1/jobs/{id}",
+      "/v1/jobs/{id}:cancel", "/v1/jobs/{id}/result", "/v1/jobs/{id}/diagnostics"};
+  return routes;
+}
+
+// An authenticated multipart body spooled to disk within the upload limits,
+// or nullopt with the problem already sent.
+struct ReceivedUpload {
+  std::string tenant;
+  SpooledUpload upload;
+};
+
+std::optional<ReceivedUpload> receiveUpload(const Request& req, Response& res, const httplib::ContentReader& reader,
+                                            RouteContext& ctx) {
+  auto tenant = authenticate(req, res, ctx);
+  if (!tenant) return std::nullopt;
+  UploadSlot slot(ctx.uploads_in_progress, ctx.config.max_concurrent_uploads);
+  if (!slot.ok()) {
+    sendProblem(res, api::makeProblem(api::WireError::kQueueFull, "too many uploads in progress", req.path), ctx);
+    return std::nullopt;
+  }
+  auto spooled = spoolMultipart(req, reader, ctx.config.data_dir / "uploads", ctx.config.max_body_bytes);
+  if (auto* p = std::get_if<api::Problem>(&spooled)) {
+    sendProblem(res, *p, ctx);
+    return std::nullopt;
+  }
+  return ReceivedUpload{std::move(*tenant), std::get<SpooledUpload>(std::move(spooled))};
+}
+
+// ---------------------------------------------------------------- rigs
+
+void postRig(const Request& req, Response& res, const httplib::ContentReader& reader, RouteContext& ctx) {
+  auto received = receiveUpload(req, res, reader, ctx);
+  if (!received) return;
+  const std::string* tenant = &received->tenant;
+  const SpooledUpload& upload = received->upload;
+  auto loaded = loadParts(upload, {"rig", "landmarks"}, {"components"}, req.path);
+  if (auto* p = std::get_if<api::Problem>(&loaded)) return sendProblem(res, *p, ctx);
+  const auto& bytes = std::get<LoadedParts>(loaded).bytes;
+  const bool has_components = bytes.count("components") > 0;
+  const std::vector<std::uint8_t> no_components;
+  const std::string id =
+      api::rigContentId(bytes.at("rig"), bytes.at("landmarks"), has_components ? bytes.at("components") : no_components);
+
+  if (auto existing = ctx.store.getRig(*tenant, id)) {  // idempotent: same content, same rig
+    res.set_header("Location", "/v1/rigs/" + id);
+    return sendJson(res, 200, api::toJson(existing->info));
+  }
+  const std::string rig_name = upload.parts.at("rig").filename.empty() ? "rig.glb" : upload.parts.at("rig").filename;
+  auto checked = checkRigUpload(bytes.at("rig"), rig_name, bytes.at("landmarks"),
+                                has_components ? std::optional<Bytes>(bytes.at("components")) : std::nullopt, ctx.config);
+  if (auto* p = std::get_if<api::Problem>(&checked)) return sendProblem(res, *p, ctx);
+
+  RigRecord record;
+  record.tenant = *tenant;
+  record.info = std::get<api::RigInfo>(checked);
+  record.info.id = id;
+  record.info.created_at = formatTimestamp(nowMs());
+  std::shared_lock collection(ctx.blob_collection);
+  for (const auto& [field, part] : upload.parts) {
+    auto hash = ctx.blobs.adopt(part.path);
+    if (!hash) return sendProblem(res, api::makeProblem(api::WireError::kInternal, "storing the upload failed", req.path), ctx);
+    (field == "rig" ? record.rig_blob : field == "landmarks" ? record.landmarks_blob : record.components_blob) = *hash;
+  }
+  auto inserted = ctx.store.insertRig(record);
+  collection.unlock();
+  if (!inserted) {
+    return sendProblem(res, api::makeProblem(api::WireError::kInternal, "storing the rig failed", req.path), ctx);
+  }
+  ctx.log.info("rig_uploaded", {{"tenant", *tenant}, {"rig", id}, {"name", rig_name}, {"vertices", record.info.vertices}});
+  res.set_header("Location", "/v1/rigs/" + id);
+  sendJson(res, inserted->second ? 201 : 200, api::toJson(inserted->first.info));
+}
+
+void getRigs(const Request& req, Response& res, RouteContext& ctx) {
+  const auto tenant = authenticate(req, res, ctx);
+  if (!tenant) return;
+  api::RigPage page;
+  for (auto& rig : ctx.store.listRigs(*tenant)) page.items.push_back(std::move(rig.info));
+  sendJson(res, 200, api::toJson(page));
+}
+
+void getRig(const Request& req, Response& res, RouteContext& ctx) {
+  const auto tenant = authenticate(req, res, ctx);
+  if (!tenant) return;
+  const std::string id = req.matches[1];
+  auto rig = ctx.store.getRig(*tenant, id);
+  if (!rig) return sendProblem(res, api::makeProblem(api::WireError::kNotFound, "no rig " + id, req.path), ctx);
+  sendJson(res, 200, api::toJson(rig->info));
+}
+
+void deleteRig(const Request& req, Response& res, RouteContext& ctx) {
+  const auto tenant = authenticate(req, res, ctx);
+  if (!tenant) return;
+  const std::string id = req.matches[1];
+  std::unique_lock collection(ctx.blob_collection);
+  auto rig = ctx.store.getRig(*tenant, id);
+  if (!rig || !ctx.store.deleteRig(*tenant, id)) {
+    return sendProblem(res, api::makeProblem(api::WireError::kNotFound, "no rig " + id, req.path), ctx);
+  }
+  for (const std::string& hash : {rig->rig_blob, rig->landmarks_blob, rig->components_blob}) {
+    if (!hash.empty() && !ctx.store.blobReferenced(hash)) ctx.blobs.remove(hash);
+  }
+  ctx.cache.erase(id);  // a later job (any tenant) prepares it again
+  ctx.log.info("rig_deleted", {{"tenant", *tenant}, {"rig", id}});
+  res.status = 204;
+}
+
+// ---------------------------------------------------------------- jobs
+
+void postJob(const Request& req, Response& res, const httplib::ContentReader& reader, RouteContext& ctx) {
+  auto received = receiveUpload(req, res, reader, ctx);
+  if (!received) return;
+  const std::string* tenant = &received->tenant;
+  const SpooledUpload& upload = received->upload;
+  if (!upload.parts.count("spec")) {
+    return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest, "multipart field 'spec' is required", req.path), ctx);
+  }
+  auto spec_bytes = core::readFileBytes(upload.parts.at("spec").path);
+  if (!spec_bytes) return sendProblem(res, api::makeProblem(api::WireError::kInternal, "reading the spooled upload failed", req.path), ctx);
+  auto spec_json = api::parseJsonText(std::string(asText(*spec_bytes)), "spec");
+  if (auto* e = std::get_if<std::string>(&spec_json)) {
+    return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest, *e, req.path), ctx);
+  }
+  auto parsed_spec = api::jobSpecFromJson(std::get<json>(spec_json));
+  if (auto* e = std::get_if<std::string>(&parsed_spec)) {
+    return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest, *e, req.path), ctx);
+  }
+  const api::JobSpec& spec = std::get<api::JobSpec>(parsed_spec);
+  const api::JobKind* kind = api::findJobKind(spec.kind);
+  if (!kind) {
+    std::string known;
+    for (const auto& k : api::jobKinds()) known += (known.empty() ? "" : ", ") + k.name;
+    return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest,
+                                             "spec.kind: unknown kind '" + spec.kind + "' (known: " + known + ")", req.path), ctx);
+  }
+  if (kind->needs_rig) {
+    if (!isHexId(spec.rig, 64)) {
+      return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest,
+                                               "spec.rig: expected the 64-hex-digit id of an uploaded rig", req.path), ctx);
+    }
+    if (!ctx.store.getRig(*tenant, spec.rig)) {
+      return sendProblem(res, api::makeProblem(api::WireError::kNotFound, "spec.rig: no rig " + spec.rig, req.path), ctx);
+    }
+  }
+  std::set<std::string> required(kind->required_files.begin(), kind->required_files.end());
+  required.insert("spec");
+  auto loaded = loadParts(upload, required, {kind->optional_files.begin(), kind->optional_files.end()}, req.path);
+  if (auto* p = std::get_if<api::Problem>(&loaded)) return sendProblem(res, *p, ctx);
+  const auto& bytes = std::get<LoadedParts>(loaded).bytes;
+  std::map<std::string, std::pair<std::string, Bytes>> files;
+  for (const auto& [field, data] : bytes) {
+    const std::string& filename = upload.parts.at(field).filename;
+    files[field] = {filename.empty() ? field : filename, Bytes(data)};
+  }
+  if (auto p = checkJobInputs(spec, files, ctx.config)) return sendProblem(res, *p, ctx);
+
+  JobRecord job;
+  job.tenant = *tenant;
+  job.id = randomJobId();
+  job.kind = spec.kind;
+  job.rig = spec.rig;
+  job.spec_json = api::toJson(spec).dump();
+  job.idempotency_key = req.get_header_value("Idempotency-Key");
+  job.created_ms = nowMs();
+  std::shared_lock collection(ctx.blob_collection);  // held until the job row is committed
+  for (const auto& [field, part] : upload.parts) {
+    if (field == "spec") continue;
+    auto hash = ctx.blobs.adopt(part.path);
+    if (!hash) return sendProblem(res, api::makeProblem(api::WireError::kInternal, "storing the upload failed", req.path), ctx);
+    job.inputs[field] = *hash;
+    job.input_names[field] = files.at(field).first;
+  }
+  auto submitted = ctx.jobs.submit(job);
+  if (auto* p = std::get_if<api::Problem>(&submitted)) return sendProblem(res, *p, ctx);
+  const auto& [record, created] = std::get<std::pair<JobRecord, bool>>(submitted);
+  if (created) {
+    ctx.log.info("job_accepted", {{"job", record.id}, {"tenant", *tenant}, {"kind", record.kind}, {"rig", record.rig}});
+  }
+  res.set_header("Location", "/v1/jobs/" + record.id);
+  sendJson(res, created ? 202 : 200, api::toJson(jobInfoOf(record, ctx.jobs.live(record.id))));
+}
+
+void getJobs(const Request& req, Response& res, RouteContext& ctx) {
+  const auto tenant = authenticate(req, res, ctx);
+  if (!tenant) return;
+  JobListQuery query;
+  query.tenant = *tenant;
+  if (req.has_param("status")) {
+    query.status = api::parseJobStatus(req.get_param_value("status"));
+    if (!query.status) {
+      return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest,
+                                               "status: expected queued, running, succeeded, failed or cancelled", req.path), ctx);
+    }
+  }
+  try {
+    if (req.has_param("limit")) query.limit = std::stoi(req.get_param_value("limit"));
+    if (req.has_param("after")) query.after_sequence = std::stoll(req.get_param_value("after"));
+  } catch (const std::exception&) {
+    return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest, "limit/after: expected integers", req.path), ctx);
+  }
+  if (query.limit < 1 || query.limit > 500) {
+    return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest, "limit: expected 1..500", req.path), ctx);
+  }
+  const auto jobs = ctx.store.listJobs(query);
+  api::JobPage page;
+  for (const auto& job : jobs) page.items.push_back(jobInfoOf(job, ctx.jobs.live(job.id)));
+  if (static_cast<int>(jobs.size()) == query.limit) page.next = std::to_string(jobs.back().sequence);
+  sendJson(res, 200, api::toJson(page));
+}
+
+void getJob(const Request& req, Response& res, RouteContext& ctx) {
+  const auto tenant = authenticate(req, res, ctx);
+  if (!tenant) return;
+  const std::string id = req.matches[1];
+  auto job = ctx.store.getJob(*tenant, id);
+  if (!job) return sendProblem(res, api::makeProblem(api::WireError::kNotFound, "no job " + id, req.path), ctx);
+  sendJson(res, 200, api::toJson(jobInfoOf(*job, ctx.jobs.live(id))));
+}
+
+void cancelJob(const Request& req, Response& res, RouteContext& ctx) {
+  const auto tenant = authenticate(req, res, ctx);
+  if (!tenant) return;
+  const std::string id = req.matches[1];
+  auto cancelled = ctx.jobs.cancel(*tenant, id);
+  if (auto* p = std::get_if<api::Problem>(&cancelled)) return sendProblem(res, *p, ctx);
+  sendJson(res, 202, api::toJson(jobInfoOf(std::get<JobRecord>(cancelled), ctx.jobs.live(id))));
+}
+
+// GET result / diagnostics: the stored blob, verified against its hash.
+void getJobBlob(const Request& req, Response& res, RouteContext& ctx, bool diagnostics) {
+  const auto tenant = authenticate(req, res, ctx);
+  if (!tenant) return;
+  const std::string id = req.matches[1];
+  auto job = ctx.store.getJob(*tenant, id);
+  if (!job) return sendProblem(res, api::makeProblem(api::WireError::kNotFound, "no job " + id, req.path), ctx);
+  if (job->status != api::JobStatus::kSucceeded) {
+    return sendProblem(res, api::makeProblem(api::WireError::kConflict,
+                                             "job " + id + " is " + api::jobStatusName(job->status) +
+                                                 (diagnostics ? "; diagnostics exist once it has succeeded (a failed job carries its error)"
+                                                              : "; the result exists once it has succeeded"),
+                                             req.path), ctx);
+  }
+  auto blob = ctx.blobs.read(diagnostics ? job->diagnostics_blob : job->result_blob);
+  if (!blob) {
+    ctx.log.error("blob_unreadable", {{"job", id}, {"tenant", *tenant}, {"detail", blob.error().message}});
+    return sendProblem(res, api::makeProblem(api::WireError::kInternal, "the stored result of job " + id + " is unreadable", req.path), ctx);
+  }
+  res.status = 200;
+  res.set_content(std::string(asText(*blob)), diagnostics ? "application/json" : "model/gltf-binary");
+}
+
+}  // namespace
+
+void registerRoutes(httplib::Server& http, RouteContext& ctx) {
+  http.Get("/healthz", [](const Request&, Response& res) { res.set_content("ok\n", "text/plain"); });
+  http.Get("/readyz", [&ctx](const Request& req, Response& res) {
+    if (ctx.ready) return res.set_content("ready\n", "text/plain");
+    sendProblem(res, api::makeProblem(api::WireError::kNotReady, "starting up or shutting down", req.path), ctx);
+  });
+  http.Get("/metrics", [&ctx](const Request&, Response& res) {
+    GaugeSnapshot g;
+    for (const auto& [status, n] : ctx.store.countJobsByStatus()) g.jobs_by_state[api::jobStatusName(status)] = n;
+    g.queue_depth = ctx.jobs.queueDepth();
+    g.running_jobs = ctx.jobs.runningJobs();
+    const CacheStats c = ctx.cache.stats();
+    g.cache_bytes = c.bytes;
+    g.cache_capacity_bytes = c.capacity_bytes;
+    g.cache_entries = c.entries;
+    g.cache_hits = c.hits;
+    g.cache_misses = c.misses;
+    g.cache_evictions = c.evictions;
+    res.set_content(ctx.metrics.render(g), "text/plain; version=0.0.4");
+  });
+  http.Get("/openapi.json", [](const Request&, Response& res) {
+    res.set_content(std::string(api::openApiDocument()), "application/json");
+  });
+
+  http.Post("/v1/rigs", [&ctx](const Request& req, Response& res, const httplib::ContentReader& reader) {
+    postRig(req, res, reader, ctx);
+  });
+  http.Get("/v1/rigs", [&ctx](const Request& req, Response& res) { getRigs(req, res, ctx); });
+  http.Get(R"(/v1/rigs/([0-9a-f]{64}))", [&ctx](const Request& req, Response& res) { getRig(req, res, ctx); });
+  http.Delete(R"(/v1/rigs/([0-9a-f]{64}))", [&ctx](const Request& req, Response& res) { deleteRig(req, res, ctx); });
+
+  http.Post("/v1/jobs", [&ctx](const Request& req, Response& res, const httplib::ContentReader& reader) {
+    postJob(req, res, reader, ctx);
+  });
+  http.Get("/v1/jobs", [&ctx](const Request& req, Response& res) { getJobs(req, res, ctx); });
+  http.Get(R"(/v1/jobs/([0-9a-f]{32}))", [&ctx](const Request& req, Response& res) { getJob(req, res, ctx); });
+  http.Post(R"(/v1/jobs/([0-9a-f]{32}):cancel)", [&ctx](const Request& req, Response& res) { cancelJob(req, res, ctx); });
+  http.Get(R"(/v1/jobs/([0-9a-f]{32})/result)", [&ctx](const Request& req, Response& res) { getJobBlob(req, res, ctx, false); });
+  http.Get(R"(/v1/jobs/([0-9a-f]{32})/diagnostics)",
+           [&ctx](const Request& req, Response& res) { getJobBlob(req, res, ctx, true); });
+
+  // Every other 4xx/5xx without a body (unknown route, 413 from the payload
+  // limit, a method not served) becomes problem+json too.
+  http.set_error_handler(httplib::Server::HandlerWithResponse([&ctx](const Request& req, Response& res) {
+    if (!res.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
+    api::WireError kind = api::WireError::kInternal;
+    std::string detail = "error";
+    switch (res.status) {
+      case 404: kind = api::WireError::kNotFound; detail = "no route " + req.method + " " + req.path; break;
+      case 413: kind = api::WireError::kPayloadTooLarge;
+        detail = "request body over the limit of " + std::to_string(ctx.config.max_body_bytes) + " bytes"; break;
+      case 400: kind = api::WireError::kMalformedRequest; detail = "malformed HTTP request (a POST without a body must send Content-Length: 0)"; break;
+      case 415: kind = api::WireError::kUnsupportedMediaType; detail = "unsupported media type"; break;
+      default: detail = "HTTP " + std::to_string(res.status); break;
+    }
+    api::Problem problem = api::makeProblem(kind, detail, req.path);
+    problem.status = res.status;
+    res.set_content(api::toJson(problem).dump(), "application/problem+json");
+    return httplib::Server::HandlerResponse::Handled;
+  }));
+  http.set_exception_handler([&ctx](const Request& req, Response& res, std::exception_ptr ep) {
+    std::string what = "unknown exception";
+    try {
+      std::rethrow_exception(ep);
+    } catch (const std::exception& e) {
+      what = e.what();
+    } catch (...) {
+    }
+    ctx.log.error("unhandled_exception", {{"path", req.path}, {"detail", what}});
+    sendProblem(res, api::makeProblem(api::WireError::kInternal, "internal error while serving " + req.path, req.path), ctx);
+  });
+  http.set_logger([&ctx](const Request& req, const Response& res) {
+    std::string route = routePattern(req.path);
+    if (!knownRoutes().count(route)) route = "unmatched";
+    ctx.metrics.countRequest(req.method, route, res.status);
+    if (res.status >= 500) ctx.log.error("http_error", {{"method", req.method}, {"path", req.path}, {"status", res.status}});
+  });
+}
+
+}  // namespace server

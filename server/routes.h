@@ -1,0 +1,42 @@
+// HTTP routes under /v1 plus /healthz, /readyz, /metrics, /openapi.json.
+// Handlers are thin: authenticate -> parse -> validate (before anything is
+// queued) -> store/enqueue -> respond. Every error is problem+json.
+#pragma once
+
+#include <atomic>
+#include <shared_mutex>
+
+#include "api/http.h"
+
+#include "server/auth.h"
+#include "server/config.h"
+#include "server/jobs.h"
+#include "server/json_log.h"
+#include "server/metrics.h"
+#include "server/rig_cache.h"
+#include "server/store.h"
+
+namespace server {
+
+struct RouteContext {
+  const ServerConfig& config;
+  const ApiKeys& keys;
+  MetadataStore& store;
+  BlobStore& blobs;
+  RigCache& cache;
+  JobManager& jobs;
+  Metrics& metrics;
+  JsonLog log;
+  std::atomic<bool>& ready;                 // /readyz, and 503 on /v1 while false
+  std::atomic<int>& uploads_in_progress;    // bounded by config.max_concurrent_uploads
+  // Uploads hold it shared from adopting blobs until their row is committed;
+  // a rig delete holds it exclusively while it collects unreferenced blobs,
+  // so it never removes a blob a concurrent upload is about to reference.
+  std::shared_mutex& blob_collection;
+};
+
+// Registers every route and the error/exception/logger hooks. `context` must
+// outlive the server.
+void registerRoutes(httplib::Server& http, RouteContext& context);
+
+}  // namespace server

@@ -1,0 +1,74 @@
+#include "server/service.h"
+
+#include <system_error>
+#include <thread>
+
+namespace server {
+
+core::Result<std::unique_ptr<Service>> Service::create(const ServerConfig& config, ApiKeys keys,
+                                                       std::shared_ptr<spdlog::logger> logger) {
+  std::error_code ec;
+  std::filesystem::create_directories(config.data_dir / "uploads", ec);
+  if (ec) return core::makeError(core::ErrorCode::kIo, config.data_dir.string() + ": cannot create: " + ec.message());
+  // Spooled parts of requests that were cut off by a crash: never accepted.
+  for (const auto& entry : std::filesystem::directory_iterator(config.data_dir / "uploads", ec)) {
+    std::filesystem::remove(entry.path(), ec);
+  }
+  auto store = MetadataStore::open(config.data_dir / "rigport.sqlite");
+  if (!store) return store.error();
+  return std::unique_ptr<Service>(new Service(config, std::move(keys), std::move(*store), JsonLog(std::move(logger))));
+}
+
+Service::Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<MetadataStore> store, JsonLog log)
+    : config_(config),
+      keys_(std::move(keys)),
+      log_(std::move(log)),
+      store_(std::move(store)),
+      blobs_(config.data_dir / "blobs"),
+      cache_(config.cache_bytes),
+      jobs_(*store_, blobs_, cache_, metrics_, config_, log_),
+      routes_{config_, keys_, *store_, blobs_, cache_, jobs_, metrics_, log_, ready_, uploads_, blob_collection_} {
+  blobs_.removeTemporaries();
+  // cpp-httplib serves one connection per pool thread: the pool is sized
+  // explicitly and keep-alive bounded so idle clients cannot pin every thread.
+  const int http_threads = config_.http_threads;
+  http_.new_task_queue = [http_threads] { return new httplib::ThreadPool(static_cast<std::size_t>(http_threads)); };
+  http_.set_keep_alive_max_count(static_cast<std::size_t>(config_.keep_alive_max_count));
+  http_.set_keep_alive_timeout(config_.keep_alive_timeout_s);
+  http_.set_read_timeout(config_.read_timeout_s, 0);
+  http_.set_write_timeout(config_.write_timeout_s, 0);
+  http_.set_payload_max_length(config_.max_body_bytes);
+  registerRoutes(http_, routes_);
+}
+
+Service::~Service() { stop(0.0); }
+
+core::Result<int> Service::start() {
+  jobs_.start();
+  if (config_.port == 0) {
+    port_ = http_.bind_to_any_port(config_.host);
+    if (port_ < 0) port_ = 0;
+  } else if (http_.bind_to_port(config_.host, config_.port)) {
+    port_ = config_.port;
+  }
+  if (port_ <= 0) {
+    return core::makeError(core::ErrorCode::kIo, "cannot listen on " + config_.host + ":" + std::to_string(config_.port));
+  }
+  ready_ = true;
+  log_.info("listening", {{"host", config_.host}, {"port", port_}, {"auth", keys_.enabled()},
+                          {"data_dir", config_.data_dir.string()}});
+  return port_;
+}
+
+void Service::serve() { http_.listen_after_bind(); }
+
+void Service::stop(double grace_s) {
+  if (stopped_) return;
+  stopped_ = true;
+  ready_ = false;
+  http_.stop();
+  const bool finished = jobs_.stop(grace_s);
+  log_.info("stopped", {{"running_jobs_finished", finished}});
+}
+
+}  // namespace server

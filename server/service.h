@@ -1,0 +1,62 @@
+// The service assembled: store, blob files, prepared-rig cache, job manager,
+// metrics and the HTTP server with its routes. Used by server/main.cpp and by
+// the integration tests (in-process on an ephemeral loopback port).
+#pragma once
+
+#include <atomic>
+#include <memory>
+#include <shared_mutex>
+
+#include "api/http.h"
+
+#include "core/error.h"
+#include "server/auth.h"
+#include "server/config.h"
+#include "server/jobs.h"
+#include "server/json_log.h"
+#include "server/metrics.h"
+#include "server/rig_cache.h"
+#include "server/routes.h"
+#include "server/store.h"
+
+namespace server {
+
+class Service {
+ public:
+  // Opens (or creates) the data directory: <dir>/rigport.sqlite, <dir>/blobs,
+  // <dir>/uploads. `logger` may be null (no logs).
+  static core::Result<std::unique_ptr<Service>> create(const ServerConfig& config, ApiKeys keys,
+                                                       std::shared_ptr<spdlog::logger> logger);
+  ~Service();
+
+  // Recovers unfinished jobs, starts the workers, binds the listener (port 0:
+  // any free port) and marks the service ready. Returns the bound port.
+  core::Result<int> start();
+  // Accept loop; returns after stop().
+  void serve();
+  // Graceful stop: not ready, no new connections, running jobs get `grace_s`
+  // to finish; queued jobs stay in the store for the next start.
+  void stop(double grace_s);
+  int port() const { return port_; }
+
+ private:
+  Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<MetadataStore> store, JsonLog log);
+
+  ServerConfig config_;
+  ApiKeys keys_;
+  JsonLog log_;
+  std::unique_ptr<MetadataStore> store_;
+  BlobStore blobs_;
+  RigCache cache_;
+  Metrics metrics_;
+  JobManager jobs_;
+  std::atomic<bool> ready_{false};
+  std::atomic<int> uploads_{0};
+  std::shared_mutex blob_collection_;
+  RouteContext routes_;
+  httplib::Server http_;
+  int port_ = 0;
+  bool stopped_ = false;
+};
+
+}  // namespace server

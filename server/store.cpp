@@ -1,0 +1,1021 @@
+// The durable embedded store: content-addressed blob files and SQLite metadata.
+//
+// Blobs: <root>/<2 hex>/<64 hex>, written as <root>/tmp/<random>.part, fsynced,
+// renamed into place and the shard directory fsynced (the classic
+// write-temp/fsync/rename/fsync-dir sequence; see "Files are hard", Dan Luu,
+// and the ext4/XFS rename notes in Pillai et al., OSDI 2014). A crash leaves
+// either no blob or a whole one, plus possibly a stray .part file that
+// removeTemporaries() deletes.
+//
+// Metadata: one sqlite3 connection (C API), journal_mode=WAL and
+// synchronous=FULL, so every committed transition has been fsynced before the
+// call returns. Every value goes through a bound parameter; statements are
+// prepared once and cached per connection.
+#include "server/store.h"
+
+#include "api/content_id.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <openssl/evp.h>
+#include <openssl/rand.h>
+#include <sqlite3.h>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <ctime>
+#include <unordered_map>
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+namespace server {
+
+namespace fs = std::filesystem;
+using core::Error;
+using core::ErrorCode;
+using core::makeError;
+
+// ---------------------------------------------------------------------------
+// Hashing
+
+namespace {
+
+constexpr std::size_t kHashHexLength = 64;
+constexpr std::size_t kIoChunk = 1 << 16;
+
+std::string toHex(const unsigned char* bytes, std::size_t n) {
+  static constexpr char kDigits[] = "0123456789abcdef";
+  std::string out(2 * n, '0');
+  for (std::size_t i = 0; i < n; ++i) {
+    out[2 * i] = kDigits[bytes[i] >> 4];
+    out[2 * i + 1] = kDigits[bytes[i] & 0xf];
+  }
+  return out;
+}
+
+// Incremental sha256 over OpenSSL EVP; one per hashing call.
+class Sha256 {
+ public:
+  Sha256() : ctx_(EVP_MD_CTX_new()) {
+    const int ok = ctx_ && EVP_DigestInit_ex(ctx_, EVP_sha256(), nullptr) == 1;
+    assert(ok && "EVP sha256 init failed");
+    (void)ok;
+  }
+  ~Sha256() { EVP_MD_CTX_free(ctx_); }
+  Sha256(const Sha256&) = delete;
+  Sha256& operator=(const Sha256&) = delete;
+  void update(const void* data, std::size_t n) { EVP_DigestUpdate(ctx_, data, n); }
+  std::string hex() {
+    std::array<unsigned char, EVP_MAX_MD_SIZE> digest{};
+    unsigned int n = 0;
+    EVP_DigestFinal_ex(ctx_, digest.data(), &n);
+    return toHex(digest.data(), n);
+  }
+
+ private:
+  EVP_MD_CTX* ctx_;
+};
+
+bool isHashHex(const std::string& hash) {
+  if (hash.size() != kHashHexLength) return false;
+  for (char c : hash) {
+    if (!((c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'))) return false;
+  }
+  return true;
+}
+
+Error ioError(const std::string& what, const fs::path& path, int err) {
+  return makeError(ErrorCode::kIo, what + " " + path.string() + ": " + std::strerror(err));
+}
+
+// An owned POSIX file descriptor.
+class Fd {
+ public:
+  explicit Fd(int fd = -1) : fd_(fd) {}
+  ~Fd() { reset(); }
+  Fd(const Fd&) = delete;
+  Fd& operator=(const Fd&) = delete;
+  int get() const { return fd_; }
+  bool valid() const { return fd_ >= 0; }
+  void reset() {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+  }
+  // close() reporting its error (NFS and friends report write errors here).
+  int close() {
+    const int rc = ::close(fd_);
+    fd_ = -1;
+    return rc == 0 ? 0 : errno;
+  }
+
+ private:
+  int fd_;
+};
+
+int openRetrying(const fs::path& path, int flags, mode_t mode = 0) {
+  int fd;
+  do {
+    fd = ::open(path.c_str(), flags | O_CLOEXEC, mode);
+  } while (fd < 0 && errno == EINTR);
+  return fd;
+}
+
+core::Status writeAll(int fd, const std::uint8_t* data, std::size_t n, const fs::path& path) {
+  while (n > 0) {
+    const ssize_t w = ::write(fd, data, n);
+    if (w < 0) {
+      if (errno == EINTR) continue;
+      return ioError("cannot write", path, errno);
+    }
+    data += w;
+    n -= static_cast<std::size_t>(w);
+  }
+  return core::Ok{};
+}
+
+core::Status fsyncPath(const fs::path& path, bool directory) {
+  Fd fd(openRetrying(path, directory ? (O_RDONLY | O_DIRECTORY) : O_RDONLY));
+  if (!fd.valid()) return ioError("cannot open for fsync", path, errno);
+  if (::fsync(fd.get()) != 0) return ioError("cannot fsync", path, errno);
+  return core::Ok{};
+}
+
+// Creates `dir` (one level) when missing and fsyncs its parent so the entry is
+// durable before anything is renamed into it.
+core::Status ensureDurableDir(const fs::path& dir) {
+  if (::mkdir(dir.c_str(), 0755) == 0) return fsyncPath(dir.has_parent_path() ? dir.parent_path() : ".", true);
+  if (errno == EEXIST) return core::Ok{};
+  return ioError("cannot create directory", dir, errno);
+}
+
+core::Status ensureDurableDirs(const fs::path& dir) {
+  std::error_code ec;
+  if (fs::is_directory(dir, ec)) return core::Ok{};
+  if (dir.has_parent_path() && dir.parent_path() != dir) {
+    if (auto st = ensureDurableDirs(dir.parent_path()); !st) return st;
+  }
+  return ensureDurableDir(dir);
+}
+
+std::string randomHex(std::size_t bytes) {
+  std::vector<unsigned char> buf(bytes);
+  if (RAND_bytes(buf.data(), static_cast<int>(buf.size())) != 1) {
+    // Fall back to time and pid: uniqueness, not secrecy, is what matters here.
+    const auto t = std::chrono::steady_clock::now().time_since_epoch().count();
+    const auto seed = static_cast<unsigned long long>(t) ^ (static_cast<unsigned long long>(::getpid()) << 32);
+    for (std::size_t i = 0; i < bytes; ++i) buf[i] = static_cast<unsigned char>(seed >> (8 * (i % 8)));
+  }
+  return toHex(buf.data(), buf.size());
+}
+
+core::Result<std::vector<std::uint8_t>> readWholeFile(const fs::path& path) {
+  Fd fd(openRetrying(path, O_RDONLY));
+  if (!fd.valid()) return ioError("cannot open", path, errno);
+  struct stat st{};
+  if (::fstat(fd.get(), &st) != 0) return ioError("cannot stat", path, errno);
+  std::vector<std::uint8_t> bytes;
+  bytes.reserve(static_cast<std::size_t>(st.st_size));
+  std::vector<std::uint8_t> buf(kIoChunk);
+  for (;;) {
+    const ssize_t r = ::read(fd.get(), buf.data(), buf.size());
+    if (r < 0) {
+      if (errno == EINTR) continue;
+      return ioError("cannot read", path, errno);
+    }
+    if (r == 0) break;
+    bytes.insert(bytes.end(), buf.data(), buf.data() + r);
+  }
+  return bytes;
+}
+
+}  // namespace
+
+core::Result<std::string> sha256HexOfFile(const fs::path& file) {
+  Fd fd(openRetrying(file, O_RDONLY));
+  if (!fd.valid()) return ioError("cannot open", file, errno);
+  Sha256 sha;
+  std::vector<std::uint8_t> buf(kIoChunk);
+  for (;;) {
+    const ssize_t r = ::read(fd.get(), buf.data(), buf.size());
+    if (r < 0) {
+      if (errno == EINTR) continue;
+      return ioError("cannot read", file, errno);
+    }
+    if (r == 0) break;
+    sha.update(buf.data(), static_cast<std::size_t>(r));
+  }
+  return sha.hex();
+}
+
+// ---------------------------------------------------------------------------
+// BlobStore
+
+BlobStore::BlobStore(fs::path root) : root_(std::move(root)) {}
+
+fs::path BlobStore::pathOf(const std::string& hash) const {
+  assert(hash.size() >= 2);
+  return root_ / hash.substr(0, 2) / hash;
+}
+
+bool BlobStore::contains(const std::string& hash) const {
+  if (!isHashHex(hash)) return false;
+  struct stat st{};
+  return ::stat(pathOf(hash).c_str(), &st) == 0 && S_ISREG(st.st_mode);
+}
+
+namespace {
+
+// Renames `from` to the blob path of `hash` and fsyncs the shard directory.
+core::Status installBlob(const fs::path& from, const fs::path& to) {
+  if (auto st = ensureDurableDir(to.parent_path()); !st) return st;
+  if (::rename(from.c_str(), to.c_str()) != 0) {
+    const int err = errno;
+    return makeError(ErrorCode::kIo, "cannot rename " + from.string() + " to " + to.string() + ": " +
+                                         std::strerror(err));
+  }
+  return fsyncPath(to.parent_path(), true);
+}
+
+}  // namespace
+
+core::Result<std::string> BlobStore::put(std::span<const std::uint8_t> bytes) {
+  std::string hash = api::sha256Hex(bytes);
+  const fs::path target = pathOf(hash);
+  // Existing blob: not rewritten. A size mismatch (a blob truncated on disk)
+  // is healed by writing it again; the rename replaces it atomically.
+  struct stat existing{};
+  if (::stat(target.c_str(), &existing) == 0 && S_ISREG(existing.st_mode) &&
+      static_cast<std::size_t>(existing.st_size) == bytes.size()) {
+    return hash;
+  }
+
+  const fs::path tmp_dir = root_ / "tmp";
+  if (auto st = ensureDurableDirs(tmp_dir); !st) return st.error();
+  const fs::path tmp = tmp_dir / (randomHex(16) + ".part");
+  Fd fd(openRetrying(tmp, O_WRONLY | O_CREAT | O_EXCL, 0644));
+  if (!fd.valid()) return ioError("cannot create", tmp, errno);
+  auto fail = [&](Error e) -> core::Result<std::string> {
+    fd.reset();
+    ::unlink(tmp.c_str());
+    return e;
+  };
+  if (auto st = writeAll(fd.get(), bytes.data(), bytes.size(), tmp); !st) return fail(st.error());
+  if (::fsync(fd.get()) != 0) return fail(ioError("cannot fsync", tmp, errno));
+  if (const int err = fd.close(); err != 0) return fail(ioError("cannot close", tmp, err));
+  if (auto st = installBlob(tmp, target); !st) return fail(st.error());
+  return hash;
+}
+
+core::Result<std::string> BlobStore::adopt(const fs::path& file) {
+  auto hashed = sha256HexOfFile(file);
+  if (!hashed) return hashed.error();
+  std::string hash = std::move(*hashed);
+  if (contains(hash)) {
+    ::unlink(file.c_str());
+    return hash;
+  }
+  if (auto st = ensureDurableDirs(root_); !st) return st.error();
+  // The source may not have been fsynced by its writer.
+  if (auto st = fsyncPath(file, false); !st) return st.error();
+  const fs::path target = pathOf(hash);
+  if (auto st = ensureDurableDir(target.parent_path()); !st) return st.error();
+  if (::rename(file.c_str(), target.c_str()) == 0) {
+    if (auto st = fsyncPath(target.parent_path(), true); !st) return st.error();
+    return hash;
+  }
+  if (errno != EXDEV) {
+    const int err = errno;
+    return makeError(ErrorCode::kIo, "cannot rename " + file.string() + " to " + target.string() + ": " +
+                                         std::strerror(err));
+  }
+  // Different filesystem: copy through put()'s temp + fsync + rename path.
+  auto bytes = readWholeFile(file);
+  if (!bytes) return bytes.error();
+  auto copied = put(*bytes);
+  if (!copied) return copied.error();
+  if (*copied != hash) {
+    return makeError(ErrorCode::kIo, "file " + file.string() + " changed while being adopted into the blob store");
+  }
+  ::unlink(file.c_str());
+  return hash;
+}
+
+core::Result<std::vector<std::uint8_t>> BlobStore::read(const std::string& hash) const {
+  if (!isHashHex(hash)) {
+    return makeError(ErrorCode::kInvalidArgument, "not a blob hash (64 lower-case hex expected): '" + hash + "'");
+  }
+  const fs::path path = pathOf(hash);
+  auto read_bytes = readWholeFile(path);
+  if (!read_bytes) return read_bytes.error();
+  std::vector<std::uint8_t> bytes = std::move(*read_bytes);
+  const std::string actual = api::sha256Hex(bytes);
+  if (actual != hash) {
+    return makeError(ErrorCode::kIo, "blob " + path.string() + " is corrupted: content hashes to " + actual + " (" +
+                                         std::to_string(bytes.size()) + " bytes)");
+  }
+  return bytes;
+}
+
+void BlobStore::remove(const std::string& hash) {
+  if (!isHashHex(hash)) return;
+  const fs::path path = pathOf(hash);
+  if (::unlink(path.c_str()) == 0) (void)fsyncPath(path.parent_path(), true);
+}
+
+void BlobStore::removeTemporaries() {
+  std::error_code ec;
+  const fs::path tmp_dir = root_ / "tmp";
+  for (fs::directory_iterator it(tmp_dir, ec), end; !ec && it != end; it.increment(ec)) {
+    std::error_code rm_ec;
+    fs::remove(it->path(), rm_ec);
+  }
+}
+
+// ---------------------------------------------------------------------------
+// MetadataStore
+
+namespace {
+
+constexpr int kSchemaVersion = 1;
+constexpr int kBusyTimeoutMs = 5000;
+
+// Schema version 1. Rig created_at is stored as RFC 3339 UTC text (the wire
+// form; fixed-width, so it also sorts); job times are epoch milliseconds.
+constexpr const char* kSchemaV1 = R"sql(
+CREATE TABLE rigs (
+  tenant          TEXT    NOT NULL,
+  id              TEXT    NOT NULL,
+  name            TEXT    NOT NULL,
+  size_bytes      INTEGER NOT NULL,
+  vertices        INTEGER NOT NULL,
+  joints          INTEGER NOT NULL,
+  morph_targets   INTEGER NOT NULL,
+  landmarks       INTEGER NOT NULL,
+  has_components  INTEGER NOT NULL,
+  created_at      TEXT    NOT NULL,
+  rig_blob        TEXT    NOT NULL,
+  landmarks_blob  TEXT    NOT NULL,
+  components_blob TEXT    NOT NULL DEFAULT '',
+  PRIMARY KEY (tenant, id)
+);
+CREATE INDEX rigs_rig_blob ON rigs(rig_blob);
+CREATE INDEX rigs_landmarks_blob ON rigs(landmarks_blob);
+CREATE INDEX rigs_components_blob ON rigs(components_blob) WHERE components_blob <> '';
+
+CREATE TABLE jobs (
+  sequence         INTEGER PRIMARY KEY AUTOINCREMENT,
+  id               TEXT    NOT NULL UNIQUE,
+  tenant           TEXT    NOT NULL,
+  kind             TEXT    NOT NULL,
+  rig              TEXT    NOT NULL,
+  spec_json        TEXT    NOT NULL,
+  inputs_json      TEXT    NOT NULL,
+  input_names_json TEXT    NOT NULL,
+  idempotency_key  TEXT    NOT NULL DEFAULT '',
+  status           TEXT    NOT NULL
+                   CHECK (status IN ('queued', 'running', 'succeeded', 'failed', 'cancelled')),
+  stage            TEXT    NOT NULL,
+  attempts         INTEGER NOT NULL DEFAULT 0,
+  cache_hit        INTEGER NOT NULL DEFAULT 0,
+  error_json       TEXT    NOT NULL DEFAULT '',
+  result_blob      TEXT    NOT NULL DEFAULT '',
+  diagnostics_blob TEXT    NOT NULL DEFAULT '',
+  timings_json     TEXT    NOT NULL DEFAULT '',
+  created_ms       INTEGER NOT NULL,
+  started_ms       INTEGER NOT NULL DEFAULT 0,
+  finished_ms      INTEGER NOT NULL DEFAULT 0
+);
+CREATE UNIQUE INDEX jobs_idempotency ON jobs(tenant, idempotency_key) WHERE idempotency_key <> '';
+CREATE INDEX jobs_tenant_sequence ON jobs(tenant, sequence);
+CREATE INDEX jobs_status_sequence ON jobs(status, sequence);
+CREATE INDEX jobs_result_blob ON jobs(result_blob) WHERE result_blob <> '';
+CREATE INDEX jobs_diagnostics_blob ON jobs(diagnostics_blob) WHERE diagnostics_blob <> '';
+
+-- jobs.inputs_json flattened, so blobReferenced() is an indexed lookup.
+CREATE TABLE job_inputs (
+  job_id TEXT NOT NULL REFERENCES jobs(id) ON DELETE CASCADE,
+  field  TEXT NOT NULL,
+  blob   TEXT NOT NULL,
+  PRIMARY KEY (job_id, field)
+);
+CREATE INDEX job_inputs_blob ON job_inputs(blob);
+)sql";
+
+constexpr const char* kRigColumns =
+    "tenant, id, name, size_bytes, vertices, joints, morph_targets, landmarks, has_components, created_at, "
+    "rig_blob, landmarks_blob, components_blob";
+
+constexpr const char* kJobColumns =
+    "sequence, id, tenant, kind, rig, spec_json, inputs_json, input_names_json, idempotency_key, status, stage, "
+    "attempts, cache_hit, error_json, result_blob, diagnostics_blob, timings_json, created_ms, started_ms, "
+    "finished_ms";
+
+std::int64_t nowMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+// "2026-01-31T12:34:56.789Z"
+std::string formatRfc3339Ms(std::int64_t epoch_ms) {
+  const std::time_t secs = static_cast<std::time_t>(epoch_ms / 1000);
+  std::tm tm{};
+  gmtime_r(&secs, &tm);
+  char buf[40];
+  const std::size_t n = std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%S", &tm);
+  std::snprintf(buf + n, sizeof buf - n, ".%03dZ", static_cast<int>(epoch_ms % 1000));
+  return buf;
+}
+
+std::string mapToJson(const std::map<std::string, std::string>& m) { return nlohmann::json(m).dump(); }
+
+std::map<std::string, std::string> jsonToMap(const std::string& text) {
+  std::map<std::string, std::string> out;
+  const auto j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (!j.is_object()) return out;
+  for (const auto& [key, value] : j.items()) {
+    if (value.is_string()) out[key] = value.get<std::string>();
+  }
+  return out;
+}
+
+}  // namespace
+
+// The one sqlite3 connection and its cached prepared statements. All access is
+// under MetadataStore::mutex_.
+namespace {
+struct SqliteConnection {
+  sqlite3* db = nullptr;
+  fs::path file;
+  std::unordered_map<const char*, sqlite3_stmt*> statements;  // keyed by the SQL literal's address
+
+  SqliteConnection() = default;
+  SqliteConnection(const SqliteConnection&) = delete;
+  SqliteConnection& operator=(const SqliteConnection&) = delete;
+  ~SqliteConnection() {
+    for (auto& [sql, stmt] : statements) sqlite3_finalize(stmt);
+    if (db) sqlite3_close_v2(db);
+  }
+
+  Error error(const std::string& what) const {
+    return makeError(ErrorCode::kIo, "database " + file.string() + ": " + what + ": " + sqlite3_errmsg(db));
+  }
+
+  core::Status exec(const char* sql) {
+    char* msg = nullptr;
+    if (sqlite3_exec(db, sql, nullptr, nullptr, &msg) != SQLITE_OK) {
+      std::string text = msg ? msg : sqlite3_errmsg(db);
+      sqlite3_free(msg);
+      return makeError(ErrorCode::kIo, "database " + file.string() + ": " + text + " (in: " + sql + ")");
+    }
+    return core::Ok{};
+  }
+
+  // A cached statement for a SQL string literal (static storage, stable address).
+  core::Result<sqlite3_stmt*> prepare(const char* sql) {
+    if (auto it = statements.find(sql); it != statements.end()) return it->second;
+    sqlite3_stmt* stmt = nullptr;
+    if (sqlite3_prepare_v3(db, sql, -1, SQLITE_PREPARE_PERSISTENT, &stmt, nullptr) != SQLITE_OK) {
+      return error(std::string("cannot prepare '") + sql + "'");
+    }
+    statements.emplace(sql, stmt);
+    return stmt;
+  }
+};
+
+// Borrowed cached statement: binds by 1-based index; resets on scope exit.
+class Stmt {
+ public:
+  explicit Stmt(sqlite3_stmt* stmt) : stmt_(stmt) {}
+  ~Stmt() {
+    sqlite3_reset(stmt_);
+    sqlite3_clear_bindings(stmt_);
+  }
+  Stmt(const Stmt&) = delete;
+  Stmt& operator=(const Stmt&) = delete;
+
+  Stmt& bind(int i, const std::string& s) {
+    sqlite3_bind_text(stmt_, i, s.data(), static_cast<int>(s.size()), SQLITE_TRANSIENT);
+    return *this;
+  }
+  Stmt& bind(int i, const char* s) {
+    sqlite3_bind_text(stmt_, i, s, -1, SQLITE_STATIC);
+    return *this;
+  }
+  Stmt& bind(int i, std::int64_t v) {
+    sqlite3_bind_int64(stmt_, i, v);
+    return *this;
+  }
+  Stmt& bind(int i, int v) {
+    sqlite3_bind_int(stmt_, i, v);
+    return *this;
+  }
+  Stmt& bind(int i, bool v) { return bind(i, v ? 1 : 0); }
+  Stmt& bindNull(int i) {
+    sqlite3_bind_null(stmt_, i);
+    return *this;
+  }
+
+  int step() { return sqlite3_step(stmt_); }
+
+  std::string text(int col) const {
+    const auto* p = reinterpret_cast<const char*>(sqlite3_column_text(stmt_, col));
+    return p ? std::string(p, static_cast<std::size_t>(sqlite3_column_bytes(stmt_, col))) : std::string();
+  }
+  std::int64_t int64(int col) const { return sqlite3_column_int64(stmt_, col); }
+  int int32(int col) const { return sqlite3_column_int(stmt_, col); }
+
+ private:
+  sqlite3_stmt* stmt_;
+};
+
+RigRecord readRig(const Stmt& s) {
+  RigRecord r;
+  r.tenant = s.text(0);
+  r.info.id = s.text(1);
+  r.info.name = s.text(2);
+  r.info.size_bytes = s.int64(3);
+  r.info.vertices = s.int32(4);
+  r.info.joints = s.int32(5);
+  r.info.morph_targets = s.int32(6);
+  r.info.landmarks = s.int32(7);
+  r.info.has_components = s.int32(8) != 0;
+  r.info.created_at = s.text(9);
+  r.rig_blob = s.text(10);
+  r.landmarks_blob = s.text(11);
+  r.components_blob = s.text(12);
+  return r;
+}
+
+JobRecord readJob(const Stmt& s) {
+  JobRecord j;
+  j.sequence = s.int64(0);
+  j.id = s.text(1);
+  j.tenant = s.text(2);
+  j.kind = s.text(3);
+  j.rig = s.text(4);
+  j.spec_json = s.text(5);
+  j.inputs = jsonToMap(s.text(6));
+  j.input_names = jsonToMap(s.text(7));
+  j.idempotency_key = s.text(8);
+  j.status = api::parseJobStatus(s.text(9)).value_or(api::JobStatus::kFailed);  // CHECK constraint: always parses
+  j.stage = s.text(10);
+  j.attempts = s.int32(11);
+  j.cache_hit = s.int32(12) != 0;
+  j.error_json = s.text(13);
+  j.result_blob = s.text(14);
+  j.diagnostics_blob = s.text(15);
+  j.timings_json = s.text(16);
+  j.created_ms = s.int64(17);
+  j.started_ms = s.int64(18);
+  j.finished_ms = s.int64(19);
+  return j;
+}
+
+// BEGIN IMMEDIATE ... COMMIT; rolls back unless commit() succeeded.
+class Transaction {
+ public:
+  Transaction(SqliteConnection& c, core::Status& begun) : c_(c) {
+    begun = c_.exec("BEGIN IMMEDIATE");
+    active_ = begun.ok();
+  }
+  ~Transaction() {
+    if (active_) (void)c_.exec("ROLLBACK");
+  }
+  Transaction(const Transaction&) = delete;
+  Transaction& operator=(const Transaction&) = delete;
+  core::Status commit() {
+    auto st = c_.exec("COMMIT");
+    if (st) active_ = false;
+    return st;
+  }
+
+ private:
+  SqliteConnection& c_;
+  bool active_ = false;
+};
+
+}  // namespace
+
+struct MetadataStore::Connection : SqliteConnection {};
+
+MetadataStore::MetadataStore(std::unique_ptr<Connection> connection) : connection_(std::move(connection)) {}
+
+MetadataStore::~MetadataStore() = default;
+
+core::Result<std::unique_ptr<MetadataStore>> MetadataStore::open(const fs::path& file) {
+  if (file.has_parent_path()) {
+    std::error_code ec;
+    fs::create_directories(file.parent_path(), ec);
+    if (ec) {
+      return makeError(ErrorCode::kIo,
+                       "cannot create directory " + file.parent_path().string() + " for database: " + ec.message());
+    }
+  }
+  auto c = std::make_unique<Connection>();
+  c->file = file;
+  const int rc = sqlite3_open_v2(file.c_str(), &c->db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX,
+                                 nullptr);
+  if (rc != SQLITE_OK) {
+    std::string msg = c->db ? sqlite3_errmsg(c->db) : sqlite3_errstr(rc);
+    return makeError(ErrorCode::kIo, "cannot open database " + file.string() + ": " + msg);
+  }
+  sqlite3_extended_result_codes(c->db, 1);
+  sqlite3_busy_timeout(c->db, kBusyTimeoutMs);
+
+  // journal_mode answers with the mode in effect; anything but "wal" (e.g. a
+  // filesystem without shared memory) would silently weaken the guarantees.
+  {
+    auto stmt = c->prepare("PRAGMA journal_mode=WAL");
+    if (!stmt) return stmt.error();
+    Stmt s(*stmt);
+    if (s.step() != SQLITE_ROW) return c->error("cannot set journal_mode=WAL");
+    if (const std::string mode = s.text(0); mode != "wal") {
+      return makeError(ErrorCode::kIo, "database " + file.string() + ": journal_mode is '" + mode + "', not 'wal'");
+    }
+  }
+  if (auto st = c->exec("PRAGMA synchronous=FULL; PRAGMA foreign_keys=ON;"); !st) return st.error();
+
+  int version = 0;
+  {
+    auto stmt = c->prepare("PRAGMA user_version");
+    if (!stmt) return stmt.error();
+    Stmt s(*stmt);
+    if (s.step() != SQLITE_ROW) return c->error("cannot read user_version");
+    version = s.int32(0);
+  }
+  if (version > kSchemaVersion) {
+    return makeError(ErrorCode::kUnsupported, "database " + file.string() + " has schema version " +
+                                                  std::to_string(version) + ", newer than this build knows (" +
+                                                  std::to_string(kSchemaVersion) + "): upgrade rigport");
+  }
+  if (version == 0) {
+    core::Status begun = core::Ok{};
+    Transaction tx(*c, begun);
+    if (!begun) return begun.error();
+    // Re-check under the write lock: another process may have created it.
+    int now_version = 0;
+    {
+      auto stmt = c->prepare("PRAGMA user_version");
+      if (!stmt) return stmt.error();
+      Stmt s(*stmt);
+      if (s.step() == SQLITE_ROW) now_version = s.int32(0);
+    }
+    if (now_version == 0) {
+      if (auto st = c->exec(kSchemaV1); !st) return st.error();
+      if (auto st = c->exec("PRAGMA user_version=1"); !st) return st.error();
+    }
+    if (auto st = tx.commit(); !st) return st.error();
+  }
+  return std::unique_ptr<MetadataStore>(new MetadataStore(std::move(c)));
+}
+
+// ----- rigs
+
+core::Result<std::pair<RigRecord, bool>> MetadataStore::insertRig(const RigRecord& rig) {
+  std::lock_guard lock(mutex_);
+  Connection& c = *connection_;
+  if (rig.info.id.empty()) return makeError(ErrorCode::kInvalidArgument, "rig id is empty");
+
+  RigRecord stored = rig;
+  if (stored.info.created_at.empty()) stored.info.created_at = formatRfc3339Ms(nowMs());
+
+  core::Status begun = core::Ok{};
+  Transaction tx(c, begun);
+  if (!begun) return begun.error();
+  static const char* kInsert =
+      "INSERT INTO rigs (tenant, id, name, size_bytes, vertices, joints, morph_targets, landmarks, has_components, "
+      "created_at, rig_blob, landmarks_blob, components_blob) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, "
+      "?12, ?13) ON CONFLICT (tenant, id) DO NOTHING";
+  auto stmt = c.prepare(kInsert);
+  if (!stmt) return stmt.error();
+  {
+    Stmt s(*stmt);
+    s.bind(1, stored.tenant).bind(2, stored.info.id).bind(3, stored.info.name).bind(4, stored.info.size_bytes);
+    s.bind(5, stored.info.vertices).bind(6, stored.info.joints).bind(7, stored.info.morph_targets);
+    s.bind(8, stored.info.landmarks).bind(9, stored.info.has_components).bind(10, stored.info.created_at);
+    s.bind(11, stored.rig_blob).bind(12, stored.landmarks_blob).bind(13, stored.components_blob);
+    if (s.step() != SQLITE_DONE) return c.error("cannot insert rig " + stored.info.id);
+  }
+  if (sqlite3_changes(c.db) == 0) {
+    static const std::string kSelect = std::string("SELECT ") + kRigColumns + " FROM rigs WHERE tenant = ?1 AND id = ?2";
+    auto sel = c.prepare(kSelect.c_str());
+    if (!sel) return sel.error();
+    Stmt s(*sel);
+    s.bind(1, rig.tenant).bind(2, rig.info.id);
+    if (s.step() != SQLITE_ROW) return c.error("cannot read existing rig " + rig.info.id);
+    RigRecord existing = readRig(s);
+    return std::pair{std::move(existing), false};
+  }
+  if (auto st = tx.commit(); !st) return st.error();
+  return std::pair{std::move(stored), true};
+}
+
+std::optional<RigRecord> MetadataStore::getRig(const std::string& tenant, const std::string& id) {
+  std::lock_guard lock(mutex_);
+  Connection& c = *connection_;
+  static const std::string kSelect = std::string("SELECT ") + kRigColumns + " FROM rigs WHERE tenant = ?1 AND id = ?2";
+  auto stmt = c.prepare(kSelect.c_str());
+  if (!stmt) {
+    spdlog::error("{}", stmt.error().message);
+    return std::nullopt;
+  }
+  Stmt s(*stmt);
+  s.bind(1, tenant).bind(2, id);
+  const int rc = s.step();
+  if (rc == SQLITE_ROW) return readRig(s);
+  if (rc != SQLITE_DONE) spdlog::error("{}", c.error("cannot read rig " + id).message);
+  return std::nullopt;
+}
+
+std::vector<RigRecord> MetadataStore::listRigs(const std::string& tenant) {
+  std::lock_guard lock(mutex_);
+  Connection& c = *connection_;
+  static const std::string kSelect =
+      std::string("SELECT ") + kRigColumns + " FROM rigs WHERE tenant = ?1 ORDER BY created_at, id";
+  std::vector<RigRecord> out;
+  auto stmt = c.prepare(kSelect.c_str());
+  if (!stmt) {
+    spdlog::error("{}", stmt.error().message);
+    return out;
+  }
+  Stmt s(*stmt);
+  s.bind(1, tenant);
+  int rc;
+  while ((rc = s.step()) == SQLITE_ROW) out.push_back(readRig(s));
+  if (rc != SQLITE_DONE) spdlog::error("{}", c.error("cannot list rigs").message);
+  return out;
+}
+
+bool MetadataStore::deleteRig(const std::string& tenant, const std::string& id) {
+  std::lock_guard lock(mutex_);
+  Connection& c = *connection_;
+  auto stmt = c.prepare("DELETE FROM rigs WHERE tenant = ?1 AND id = ?2");
+  if (!stmt) {
+    spdlog::error("{}", stmt.error().message);
+    return false;
+  }
+  Stmt s(*stmt);
+  s.bind(1, tenant).bind(2, id);
+  if (s.step() != SQLITE_DONE) {
+    spdlog::error("{}", c.error("cannot delete rig " + id).message);
+    return false;
+  }
+  return sqlite3_changes(c.db) > 0;
+}
+
+// ----- jobs
+
+namespace {
+
+const std::string& selectJobByIdSql() {
+  static const std::string sql = std::string("SELECT ") + kJobColumns + " FROM jobs WHERE id = ?1";
+  return sql;
+}
+
+// Reads one job by id (no tenant filter); nullopt when absent.
+core::Result<std::optional<JobRecord>> loadJob(SqliteConnection& c, const std::string& id) {
+  auto stmt = c.prepare(selectJobByIdSql().c_str());
+  if (!stmt) return stmt.error();
+  Stmt s(*stmt);
+  s.bind(1, id);
+  const int rc = s.step();
+  if (rc == SQLITE_ROW) return std::optional<JobRecord>(readJob(s));
+  if (rc != SQLITE_DONE) return c.error("cannot read job " + id);
+  return std::optional<JobRecord>();
+}
+
+}  // namespace
+
+core::Result<std::pair<JobRecord, bool>> MetadataStore::insertJob(const JobRecord& job) {
+  std::lock_guard lock(mutex_);
+  Connection& c = *connection_;
+  if (job.id.empty()) return makeError(ErrorCode::kInvalidArgument, "job id is empty");
+
+  core::Status begun = core::Ok{};
+  Transaction tx(c, begun);
+  if (!begun) return begun.error();
+
+  if (!job.idempotency_key.empty()) {
+    static const std::string kSelect =
+        std::string("SELECT ") + kJobColumns + " FROM jobs WHERE tenant = ?1 AND idempotency_key = ?2";
+    auto stmt = c.prepare(kSelect.c_str());
+    if (!stmt) return stmt.error();
+    Stmt s(*stmt);
+    s.bind(1, job.tenant).bind(2, job.idempotency_key);
+    const int rc = s.step();
+    if (rc == SQLITE_ROW) return std::pair{readJob(s), false};
+    if (rc != SQLITE_DONE) return c.error("cannot look up idempotency key");
+  }
+
+  JobRecord stored = job;
+  if (stored.created_ms == 0) stored.created_ms = nowMs();
+  static const char* kInsert =
+      "INSERT INTO jobs (id, tenant, kind, rig, spec_json, inputs_json, input_names_json, idempotency_key, status, "
+      "stage, attempts, cache_hit, error_json, result_blob, diagnostics_blob, timings_json, created_ms, started_ms, "
+      "finished_ms) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19)";
+  {
+    auto stmt = c.prepare(kInsert);
+    if (!stmt) return stmt.error();
+    Stmt s(*stmt);
+    s.bind(1, stored.id).bind(2, stored.tenant).bind(3, stored.kind).bind(4, stored.rig).bind(5, stored.spec_json);
+    s.bind(6, mapToJson(stored.inputs)).bind(7, mapToJson(stored.input_names)).bind(8, stored.idempotency_key);
+    s.bind(9, api::jobStatusName(stored.status)).bind(10, stored.stage).bind(11, stored.attempts);
+    s.bind(12, stored.cache_hit).bind(13, stored.error_json).bind(14, stored.result_blob);
+    s.bind(15, stored.diagnostics_blob).bind(16, stored.timings_json).bind(17, stored.created_ms);
+    s.bind(18, stored.started_ms).bind(19, stored.finished_ms);
+    if (s.step() != SQLITE_DONE) {
+      if (sqlite3_extended_errcode(c.db) == SQLITE_CONSTRAINT_UNIQUE) {
+        return makeError(ErrorCode::kInvalidArgument, "database " + c.file.string() + ": job id " + stored.id +
+                                                          " already exists: " + sqlite3_errmsg(c.db));
+      }
+      return c.error("cannot insert job " + stored.id);
+    }
+  }
+  stored.sequence = sqlite3_last_insert_rowid(c.db);
+  for (const auto& [field, blob] : stored.inputs) {
+    auto stmt = c.prepare("INSERT INTO job_inputs (job_id, field, blob) VALUES (?1, ?2, ?3)");
+    if (!stmt) return stmt.error();
+    Stmt s(*stmt);
+    s.bind(1, stored.id).bind(2, field).bind(3, blob);
+    if (s.step() != SQLITE_DONE) return c.error("cannot insert input " + field + " of job " + stored.id);
+  }
+  if (auto st = tx.commit(); !st) return st.error();
+  return std::pair{std::move(stored), true};
+}
+
+std::optional<JobRecord> MetadataStore::getJob(const std::string& tenant, const std::string& id) {
+  std::lock_guard lock(mutex_);
+  auto job = loadJob(*connection_, id);
+  if (!job) {
+    spdlog::error("{}", job.error().message);
+    return std::nullopt;
+  }
+  if (*job && (*job)->tenant != tenant) return std::nullopt;  // another tenant's job does not exist for this one
+  return std::move(*job);
+}
+
+std::vector<JobRecord> MetadataStore::listJobs(const JobListQuery& query) {
+  std::lock_guard lock(mutex_);
+  Connection& c = *connection_;
+  static const std::string kSelect = std::string("SELECT ") + kJobColumns +
+                                     " FROM jobs WHERE tenant = ?1 AND sequence > ?2 AND (?3 IS NULL OR status = ?3)"
+                                     " ORDER BY sequence LIMIT ?4";
+  std::vector<JobRecord> out;
+  auto stmt = c.prepare(kSelect.c_str());
+  if (!stmt) {
+    spdlog::error("{}", stmt.error().message);
+    return out;
+  }
+  Stmt s(*stmt);
+  s.bind(1, query.tenant).bind(2, query.after_sequence);
+  if (query.status) {
+    s.bind(3, api::jobStatusName(*query.status));
+  } else {
+    s.bindNull(3);
+  }
+  s.bind(4, std::max(query.limit, 0));
+  int rc;
+  while ((rc = s.step()) == SQLITE_ROW) out.push_back(readJob(s));
+  if (rc != SQLITE_DONE) spdlog::error("{}", c.error("cannot list jobs").message);
+  return out;
+}
+
+std::vector<JobRecord> MetadataStore::unfinishedJobs() {
+  std::lock_guard lock(mutex_);
+  Connection& c = *connection_;
+  static const std::string kSelect =
+      std::string("SELECT ") + kJobColumns + " FROM jobs WHERE status IN ('queued', 'running') ORDER BY sequence";
+  std::vector<JobRecord> out;
+  auto stmt = c.prepare(kSelect.c_str());
+  if (!stmt) {
+    spdlog::error("{}", stmt.error().message);
+    return out;
+  }
+  Stmt s(*stmt);
+  int rc;
+  while ((rc = s.step()) == SQLITE_ROW) out.push_back(readJob(s));
+  if (rc != SQLITE_DONE) spdlog::error("{}", c.error("cannot list unfinished jobs").message);
+  return out;
+}
+
+namespace {
+
+// Explains why a guarded UPDATE changed no row: the job is absent or in the wrong state.
+Error transitionRefused(SqliteConnection& c, const std::string& id, const char* transition) {
+  auto job = loadJob(c, id);
+  if (!job) return job.error();
+  if (!*job) return makeError(ErrorCode::kInvalidArgument, "cannot " + std::string(transition) + ": no job " + id);
+  return makeError(ErrorCode::kInvalidArgument, "cannot " + std::string(transition) + " job " + id + ": it is " +
+                                                    api::jobStatusName((*job)->status));
+}
+
+}  // namespace
+
+core::Status MetadataStore::markRunning(const std::string& id, std::int64_t started_ms, bool cache_hit) {
+  std::lock_guard lock(mutex_);
+  Connection& c = *connection_;
+  auto stmt = c.prepare(
+      "UPDATE jobs SET status = 'running', attempts = attempts + 1, started_ms = ?2, cache_hit = ?3 "
+      "WHERE id = ?1 AND status = 'queued'");
+  if (!stmt) return stmt.error();
+  {
+    Stmt s(*stmt);
+    s.bind(1, id).bind(2, started_ms).bind(3, cache_hit);
+    if (s.step() != SQLITE_DONE) return c.error("cannot mark job " + id + " running");
+  }
+  if (sqlite3_changes(c.db) == 0) return transitionRefused(c, id, "start");
+  return core::Ok{};
+}
+
+core::Status MetadataStore::markFinished(const JobRecord& job) {
+  std::lock_guard lock(mutex_);
+  Connection& c = *connection_;
+  if (!api::isFinal(job.status)) {
+    return makeError(ErrorCode::kInvalidArgument, "cannot finish job " + job.id + " with non-final status " +
+                                                      api::jobStatusName(job.status));
+  }
+  auto stmt = c.prepare(
+      "UPDATE jobs SET status = ?2, stage = COALESCE(NULLIF(?3, ''), stage), error_json = ?4, result_blob = ?5, diagnostics_blob = ?6, "
+      "timings_json = ?7, finished_ms = ?8, cache_hit = ?9 WHERE id = ?1 AND status IN ('queued', 'running')");
+  if (!stmt) return stmt.error();
+  {
+    Stmt s(*stmt);
+    s.bind(1, job.id).bind(2, api::jobStatusName(job.status)).bind(3, job.stage).bind(4, job.error_json);
+    s.bind(5, job.result_blob).bind(6, job.diagnostics_blob).bind(7, job.timings_json);
+    s.bind(8, job.finished_ms != 0 ? job.finished_ms : nowMs());
+    s.bind(9, job.cache_hit);
+    if (s.step() != SQLITE_DONE) return c.error("cannot mark job " + job.id + " finished");
+  }
+  if (sqlite3_changes(c.db) == 0) return transitionRefused(c, job.id, "finish");
+  return core::Ok{};
+}
+
+core::Status MetadataStore::requeue(const std::string& id) {
+  std::lock_guard lock(mutex_);
+  Connection& c = *connection_;
+  auto stmt = c.prepare(
+      "UPDATE jobs SET status = 'queued', stage = 'queued' WHERE id = ?1 AND status IN ('queued', 'running')");
+  if (!stmt) return stmt.error();
+  {
+    Stmt s(*stmt);
+    s.bind(1, id);
+    if (s.step() != SQLITE_DONE) return c.error("cannot requeue job " + id);
+  }
+  if (sqlite3_changes(c.db) == 0) return transitionRefused(c, id, "requeue");
+  return core::Ok{};
+}
+
+std::map<api::JobStatus, std::int64_t> MetadataStore::countJobsByStatus() {
+  std::lock_guard lock(mutex_);
+  Connection& c = *connection_;
+  std::map<api::JobStatus, std::int64_t> out;
+  for (auto status : {api::JobStatus::kQueued, api::JobStatus::kRunning, api::JobStatus::kSucceeded,
+                      api::JobStatus::kFailed, api::JobStatus::kCancelled}) {
+    out[status] = 0;
+  }
+  auto stmt = c.prepare("SELECT status, COUNT(*) FROM jobs GROUP BY status");
+  if (!stmt) {
+    spdlog::error("{}", stmt.error().message);
+    return out;
+  }
+  Stmt s(*stmt);
+  int rc;
+  while ((rc = s.step()) == SQLITE_ROW) {
+    if (auto status = api::parseJobStatus(s.text(0))) out[*status] = s.int64(1);
+  }
+  if (rc != SQLITE_DONE) spdlog::error("{}", c.error("cannot count jobs").message);
+  return out;
+}
+
+bool MetadataStore::blobReferenced(const std::string& hash) {
+  std::lock_guard lock(mutex_);
+  Connection& c = *connection_;
+  if (hash.empty()) return false;
+  // One EXISTS per indexed column, so each is an index probe.
+  auto stmt = c.prepare(
+      "SELECT EXISTS (SELECT 1 FROM rigs WHERE rig_blob = ?1)"
+      " OR EXISTS (SELECT 1 FROM rigs WHERE landmarks_blob = ?1)"
+      " OR EXISTS (SELECT 1 FROM rigs WHERE components_blob = ?1 AND components_blob <> '')"
+      " OR EXISTS (SELECT 1 FROM jobs WHERE result_blob = ?1 AND result_blob <> '')"
+      " OR EXISTS (SELECT 1 FROM jobs WHERE diagnostics_blob = ?1 AND diagnostics_blob <> '')"
+      " OR EXISTS (SELECT 1 FROM job_inputs WHERE blob = ?1)");
+  if (!stmt) {
+    spdlog::error("{}", stmt.error().message);
+    return true;  // fail safe: a garbage collector must not delete what it cannot check
+  }
+  Stmt s(*stmt);
+  s.bind(1, hash);
+  if (s.step() != SQLITE_ROW) {
+    spdlog::error("{}", c.error("cannot check references to blob " + hash).message);
+    return true;
+  }
+  return s.int32(0) != 0;
+}
+
+}  // namespace server

@@ -1,0 +1,138 @@
+// The durable embedded store (default backend): metadata in SQLite (WAL,
+// synchronous=FULL), blobs as content-addressed files. A blob is written to a
+// temporary name, fsynced, renamed to its sha256 and the directory fsynced, so
+// a crash leaves either no blob or a whole one; rows reference blobs only after
+// the blob is durable. Thread-safe (one connection behind a mutex).
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "api/types.h"
+#include "core/error.h"
+
+namespace server {
+
+// Content-addressed files under <root>/<2 hex>/<64 hex>.
+class BlobStore {
+ public:
+  explicit BlobStore(std::filesystem::path root);
+  // Writes bytes (temp + fsync + rename + dir fsync); returns the sha256 hex.
+  // Idempotent: an existing blob is not rewritten.
+  core::Result<std::string> put(std::span<const std::uint8_t> bytes);
+  // Moves a fully written file (e.g. a streamed upload on the same filesystem)
+  // into the store under its hash; the source file is consumed.
+  core::Result<std::string> adopt(const std::filesystem::path& file);
+  bool contains(const std::string& hash) const;
+  std::filesystem::path pathOf(const std::string& hash) const;   // may not exist
+  // Reads and verifies the hash (a corrupted blob is an error, never served).
+  core::Result<std::vector<std::uint8_t>> read(const std::string& hash) const;
+  void remove(const std::string& hash);
+  // Removes leftover temporary files (from a crash mid-write).
+  // Call at startup before any put()/adopt(): it also deletes the temporary
+  // file of a put() in flight, which would then fail.
+  void removeTemporaries();
+  const std::filesystem::path& root() const { return root_; }
+
+ private:
+  std::filesystem::path root_;
+};
+
+// sha256 of a file, streamed, lower-case hex (bytes in memory: api::sha256Hex).
+core::Result<std::string> sha256HexOfFile(const std::filesystem::path& file);
+
+struct RigRecord {
+  std::string tenant;
+  api::RigInfo info;                 // info.id is the content hash
+  std::string rig_blob;              // blob hashes
+  std::string landmarks_blob;
+  std::string components_blob;       // empty when none
+};
+
+struct JobRecord {
+  std::string tenant;
+  std::string id;                    // random 32 hex, unique over all tenants
+  std::string kind;
+  std::string rig;                   // rig id (may be empty for kinds without a rig)
+  std::string spec_json;             // the submitted spec, as normalised JSON
+  std::map<std::string, std::string> inputs;  // multipart field -> blob hash (target, target_landmarks, ...)
+  std::map<std::string, std::string> input_names;  // multipart field -> uploaded file name
+  std::string idempotency_key;       // empty when none
+  api::JobStatus status = api::JobStatus::kQueued;
+  std::string stage = "queued";
+  int attempts = 0;
+  bool cache_hit = false;
+  std::string error_json;            // problem details JSON when failed/cancelled
+  std::string result_blob;           // GLB, when succeeded
+  std::string diagnostics_blob;      // diagnostics JSON, when succeeded
+  std::string timings_json;          // {"stage": ms}, when finished
+  std::int64_t created_ms = 0, started_ms = 0, finished_ms = 0;  // unix epoch milliseconds
+  std::int64_t sequence = 0;         // insertion order (set by the store), the list cursor
+};
+
+struct JobListQuery {
+  std::string tenant;
+  std::optional<api::JobStatus> status;
+  std::int64_t after_sequence = 0;   // cursor: jobs with a larger sequence
+  int limit = 50;
+};
+
+class MetadataStore {
+ public:
+  // Opens or creates <file> (WAL, synchronous=FULL, foreign keys, schema
+  // version checked); errors name the file.
+  static core::Result<std::unique_ptr<MetadataStore>> open(const std::filesystem::path& file);
+  ~MetadataStore();
+
+  // Reads (getRig, listRigs, getJob, listJobs, unfinishedJobs, countJobsByStatus)
+  // log a SQLite failure with spdlog and answer empty. Tenant "" is an ordinary tenant.
+
+  // Inserts or, when (tenant, id) exists, returns the existing record and false.
+  // An empty info.created_at is set to now (RFC 3339 UTC, milliseconds:
+  // "2026-01-31T12:34:56.789Z"); listRigs orders by created_at, then id.
+  core::Result<std::pair<RigRecord, bool>> insertRig(const RigRecord& rig);
+  std::optional<RigRecord> getRig(const std::string& tenant, const std::string& id);
+  std::vector<RigRecord> listRigs(const std::string& tenant);
+  bool deleteRig(const std::string& tenant, const std::string& id);  // false when absent
+
+  // Inserts a queued job. When idempotency_key is set and (tenant, key) exists,
+  // returns that job and false instead.
+  // The record is stored as given, except created_ms 0 = now; the returned
+  // record carries the assigned sequence. A duplicate id is kInvalidArgument.
+  core::Result<std::pair<JobRecord, bool>> insertJob(const JobRecord& job);
+  std::optional<JobRecord> getJob(const std::string& tenant, const std::string& id);
+  std::vector<JobRecord> listJobs(const JobListQuery& query);
+  // Queued or running jobs, oldest first (recovery after a restart).
+  std::vector<JobRecord> unfinishedJobs();
+  // Transitions (durable). markRunning increments attempts.
+  // Each is one fsynced transaction, guarded by the current status; a refused
+  // transition (unknown job, or wrong status) is an Error kInvalidArgument and
+  // changes nothing:
+  //   markRunning:  queued -> running only (a job cancelled while queued is not started).
+  //   markFinished: queued|running -> a final status only; a final job is never
+  //                 overwritten (a late success cannot replace a cancel). job.status must be
+  //                 final; an empty job.stage keeps the stored stage; finished_ms 0 = now.
+  //   requeue:      running|queued -> queued (a final job is refused).
+  core::Status markRunning(const std::string& id, std::int64_t started_ms, bool cache_hit);
+  core::Status markFinished(const JobRecord& job);  // status, stage, error_json, result/diagnostics blobs, timings, cache_hit, finished_ms
+  core::Status requeue(const std::string& id);       // running -> queued (restart)
+  std::map<api::JobStatus, std::int64_t> countJobsByStatus();
+  // Blob hashes referenced by any rig or job row (for garbage collection).
+  // Answers true when the database cannot be read (never lets GC delete blindly).
+  bool blobReferenced(const std::string& hash);
+
+ private:
+  struct Connection;
+  explicit MetadataStore(std::unique_ptr<Connection> connection);
+  std::unique_ptr<Connection> connection_;
+  std::mutex mutex_;
+};
+
+}  // namespace server

@@ -1,0 +1,164 @@
+// Every malformed-request class gets its problem+json (RFC 9457) with a stable
+// type and a detail naming the field or file, and the server keeps serving.
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+#include "tests/server/service_fixture.h"
+#include "tests/test_support.h"
+
+namespace rigport_test {
+namespace {
+
+void expectProblem(const Reply& r, int status, const std::string& slug, const std::string& detail_part) {
+  EXPECT_EQ(r.status, status) << r.raw;
+  EXPECT_EQ(r.content_type, "application/problem+json") << r.raw;
+  EXPECT_EQ(r.body.value("type", ""), "urn:rigport:problem:" + slug) << r.raw;
+  EXPECT_EQ(r.body.value("status", 0), status) << r.raw;
+  EXPECT_NE(r.body.value("detail", "").find(detail_part), std::string::npos)
+      << "detail should name '" << detail_part << "': " << r.raw;
+}
+
+Reply postParts(httplib::Client& client, const std::string& path, const httplib::MultipartFormDataItems& items) {
+  auto res = client.Post(path.c_str(), items);
+  Reply r;
+  if (!res) return r;
+  r.status = res->status;
+  r.raw = res->body;
+  r.content_type = res->get_header_value("Content-Type");
+  r.body = nlohmann::json::parse(res->body, nullptr, false);
+  return r;
+}
+
+std::string fileText(const std::filesystem::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+class ServiceErrors : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = makeTempDir("errors");
+    files_ = writeTransferFiles(dir_);
+    server::ServerConfig config = testConfig(dir_ / "data");
+    config.max_vertices = 20000;
+    service_ = std::make_unique<InProcessService>(config);
+    client_ = service_->client();
+    Reply rig = uploadRig(*client_, files_);
+    ASSERT_EQ(rig.status, 201) << rig.raw;
+    rig_id_ = rig.body["id"];
+  }
+  void TearDown() override {
+    // The server still serves a healthy job after every error above.
+    EXPECT_EQ(get(*client_, "/healthz").status, 200);
+    Reply job = submitTransfer(*client_, rig_id_, files_);
+    ASSERT_EQ(job.status, 202) << job.raw;
+    EXPECT_EQ(waitForJob(*client_, job.body["id"])["status"], "succeeded");
+  }
+  httplib::MultipartFormDataItems jobParts(const std::string& spec) const {
+    return {{"spec", spec, "spec.json", "application/json"},
+            {"target", fileText(files_.target), "target_head.glb", "model/gltf-binary"},
+            {"target_landmarks", fileText(files_.target_landmarks), "target.json", "application/json"}};
+  }
+  std::string spec(const std::string& options = "{}") const {
+    return R"({"kind":"transfer","rig":")" + rig_id_ + R"(","options":)" + options + "}";
+  }
+  std::filesystem::path dir_;
+  TransferFiles files_;
+  std::unique_ptr<InProcessService> service_;
+  std::unique_ptr<httplib::Client> client_;
+  std::string rig_id_;
+};
+
+TEST_F(ServiceErrors, MalformedSpecsAre400NamingTheField) {
+  expectProblem(postParts(*client_, "/v1/jobs", jobParts("{not json")), 400, "malformed-request", "spec");
+  expectProblem(postParts(*client_, "/v1/jobs", jobParts(R"({"kind":"transfer","rig":42})")), 400, "malformed-request", "spec.rig");
+  expectProblem(postParts(*client_, "/v1/jobs", jobParts(R"({"kind":"sculpt","rig":"00"})")), 400, "malformed-request", "spec.kind");
+  expectProblem(postParts(*client_, "/v1/jobs", jobParts(R"({"kind":"transfer","rig":"abc"})")), 400, "malformed-request", "spec.rig");
+  expectProblem(postParts(*client_, "/v1/jobs", jobParts(R"({"kind":"transfer","rig":"x","colour":1})")), 400, "malformed-request", "spec.colour");
+  expectProblem(postParts(*client_, "/v1/jobs", jobParts(spec(R"({"max_influences": 99})"))), 400, "invalid-option", "max_influences");
+  expectProblem(postParts(*client_, "/v1/jobs", jobParts(spec(R"({"max_infuences": 4})"))), 400, "invalid-option", "max_infuences");
+  auto parts = jobParts(spec());
+  parts.pop_back();
+  expectProblem(postParts(*client_, "/v1/jobs", parts), 400, "malformed-request", "target_landmarks");
+  parts = jobParts(spec());
+  parts.push_back({"texture", "x", "t.png", "image/png"});
+  expectProblem(postParts(*client_, "/v1/jobs", parts), 400, "malformed-request", "texture");
+  expectProblem(get(*client_, "/v1/jobs?status=done"), 400, "malformed-request", "status");
+  expectProblem(get(*client_, "/v1/jobs?limit=0"), 400, "malformed-request", "limit");
+}
+
+TEST_F(ServiceErrors, UnknownThingsAre404) {
+  expectProblem(get(*client_, "/v1/jobs/0123456789abcdef0123456789abcdef"), 404, "not-found", "0123456789abcdef");
+  expectProblem(get(*client_, "/v1/rigs/" + std::string(64, 'a')), 404, "not-found", "aaaa");
+  expectProblem(get(*client_, "/v1/teapot"), 404, "not-found", "/v1/teapot");
+  expectProblem(postParts(*client_, "/v1/jobs", jobParts(R"({"kind":"transfer","rig":")" + std::string(64, 'b') + "\"}")),
+                404, "not-found", "spec.rig");
+}
+
+TEST_F(ServiceErrors, WrongMediaTypeIs415) {
+  auto res = client_->Post("/v1/jobs", R"({"kind":"transfer"})", "application/json");
+  ASSERT_TRUE(res);
+  Reply r{res->status, nlohmann::json::parse(res->body, nullptr, false), res->body, res->get_header_value("Content-Type"), ""};
+  expectProblem(r, 415, "unsupported-media-type", "multipart/form-data");
+}
+
+TEST_F(ServiceErrors, UnusableFilesAre400Or422NamingTheFile) {
+  auto parts = jobParts(spec());
+  parts[1] = {"target", "not a binary glTF at all", "broken.glb", "model/gltf-binary"};
+  expectProblem(postParts(*client_, "/v1/jobs", parts), 400, "malformed-file", "broken.glb");
+  parts[1] = {"target", "v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n", "nan.obj", "text/plain"};
+  expectProblem(postParts(*client_, "/v1/jobs", parts), 422, "invalid-mesh", "nan.obj");
+  parts = jobParts(spec());
+  parts[2] = {"target_landmarks", R"({"landmarks":[{"name":"nose_tip","vertex":999999999}]})", "t.json", "application/json"};
+  expectProblem(postParts(*client_, "/v1/jobs", parts), 422, "invalid-landmarks", "nose_tip");
+  // A rig whose landmarks all sit on one vertex: ill-conditioned TPS.
+  httplib::MultipartFormDataItems rig = {
+      {"rig", fileText(files_.rig), "coplanar.glb", "model/gltf-binary"},
+      {"landmarks", R"({"landmarks":[{"name":"a","vertex":0},{"name":"b","vertex":0},{"name":"c","vertex":0},{"name":"d","vertex":0}]})",
+       "l.json", "application/json"}};
+  const Reply r = postParts(*client_, "/v1/rigs", rig);
+  EXPECT_EQ(r.status, 422) << r.raw;
+  EXPECT_EQ(r.content_type, "application/problem+json");
+}
+
+TEST_F(ServiceErrors, OversizedMeshesAre413) {
+  auto parts = jobParts(spec());
+  // 150 x 135 cells: over the 20000-vertex limit of this server.
+  const auto big = writeTransferFiles(dir_ / "big", 150);
+  parts[1] = {"target", fileText(big.target), "big.glb", "model/gltf-binary"};
+  parts[2] = {"target_landmarks", fileText(big.target_landmarks), "big.json", "application/json"};
+  expectProblem(postParts(*client_, "/v1/jobs", parts), 413, "payload-too-large", "vertices");
+}
+
+TEST_F(ServiceErrors, AJobThatFailsCarriesItsProblemAndHasNoResult) {
+  auto parts = jobParts(spec());
+  // Valid on the target, but names the source rig does not have: fails on the worker.
+  parts[2] = {"target_landmarks",
+              R"({"landmarks":[{"name":"p0","vertex":0},{"name":"p1","vertex":100},{"name":"p2","vertex":700},{"name":"p3","vertex":1200}]})",
+              "unknown_names.json", "application/json"};
+  Reply job = postParts(*client_, "/v1/jobs", parts);
+  ASSERT_EQ(job.status, 202) << job.raw;
+  const nlohmann::json done = waitForJob(*client_, job.body["id"]);
+  EXPECT_EQ(done["status"], "failed");
+  EXPECT_EQ(done["error"]["type"], "urn:rigport:problem:invalid-landmarks") << done.dump();
+  EXPECT_NE(done["error"]["detail"].get<std::string>().find("p0"), std::string::npos) << done.dump();
+  expectProblem(get(*client_, "/v1/jobs/" + done["id"].get<std::string>() + "/result"), 409, "conflict", "failed");
+  expectProblem(post(*client_, "/v1/jobs/" + done["id"].get<std::string>() + ":cancel"), 409, "conflict", "already failed");
+}
+
+TEST(ServiceLimits, BodiesOverTheLimitAre413) {
+  const auto dir = makeTempDir("body_limit");
+  const TransferFiles files = writeTransferFiles(dir);
+  server::ServerConfig config = testConfig(dir / "data");
+  config.max_body_bytes = 64 * 1024;
+  InProcessService service(config);
+  auto client = service.client();
+  Reply r = uploadRig(*client, files);
+  EXPECT_EQ(r.status, 413) << r.raw;
+  EXPECT_EQ(r.content_type, "application/problem+json");
+  EXPECT_EQ(get(*client, "/healthz").status, 200);
+}
+
+}  // namespace
+}  // namespace rigport_test

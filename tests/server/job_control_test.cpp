@@ -1,0 +1,111 @@
+// Cancellation (queued: at once; running: at the next stage boundary), the
+// bounded queue (429 with Retry-After), and graceful stop keeping queued jobs.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <thread>
+
+#include "tests/server/service_fixture.h"
+#include "tests/test_support.h"
+
+namespace rigport_test {
+namespace {
+
+// Polls until the job reports `status` (fails after 120 s).
+void waitForStatus(httplib::Client& client, const std::string& id, const std::string& status) {
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (std::chrono::steady_clock::now() < give_up) {
+    if (get(client, "/v1/jobs/" + id).body.value("status", "") == status) return;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ADD_FAILURE() << "job " << id << " never reached " << status;
+}
+
+TEST(JobControl, FullQueueAnswers429AndCancelStopsQueuedAndRunningJobs) {
+  const auto dir = makeTempDir("queue");
+  const TransferFiles slow = writeTransferFiles(dir, 200);  // a target large enough to keep the worker busy
+  server::ServerConfig config = testConfig(dir / "data");
+  config.workers = 1;
+  config.queue_capacity = 1;
+  config.retry_after_s = 3;
+  InProcessService service(config);
+  auto client = service.client();
+  const std::string rig_id = uploadRig(*client, slow).body["id"];
+
+  Reply running = submitTransfer(*client, rig_id, slow);
+  ASSERT_EQ(running.status, 202) << running.raw;
+  waitForStatus(*client, running.body["id"], "running");
+  Reply queued = submitTransfer(*client, rig_id, slow);
+  ASSERT_EQ(queued.status, 202) << queued.raw;
+  EXPECT_EQ(queued.body["status"], "queued");
+
+  Reply rejected = submitTransfer(*client, rig_id, slow);
+  EXPECT_EQ(rejected.status, 429) << rejected.raw;
+  EXPECT_EQ(rejected.retry_after, "3");
+  EXPECT_EQ(rejected.body["type"], "urn:rigport:problem:queue-full");
+  EXPECT_EQ(get(*client, "/v1/jobs").body["items"].size(), 2u) << "a rejected job must not be stored";
+
+  Reply cancel_queued = post(*client, "/v1/jobs/" + queued.body["id"].get<std::string>() + ":cancel");
+  ASSERT_EQ(cancel_queued.status, 202) << cancel_queued.raw;
+  EXPECT_EQ(cancel_queued.body["status"], "cancelled");
+  Reply cancel_running = post(*client, "/v1/jobs/" + running.body["id"].get<std::string>() + ":cancel");
+  ASSERT_EQ(cancel_running.status, 202) << cancel_running.raw;
+  const nlohmann::json stopped = waitForJob(*client, running.body["id"]);
+  EXPECT_EQ(stopped["status"], "cancelled") << stopped.dump();
+  EXPECT_EQ(stopped["error"]["type"], "urn:rigport:problem:job-cancelled");
+  EXPECT_EQ(get(*client, "/v1/jobs/" + running.body["id"].get<std::string>() + "/result").status, 409);
+
+  // The queue has room again and the worker is free.
+  const TransferFiles fast = writeTransferFiles(dir / "fast");
+  const std::string fast_rig = uploadRig(*client, fast).body["id"];
+  Reply next = submitTransfer(*client, fast_rig, fast);
+  ASSERT_EQ(next.status, 202) << next.raw;
+  EXPECT_EQ(waitForJob(*client, next.body["id"])["status"], "succeeded");
+  EXPECT_EQ(get(*client, "/v1/jobs?status=cancelled").body["items"].size(), 2u);
+}
+
+TEST(JobControl, ListsArePaginatedInSubmissionOrder) {
+  const auto dir = makeTempDir("pages");
+  const TransferFiles files = writeTransferFiles(dir);
+  InProcessService service(testConfig(dir / "data"));
+  auto client = service.client();
+  const std::string rig_id = uploadRig(*client, files).body["id"];
+  std::vector<std::string> ids;
+  for (int i = 0; i < 5; ++i) ids.push_back(submitTransfer(*client, rig_id, files).body["id"]);
+  std::vector<std::string> listed;
+  std::string next;
+  for (int page = 0; page < 10; ++page) {
+    Reply r = get(*client, "/v1/jobs?limit=2" + (next.empty() ? "" : "&after=" + next));
+    ASSERT_EQ(r.status, 200) << r.raw;
+    for (const auto& item : r.body["items"]) listed.push_back(item["id"]);
+    if (r.body["next"].is_null()) break;
+    next = r.body["next"];
+  }
+  EXPECT_EQ(listed, ids);
+  for (const auto& id : ids) waitForJob(*client, id);
+}
+
+TEST(JobControl, GracefulStopKeepsQueuedJobsForTheNextStart) {
+  const auto dir = makeTempDir("graceful");
+  const TransferFiles files = writeTransferFiles(dir);
+  server::ServerConfig config = testConfig(dir / "data");
+  config.workers = 1;
+  std::vector<std::string> ids;
+  {
+    InProcessService service(config);
+    auto client = service.client();
+    const std::string rig_id = uploadRig(*client, files).body["id"];
+    for (int i = 0; i < 6; ++i) {
+      Reply r = submitTransfer(*client, rig_id, files);
+      ASSERT_EQ(r.status, 202) << r.raw;
+      ids.push_back(r.body["id"]);
+    }
+    service.stop(30.0);  // running job finishes; queued ones stay queued in the store
+  }
+  InProcessService restarted(config);
+  auto client = restarted.client();
+  for (const auto& id : ids) EXPECT_EQ(waitForJob(*client, id)["status"], "succeeded") << id;
+}
+
+}  // namespace
+}  // namespace rigport_test

@@ -1,0 +1,167 @@
+#include "tests/server/service_fixture.h"
+
+#include <chrono>
+#include <cstdlib>
+
+#include "core/landmarks.h"
+#include "core/mesh_io.h"
+#include "core/rig_io.h"
+#include "core/synthetic_head.h"
+#include "core/synthetic_rig.h"
+
+namespace rigport_test {
+
+namespace {
+
+std::string readText(const std::filesystem::path& path) {
+  auto bytes = core::readFileBytes(path);
+  EXPECT_TRUE(bytes.ok()) << path;
+  return bytes ? std::string(bytes->begin(), bytes->end()) : std::string();
+}
+
+void writeText(const std::filesystem::path& path, const std::string& text) {
+  auto ok = core::writeFileBytes(path, std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
+  ASSERT_TRUE(ok.ok()) << path;
+}
+
+Reply toReply(const httplib::Result& res) {
+  Reply reply;
+  if (!res) return reply;
+  reply.status = res->status;
+  reply.raw = res->body;
+  reply.content_type = res->get_header_value("Content-Type");
+  reply.retry_after = res->get_header_value("Retry-After");
+  if (reply.content_type.find("json") != std::string::npos) {
+    reply.body = nlohmann::json::parse(res->body, nullptr, false);
+  }
+  return reply;
+}
+
+}  // namespace
+
+TransferFiles writeTransferFiles(const std::filesystem::path& dir, int target_cells) {
+  std::filesystem::create_directories(dir);
+  TransferFiles f{dir / "source_rig.glb", dir / "source_rig.landmarks.json", dir / "target_head.glb",
+                  dir / "target_head.landmarks.json"};
+  core::HeadResolution source_res;
+  source_res.columns = 48;
+  source_res.rows = 40;
+  const core::SyntheticRig rig = core::generateRig({}, source_res);
+  EXPECT_TRUE(core::writeRigGlb(rig.rig, f.rig).ok());
+  writeText(f.landmarks, core::formatLandmarks(rig.landmarks));
+  core::HeadResolution target_res;
+  target_res.columns = target_cells;
+  target_res.rows = target_cells * 9 / 10;
+  target_res.alternate_diagonals = true;
+  target_res.jitter = 0.2;
+  target_res.seed = 3;
+  const core::SyntheticHead head = core::generateHead(core::randomHeadShape(3, 0.15), target_res);
+  EXPECT_TRUE(core::writeMeshGlb(head.mesh, f.target).ok());
+  writeText(f.target_landmarks, core::formatLandmarks(head.landmarks));
+  return f;
+}
+
+std::vector<std::uint8_t> runCliTransfer(const TransferFiles& files, const std::filesystem::path& out_dir) {
+  const std::filesystem::path out = out_dir / "cli_out.glb";
+  const std::string cmd = std::string("'") + RIGPORT_CLI_PATH + "' -q transfer --source '" + files.rig.string() +
+                          "' --source-landmarks '" + files.landmarks.string() + "' --target '" + files.target.string() +
+                          "' --target-landmarks '" + files.target_landmarks.string() + "' -o '" + out.string() + "'";
+  EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  auto bytes = core::readFileBytes(out);
+  EXPECT_TRUE(bytes.ok());
+  return bytes ? *bytes : std::vector<std::uint8_t>{};
+}
+
+server::ServerConfig testConfig(const std::filesystem::path& dir) {
+  server::ServerConfig config;
+  config.port = 0;
+  config.data_dir = dir;
+  config.workers = 2;
+  config.http_threads = 16;
+  return config;
+}
+
+InProcessService::InProcessService(server::ServerConfig config, server::ApiKeys keys) {
+  auto service = server::Service::create(config, std::move(keys), nullptr);
+  if (!service) {
+    ADD_FAILURE() << service.error().message;
+    return;
+  }
+  service_ = std::move(*service);
+  auto port = service_->start();
+  if (!port) {
+    ADD_FAILURE() << port.error().message;
+    return;
+  }
+  port_ = *port;
+  thread_ = std::thread([this] { service_->serve(); });
+}
+
+InProcessService::~InProcessService() { stop(10.0); }
+
+void InProcessService::stop(double grace_s) {
+  if (service_) service_->stop(grace_s);
+  if (thread_.joinable()) thread_.join();
+}
+
+std::unique_ptr<httplib::Client> InProcessService::client(const std::string& api_key) const {
+  auto client = std::make_unique<httplib::Client>("127.0.0.1", port_);
+  client->set_connection_timeout(5, 0);
+  client->set_read_timeout(60, 0);
+  client->set_write_timeout(60, 0);
+  if (!api_key.empty()) client->set_bearer_token_auth(api_key);
+  return client;
+}
+
+Reply uploadRig(httplib::Client& client, const TransferFiles& f) {
+  httplib::MultipartFormDataItems items = {
+      {"rig", readText(f.rig), f.rig.filename().string(), "model/gltf-binary"},
+      {"landmarks", readText(f.landmarks), f.landmarks.filename().string(), "application/json"},
+  };
+  return toReply(client.Post("/v1/rigs", items));
+}
+
+Reply submitTransfer(httplib::Client& client, const std::string& rig_id, const TransferFiles& f,
+                     const std::string& idempotency_key, const nlohmann::json& options) {
+  const nlohmann::json spec = {{"kind", "transfer"}, {"rig", rig_id}, {"options", options}};
+  httplib::MultipartFormDataItems items = {
+      {"spec", spec.dump(), "spec.json", "application/json"},
+      {"target", readText(f.target), f.target.filename().string(), "model/gltf-binary"},
+      {"target_landmarks", readText(f.target_landmarks), f.target_landmarks.filename().string(), "application/json"},
+  };
+  httplib::Headers headers;
+  if (!idempotency_key.empty()) headers.emplace("Idempotency-Key", idempotency_key);
+  return toReply(client.Post("/v1/jobs", headers, items));
+}
+
+Reply get(httplib::Client& client, const std::string& path) { return toReply(client.Get(path)); }
+Reply post(httplib::Client& client, const std::string& path) { return toReply(client.Post(path, "", "text/plain")); }
+Reply del(httplib::Client& client, const std::string& path) { return toReply(client.Delete(path)); }
+
+nlohmann::json waitForJob(httplib::Client& client, const std::string& id) {
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(300);
+  while (std::chrono::steady_clock::now() < give_up) {
+    Reply r = get(client, "/v1/jobs/" + id);
+    if (r.status != 200) {
+      ADD_FAILURE() << "GET /v1/jobs/" << id << " -> " << r.status << " " << r.raw;
+      return {};
+    }
+    const std::string status = r.body.value("status", "");
+    if (status == "succeeded" || status == "failed" || status == "cancelled") return r.body;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ADD_FAILURE() << "job " << id << " not final after 300 s";
+  return {};
+}
+
+double metricValue(httplib::Client& client, const std::string& prefix) {
+  Reply r = get(client, "/metrics");
+  std::istringstream lines(r.raw);
+  std::string line;
+  while (std::getline(lines, line)) {
+    if (line.rfind(prefix + " ", 0) == 0) return std::stod(line.substr(prefix.size() + 1));
+  }
+  return -1.0;
+}
+
+}  // namespace rigport_test

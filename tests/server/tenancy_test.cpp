@@ -1,0 +1,106 @@
+// API keys and tenants: a tenant never sees another's rigs or jobs (404, not
+// 403), uploads are idempotent by content, Idempotency-Key replays a job.
+#include <gtest/gtest.h>
+
+#include "tests/server/service_fixture.h"
+#include "tests/test_support.h"
+
+namespace rigport_test {
+namespace {
+
+server::ApiKeys twoTenants() {
+  auto keys = server::ApiKeys::load({}, "key-alice:alice,key-bob:bob");
+  EXPECT_TRUE(keys.ok());
+  return *keys;
+}
+
+TEST(Tenancy, RequestsWithoutAKnownKeyGet401) {
+  const auto dir = makeTempDir("auth");
+  InProcessService service(testConfig(dir / "data"), twoTenants());
+  auto anonymous = service.client();
+  Reply r = get(*anonymous, "/v1/rigs");
+  EXPECT_EQ(r.status, 401);
+  EXPECT_EQ(r.content_type, "application/problem+json");
+  EXPECT_EQ(r.body["type"], "urn:rigport:problem:unauthorized");
+  auto wrong = service.client("key-mallory");
+  EXPECT_EQ(get(*wrong, "/v1/jobs").status, 401);
+  EXPECT_EQ(get(*anonymous, "/healthz").status, 200);  // probes need no key
+}
+
+TEST(Tenancy, ATenantCannotSeeFetchCancelOrDeleteAnothersRigsAndJobs) {
+  const auto dir = makeTempDir("isolation");
+  const TransferFiles files = writeTransferFiles(dir);
+  InProcessService service(testConfig(dir / "data"), twoTenants());
+  auto alice = service.client("key-alice");
+  auto bob = service.client("key-bob");
+  Reply rig = uploadRig(*alice, files);
+  ASSERT_EQ(rig.status, 201) << rig.raw;
+  const std::string rig_id = rig.body["id"];
+  Reply job = submitTransfer(*alice, rig_id, files);
+  ASSERT_EQ(job.status, 202) << job.raw;
+  const std::string job_id = job.body["id"];
+  waitForJob(*alice, job_id);
+
+  EXPECT_EQ(get(*bob, "/v1/rigs/" + rig_id).status, 404);
+  EXPECT_TRUE(get(*bob, "/v1/rigs").body["items"].empty());
+  EXPECT_EQ(get(*bob, "/v1/jobs/" + job_id).status, 404);
+  EXPECT_EQ(get(*bob, "/v1/jobs/" + job_id + "/result").status, 404);
+  EXPECT_EQ(get(*bob, "/v1/jobs/" + job_id + "/diagnostics").status, 404);
+  EXPECT_EQ(post(*bob, "/v1/jobs/" + job_id + ":cancel").status, 404);
+  EXPECT_EQ(del(*bob, "/v1/rigs/" + rig_id).status, 404);
+  EXPECT_TRUE(get(*bob, "/v1/jobs").body["items"].empty());
+  Reply bob_job = submitTransfer(*bob, rig_id, files);  // bob cannot use alice's rig either
+  EXPECT_EQ(bob_job.status, 404) << bob_job.raw;
+
+  // Alice still has everything.
+  EXPECT_EQ(get(*alice, "/v1/rigs/" + rig_id).status, 200);
+  EXPECT_EQ(get(*alice, "/v1/jobs/" + job_id + "/result").status, 200);
+  EXPECT_EQ(get(*alice, "/v1/jobs").body["items"].size(), 1u);
+}
+
+TEST(Tenancy, UploadingTheSameRigTwiceIsIdempotent) {
+  const auto dir = makeTempDir("idempotent_upload");
+  const TransferFiles files = writeTransferFiles(dir);
+  InProcessService service(testConfig(dir / "data"), twoTenants());
+  auto alice = service.client("key-alice");
+  Reply first = uploadRig(*alice, files);
+  Reply second = uploadRig(*alice, files);
+  ASSERT_EQ(first.status, 201) << first.raw;
+  EXPECT_EQ(second.status, 200) << second.raw;
+  EXPECT_EQ(first.body["id"], second.body["id"]);
+  EXPECT_EQ(get(*alice, "/v1/rigs").body["items"].size(), 1u);
+  // Another tenant uploading the same bytes gets its own rig under the same id.
+  auto bob = service.client("key-bob");
+  EXPECT_EQ(uploadRig(*bob, files).status, 201);
+  // Deleting is per tenant.
+  EXPECT_EQ(del(*alice, "/v1/rigs/" + first.body["id"].get<std::string>()).status, 204);
+  EXPECT_EQ(get(*alice, "/v1/rigs/" + first.body["id"].get<std::string>()).status, 404);
+  EXPECT_EQ(get(*bob, "/v1/rigs/" + first.body["id"].get<std::string>()).status, 200);
+}
+
+TEST(Tenancy, IdempotencyKeyReturnsTheSameJob) {
+  const auto dir = makeTempDir("idempotency_key");
+  const TransferFiles files = writeTransferFiles(dir);
+  InProcessService service(testConfig(dir / "data"), twoTenants());
+  auto alice = service.client("key-alice");
+  auto bob = service.client("key-bob");
+  const std::string rig_id = uploadRig(*alice, files).body["id"];
+  ASSERT_EQ(uploadRig(*bob, files).status, 201);
+  Reply first = submitTransfer(*alice, rig_id, files, "batch-7/head-12");
+  Reply again = submitTransfer(*alice, rig_id, files, "batch-7/head-12");
+  ASSERT_EQ(first.status, 202) << first.raw;
+  EXPECT_EQ(again.status, 200) << again.raw;
+  EXPECT_EQ(first.body["id"], again.body["id"]);
+  Reply other_key = submitTransfer(*alice, rig_id, files, "batch-7/head-13");
+  EXPECT_NE(other_key.body["id"], first.body["id"]);
+  Reply other_tenant = submitTransfer(*bob, rig_id, files, "batch-7/head-12");  // keys are per tenant
+  ASSERT_EQ(other_tenant.status, 202);
+  EXPECT_NE(other_tenant.body["id"], first.body["id"]);
+  waitForJob(*alice, first.body["id"]);
+  waitForJob(*alice, other_key.body["id"]);
+  waitForJob(*bob, other_tenant.body["id"]);
+  EXPECT_EQ(get(*alice, "/v1/jobs").body["items"].size(), 2u);
+}
+
+}  // namespace
+}  // namespace rigport_test
