@@ -4,15 +4,18 @@
 #include <cstdio>
 #include <string>
 
+#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
 #include "core/diagnostics_json.h"
 #include "core/landmarks.h"
-#include "client/transfer_options.h"
+#include "core/transfer_options.h"
 #include "core/mesh_io.h"
 #include "core/rig_io.h"
 #include "core/synthetic_head.h"
 #include "core/synthetic_rig.h"
+#include "core/retarget.h"
+#include "core/trc_io.h"
 #include "core/warp_job.h"
 
 namespace client {
@@ -114,11 +117,11 @@ int runWarp(const WarpArgs& args) {
 
 int runTransfer(const TransferArgs& args) {
   const auto t_start = Clock::now();
-  TransferSettings settings;
+  core::TransferSettings settings;
   if (!args.options.empty()) {
     auto text = core::readFileBytes(args.options);
     if (!text) return fail(text.error());
-    auto parsed = parseTransferOptions(std::string(text->begin(), text->end()), args.options.filename().string());
+    auto parsed = core::parseTransferOptions(std::string(text->begin(), text->end()), args.options.filename().string());
     if (!parsed) return fail(parsed.error());
     settings = std::move(*parsed);
   }
@@ -184,7 +187,94 @@ int runGenerateHead(const GenerateHeadArgs& args) {
   return 0;
 }
 
-int runDemo(const std::filesystem::path& dir, int threads) {
+namespace {
+
+// {"marker": stiffness 1-9, ...}
+core::Result<std::map<std::string, double>> readStiffness(const std::filesystem::path& path) {
+  auto bytes = core::readFileBytes(path);
+  if (!bytes) return bytes.error();
+  const std::string label = path.filename().string();
+  try {
+    const nlohmann::json j = nlohmann::json::parse(bytes->begin(), bytes->end());
+    if (!j.is_object()) return core::makeError(core::ErrorCode::kParse, label + ": expected an object {\"marker\": 1-9}");
+    std::map<std::string, double> out;
+    for (const auto& [name, value] : j.items()) {
+      if (!value.is_number()) return core::makeError(core::ErrorCode::kParse, label + ": stiffness of " + name + " is not a number");
+      out[name] = value.get<double>();
+    }
+    return out;
+  } catch (const nlohmann::json::exception& e) {
+    return core::makeError(core::ErrorCode::kParse, label + ": " + e.what());
+  }
+}
+
+}  // namespace
+
+int runRetarget(const RetargetArgs& args) {
+  const auto t_start = Clock::now();
+  auto t0 = Clock::now();
+  auto mesh = core::readMesh(args.mesh);
+  if (!mesh) return fail(mesh.error());
+  auto markers = core::readLandmarks(args.markers);
+  if (!markers) return fail(markers.error());
+  auto clip = core::readTrc(args.mocap);
+  if (!clip) return fail(clip.error());
+  core::RetargetOptions options;
+  if (!args.stiffness.empty()) {
+    auto stiffness = readStiffness(args.stiffness);
+    if (!stiffness) return fail(stiffness.error());
+    options.stiffness = std::move(*stiffness);
+  }
+  const double read_ms = msSince(t0);
+  spdlog::info("read {} ({} vertices), {} markers, {} ({} markers, {} frames at {} Hz, {})", args.mesh.filename().string(),
+               mesh->mesh.vertexCount(), markers->landmarks.size(), args.mocap.filename().string(), clip->markerCount(),
+               clip->frameCount(), clip->data_rate, clip->units);
+  for (const auto& gap : clip->filled_gaps) {
+    spdlog::warn("{}: marker {} missing for {} frames from frame {}: interpolated", args.mocap.filename().string(),
+                 gap.marker, gap.frame_count, gap.first_frame);
+  }
+
+  core::MarkerDistanceOptions distance_options;
+  distance_options.method = args.method == "euclidean" ? core::DistanceMethod::kEuclidean
+                            : args.method == "geodesic" ? core::DistanceMethod::kGeodesic
+                                                        : core::DistanceMethod::kHybrid;
+  distance_options.threads = args.threads;
+  options.kernel = args.kernel == "multiquadric" ? core::RbfKernel::kMultiquadric
+                   : args.kernel == "thin-plate"  ? core::RbfKernel::kThinPlate
+                   : args.kernel == "linear"      ? core::RbfKernel::kLinear
+                                                  : core::RbfKernel::kGaussian;
+  options.gamma = args.gamma;
+  options.rest_frame = args.rest_frame;
+  options.remove_head_motion = !args.keep_head_motion;
+  options.bake.tolerance = args.tolerance;
+  options.bake.exact = args.exact;
+  options.threads = args.threads;
+  auto result = core::retargetMocap(mesh->mesh, *markers, *clip, args.mesh.filename().string(), distance_options, options);
+  if (!result) return fail(result.error());
+
+  t0 = Clock::now();
+  if (auto ok = core::writeRigGlb(result->rig, args.output); !ok) return fail(ok.error());
+  const double write_ms = msSince(t0);
+
+  const auto& r = result->report;
+  const double total_ms = msSince(t_start);
+  const std::string diagnostics = core::formatRetargetDiagnostics(r, {{"read", read_ms}, {"write", write_ms}}, total_ms);
+  if (auto ok = emitDiagnostics(diagnostics, args.diagnostics, args.print_diagnostics, {}); !ok) return fail(ok.error());
+  if (!r.unused_clip_markers.empty()) {
+    spdlog::warn("{} clip markers are not in {} and were ignored", r.unused_clip_markers.size(), args.markers.filename().string());
+  }
+  if (!r.tolerance_met) spdlog::warn("bake tolerance {} not met with the maximum rank {}", r.tolerance, r.rank);
+  spdlog::info("retarget ({}, {} kernel): {} frames, {} markers, marker residual max {:.3g}; {} {}, error rms {:.3g} "
+               "({:.4f}% of diagonal), relative {:.3g}; head motion {:.1f} deg {}; {:.1f} ms",
+               core::distanceMethodName(r.method), core::rbfKernelName(r.kernel), r.frames, r.markers,
+               r.marker_max_residual, r.rank, r.exact ? "frame targets" : "modes", r.rms_error,
+               100.0 * r.rms_error / r.mesh_diagonal, r.relative_error, r.head_max_rotation_deg,
+               r.head_motion_removed ? "removed" : "kept", total_ms);
+  spdlog::info("wrote {}{}", args.output.string(), args.diagnostics.empty() ? "" : " and " + args.diagnostics.string());
+  return 0;
+}
+
+int runDemo(const std::filesystem::path& dir, int threads, bool inputs_only) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) return fail(core::makeError(core::ErrorCode::kIo, dir.string() + ": " + ec.message()));
@@ -208,6 +298,7 @@ int runDemo(const std::filesystem::path& dir, int threads) {
   target.jitter = 0.3;
   target.mouth_open = 0.012;
   if (int rc = runGenerateHead(target)) return rc;
+  if (inputs_only) return 0;
 
   TransferArgs transfer;
   transfer.source = source_rig;

@@ -41,8 +41,30 @@ struct GenerateHeadArgs {
 };
 int runGenerateHead(const GenerateHeadArgs& args);
 
+struct RetargetArgs {
+  std::filesystem::path mesh;          // GLB/glTF/OBJ/PLY to animate
+  std::filesystem::path markers;       // marker landmarks JSON (names as in the TRC)
+  std::filesystem::path mocap;         // TRC clip
+  std::filesystem::path output;        // animated GLB (morph targets + weights animation)
+  std::filesystem::path diagnostics;   // JSON; empty = none
+  std::filesystem::path stiffness;     // JSON {"marker": 1-9}; empty = all 1
+  // Names, checked by the CLI (this header stays free of core: the remote
+  // client library includes it and links api only).
+  std::string method = "hybrid";       // euclidean | geodesic | hybrid
+  std::string kernel = "gaussian";     // gaussian | multiquadric | thin-plate | linear
+  double gamma = 0.0;                  // model units; 0 = default (core/retarget.h)
+  int rest_frame = 0;
+  double tolerance = 0.05;             // relative Frobenius error of the bake
+  bool exact = false;                  // one morph target per frame (short clips)
+  bool keep_head_motion = false;       // do not remove rigid head motion
+  int threads = 0;
+  bool print_diagnostics = false;
+};
+int runRetarget(const RetargetArgs& args);
+
 // Generates a source rig and a target head of other proportions and topology
-// in `dir`, transfers the rig (out.glb) and prints the diagnostics.
-int runDemo(const std::filesystem::path& dir, int threads);
+// in `dir`, transfers the rig (out.glb) and prints the diagnostics; with
+// `inputs_only` it stops after writing the inputs.
+int runDemo(const std::filesystem::path& dir, int threads, bool inputs_only = false);
 
 }  // namespace client

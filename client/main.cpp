@@ -1,5 +1,5 @@
 // rigport CLI: wiring only. Subcommands run in-process (core); the service
-// client (--server) arrives with the REST API.
+// client (rigs, jobs, bench, transfer --server) is in client/remote_commands.h.
 #include <cstdio>
 #include <string>
 
@@ -8,6 +8,7 @@
 #include <spdlog/spdlog.h>
 
 #include "client/local_jobs.h"
+#include "client/remote_commands.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"rigport: facial rig transfer (warp, transfer, retarget, fit)"};
@@ -40,7 +41,7 @@ int main(int argc, char** argv) {
   transfer_cmd->add_option("--target-landmarks", transfer.target_landmarks, "Target landmarks JSON")->required()->check(CLI::ExistingFile);
   transfer_cmd->add_option("-o,--output", transfer.output, "Rigged target GLB")->required();
   transfer_cmd->add_option("--diagnostics", transfer.diagnostics, "Diagnostics JSON");
-  transfer_cmd->add_option("--options", transfer.options, "Transfer options JSON (see client/transfer_options.h)")->check(CLI::ExistingFile);
+  transfer_cmd->add_option("--options", transfer.options, "Transfer options JSON (see core/transfer_options.h)")->check(CLI::ExistingFile);
   transfer_cmd->add_option("--threads", transfer.threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
   transfer_cmd->add_flag("--print-diagnostics", transfer.print_diagnostics, "Also print the diagnostics JSON on stdout");
 
@@ -57,11 +58,38 @@ int main(int argc, char** argv) {
   head_cmd->add_option("--mouth-open", head.mouth_open, "Mouth slit half-height (radians of latitude; 0 = closed)");
   head_cmd->add_option("--scale", head.scale, "Uniform scale (1 = metres)")->check(CLI::PositiveNumber);
 
+  client::RetargetArgs retarget;
+  auto* retarget_cmd = app.add_subcommand("retarget", "Drive a mesh with facial mocap markers (RBF): writes morph targets + animation");
+  retarget_cmd->add_option("--mesh", retarget.mesh, "Mesh to animate (GLB/glTF/OBJ/PLY)")->required()->check(CLI::ExistingFile);
+  retarget_cmd->add_option("--markers", retarget.markers, "Markers on the mesh (landmarks JSON, names as in the clip)")->required()->check(CLI::ExistingFile);
+  retarget_cmd->add_option("--mocap", retarget.mocap, "Marker trajectories (TRC)")->required()->check(CLI::ExistingFile);
+  retarget_cmd->add_option("-o,--output", retarget.output, "Animated GLB")->required();
+  retarget_cmd->add_option("--diagnostics", retarget.diagnostics, "Diagnostics JSON");
+  retarget_cmd->add_option("--method", retarget.method, "Marker-to-vertex distance: euclidean|geodesic|hybrid")
+      ->check(CLI::IsMember({"euclidean", "geodesic", "hybrid"}))->capture_default_str();
+  retarget_cmd->add_option("--kernel", retarget.kernel, "RBF kernel: gaussian|multiquadric|thin-plate|linear")
+      ->check(CLI::IsMember({"gaussian", "multiquadric", "thin-plate", "linear"}))->capture_default_str();
+  retarget_cmd->add_option("--gamma", retarget.gamma, "Kernel shape parameter, mesh units (0 = 0.1 x bounding-box diagonal)")
+      ->check(CLI::NonNegativeNumber);
+  retarget_cmd->add_option("--stiffness", retarget.stiffness, "Per-marker stiffness JSON {\"marker\": 1-9}")->check(CLI::ExistingFile);
+  retarget_cmd->add_option("--rest-frame", retarget.rest_frame, "0-based neutral frame")->check(CLI::NonNegativeNumber)->capture_default_str();
+  retarget_cmd->add_option("--tolerance", retarget.tolerance, "Bake: relative Frobenius error of the morph-target compression")
+      ->check(CLI::Range(0.0, 1.0))->capture_default_str();
+  retarget_cmd->add_flag("--exact", retarget.exact, "One morph target per frame (short clips)");
+  retarget_cmd->add_flag("--keep-head-motion", retarget.keep_head_motion, "Do not remove rigid head motion");
+  retarget_cmd->add_option("--threads", retarget.threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
+  retarget_cmd->add_flag("--print-diagnostics", retarget.print_diagnostics, "Also print the diagnostics JSON on stdout");
+
   std::string demo_dir = "demo-out";
   int demo_threads = 0;
+  bool demo_inputs_only = false;
   auto* demo_cmd = app.add_subcommand("demo", "Generate a rig and a target head, transfer the rig, print diagnostics");
   demo_cmd->add_option("--out", demo_dir, "Output directory")->capture_default_str();
   demo_cmd->add_option("--threads", demo_threads, "Worker threads (0 = all cores)");
+  demo_cmd->add_flag("--inputs-only", demo_inputs_only, "Only write the generated rig and target (scripts/demo.sh sends them to the service)");
+
+  // rigs, jobs, bench, and --server/--api-key on transfer (client/remote_commands.h).
+  const client::RemoteCommands remote(app, *transfer_cmd);
 
   CLI11_PARSE(app, argc, argv);
 
@@ -70,9 +98,11 @@ int main(int argc, char** argv) {
   spdlog::set_pattern("%^[%l]%$ %v");
   spdlog::set_level(quiet ? spdlog::level::err : verbose ? spdlog::level::debug : spdlog::level::info);
 
+  if (auto rc = remote.run(transfer)) return *rc;  // remote commands, transfer --server
   if (*warp_cmd) return client::runWarp(warp);
   if (*transfer_cmd) return client::runTransfer(transfer);
   if (*head_cmd) return client::runGenerateHead(head);
-  if (*demo_cmd) return client::runDemo(demo_dir, demo_threads);
+  if (*retarget_cmd) return client::runRetarget(retarget);
+  if (*demo_cmd) return client::runDemo(demo_dir, demo_threads, demo_inputs_only);
   return 2;
 }

@@ -1,0 +1,158 @@
+// Typed HTTP client of the rigport service (/v1, see api/openapi.json).
+// One RemoteClient holds one keep-alive connection (cpp-httplib behind PImpl:
+// httplib.h is included by remote.cpp only) and is NOT thread-safe: give each
+// thread its own. Every call returns a RemoteResult carrying the value or an
+// api::Problem:
+//   - a non-2xx answer: its application/problem+json body (or a Problem made
+//     from the status and the body's first bytes when the body is not one);
+//   - no answer at all: type urn:rigport:problem:transport, status 0, detail
+//     naming the method, URL and httplib's error;
+//   - a local file that cannot be read or written: type
+//     urn:rigport:problem:client-io, status 0;
+//   - a 2xx answer whose body is not the expected JSON: bad-response;
+//   - waitJob's own timeout: wait-timeout, status 0.
+// Retries: GETs are retried on transport errors (bounded, max_get_retries);
+// so is POST /v1/jobs, which always carries an Idempotency-Key (a random one
+// when the caller gives none) so a repeat cannot create a second job; a 429
+// is retried after its Retry-After (bounded, max_queue_retries). Nothing else
+// is retried.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <variant>
+
+#include <nlohmann/json.hpp>
+
+#include "api/types.h"
+
+namespace client {
+
+inline constexpr const char* kTransportProblem = "urn:rigport:problem:transport";
+inline constexpr const char* kClientIoProblem = "urn:rigport:problem:client-io";
+inline constexpr const char* kBadResponseProblem = "urn:rigport:problem:bad-response";
+inline constexpr const char* kWaitTimeoutProblem = "urn:rigport:problem:wait-timeout";
+
+// A value or the problem that prevented it (httplib::Result's model, typed).
+template <typename T>
+class RemoteResult {
+ public:
+  RemoteResult(T value) : v_(std::move(value)) {}                   // NOLINT: implicit by design
+  RemoteResult(api::Problem problem) : v_(std::move(problem)) {}    // NOLINT: implicit by design
+  explicit operator bool() const { return v_.index() == 0; }
+  const T& value() const { return std::get<0>(v_); }
+  T& value() { return std::get<0>(v_); }
+  const T& operator*() const { return value(); }
+  T& operator*() { return value(); }
+  const T* operator->() const { return &value(); }
+  T* operator->() { return &value(); }
+  const api::Problem& problem() const { return std::get<1>(v_); }
+
+ private:
+  std::variant<T, api::Problem> v_;
+};
+
+struct Done {};  // the value of calls that return nothing (DELETE)
+
+struct RemoteOptions {
+  std::string server_url;                              // "http://host:port" (https:// works too)
+  std::string api_key;                                 // sent as "Authorization: Bearer <key>"; empty = none
+  std::chrono::milliseconds connect_timeout{5'000};    // TCP connect
+  std::chrono::milliseconds read_timeout{120'000};     // waiting for each response (uploads are processed before the answer)
+  std::chrono::milliseconds write_timeout{120'000};    // sending a request body
+  int max_get_retries = 2;                             // extra attempts of a GET after a transport error
+  std::chrono::milliseconds get_retry_delay{250};      // before each such retry (doubles each time)
+  int max_queue_retries = 5;                           // extra attempts of POST /v1/jobs after 429
+  std::chrono::milliseconds max_retry_after{60'000};   // longest single wait honoured for Retry-After
+  // No 429 retry wait that would end after this point (default: no limit).
+  std::chrono::steady_clock::time_point retry_deadline = std::chrono::steady_clock::time_point::max();
+  // Called with the HTTP status of every response received (including the
+  // 429s that are retried), or 0 for a transport error. Used by `rigport bench`.
+  std::function<void(int status)> on_response;
+};
+
+struct RigFiles {
+  std::filesystem::path rig;          // GLB
+  std::filesystem::path landmarks;    // landmarks JSON
+  std::filesystem::path components;   // optional components JSON; empty = none
+};
+
+struct UploadedRig {
+  api::RigInfo rig;
+  bool uploaded = false;              // false: the service already had this content id
+};
+
+struct SubmittedJob {
+  api::JobInfo job;
+  bool created = true;                // false: 200, an earlier job with the same Idempotency-Key
+  int queue_retries = 0;              // 429 answers waited out before acceptance
+};
+
+struct JobQuery {
+  std::string status;                 // "queued", "running", ...; empty = any
+  int limit = 0;                      // 0 = the server's default
+  std::string after;                  // cursor from JobPage::next
+};
+
+// Called after each poll of waitJob with the latest state.
+using JobProgressCallback = std::function<void(const api::JobInfo& job)>;
+
+class RemoteClient {
+ public:
+  explicit RemoteClient(RemoteOptions options);
+  ~RemoteClient();
+  RemoteClient(const RemoteClient&) = delete;
+  RemoteClient& operator=(const RemoteClient&) = delete;
+
+  const RemoteOptions& options() const { return options_; }
+
+  // Computes the content id (api/content_id.h), asks GET /v1/rigs/{id} and
+  // uploads (POST /v1/rigs multipart: rig, landmarks, components) only on 404.
+  RemoteResult<UploadedRig> uploadRig(const RigFiles& files);
+  RemoteResult<api::RigInfo> getRig(const std::string& id);
+  RemoteResult<api::RigPage> listRigs();
+  RemoteResult<Done> deleteRig(const std::string& id);
+
+  // POST /v1/jobs: `spec` is sent as is (any kind), `files` maps a multipart
+  // field name ("target", "target_landmarks", "mesh", ...) to a local file
+  // sent with its file name. Retries 429 after Retry-After (max_queue_retries).
+  RemoteResult<SubmittedJob> submitJob(const nlohmann::json& spec,
+                                       const std::map<std::string, std::filesystem::path>& files,
+                                       const std::string& idempotency_key = {});
+  RemoteResult<api::JobInfo> getJob(const std::string& id);
+  RemoteResult<api::JobPage> listJobs(const JobQuery& query = {});
+  RemoteResult<api::JobInfo> cancelJob(const std::string& id);
+
+  // Writes the body of GET /v1/jobs/{id}/result (or /diagnostics) to `path`
+  // (through `path`.part, renamed when complete); returns the bytes written.
+  RemoteResult<std::int64_t> downloadResult(const std::string& id, const std::filesystem::path& path);
+  RemoteResult<std::int64_t> downloadDiagnostics(const std::string& id, const std::filesystem::path& path);
+  // The bodies themselves (GLB bytes; diagnostics JSON text).
+  RemoteResult<std::string> fetchResult(const std::string& id);
+  RemoteResult<std::string> fetchDiagnostics(const std::string& id);
+
+  // Polls GET /v1/jobs/{id} every `poll_interval` until the job is final
+  // (succeeded, failed or cancelled) and returns its last state; a failed job
+  // is a value, not a problem. Gives up with a timeout problem (status 0)
+  // after `timeout` (zero = never).
+  RemoteResult<api::JobInfo> waitJob(const std::string& id, const JobProgressCallback& on_progress = {},
+                                     std::chrono::milliseconds poll_interval = std::chrono::milliseconds(250),
+                                     std::chrono::milliseconds timeout = std::chrono::milliseconds(0));
+
+ private:
+  struct Http;
+  RemoteOptions options_;
+  std::unique_ptr<Http> http_;
+};
+
+// Prints "<title> (HTTP <status>): <detail>" (or the transport detail) as one line.
+std::string describeProblem(const api::Problem& problem);
+
+}  // namespace client
