@@ -4,11 +4,11 @@
 #include <cstdio>
 #include <string>
 
-#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
 #include "core/diagnostics_json.h"
 #include "core/landmarks.h"
+#include "core/retarget_options.h"
 #include "core/transfer_options.h"
 #include "core/mesh_io.h"
 #include "core/rig_io.h"
@@ -190,24 +190,6 @@ int runGenerateHead(const GenerateHeadArgs& args) {
 namespace {
 
 // {"marker": stiffness 1-9, ...}
-core::Result<std::map<std::string, double>> readStiffness(const std::filesystem::path& path) {
-  auto bytes = core::readFileBytes(path);
-  if (!bytes) return bytes.error();
-  const std::string label = path.filename().string();
-  try {
-    const nlohmann::json j = nlohmann::json::parse(bytes->begin(), bytes->end());
-    if (!j.is_object()) return core::makeError(core::ErrorCode::kParse, label + ": expected an object {\"marker\": 1-9}");
-    std::map<std::string, double> out;
-    for (const auto& [name, value] : j.items()) {
-      if (!value.is_number()) return core::makeError(core::ErrorCode::kParse, label + ": stiffness of " + name + " is not a number");
-      out[name] = value.get<double>();
-    }
-    return out;
-  } catch (const nlohmann::json::exception& e) {
-    return core::makeError(core::ErrorCode::kParse, label + ": " + e.what());
-  }
-}
-
 }  // namespace
 
 int runRetarget(const RetargetArgs& args) {
@@ -221,7 +203,9 @@ int runRetarget(const RetargetArgs& args) {
   if (!clip) return fail(clip.error());
   core::RetargetOptions options;
   if (!args.stiffness.empty()) {
-    auto stiffness = readStiffness(args.stiffness);
+    auto text = core::readFileBytes(args.stiffness);
+    if (!text) return fail(text.error());
+    auto stiffness = core::parseStiffness(std::string(text->begin(), text->end()), args.stiffness.filename().string());
     if (!stiffness) return fail(stiffness.error());
     options.stiffness = std::move(*stiffness);
   }
@@ -235,14 +219,9 @@ int runRetarget(const RetargetArgs& args) {
   }
 
   core::MarkerDistanceOptions distance_options;
-  distance_options.method = args.method == "euclidean" ? core::DistanceMethod::kEuclidean
-                            : args.method == "geodesic" ? core::DistanceMethod::kGeodesic
-                                                        : core::DistanceMethod::kHybrid;
+  distance_options.method = core::parseDistanceMethod(args.method).value_or(core::DistanceMethod::kHybrid);
   distance_options.threads = args.threads;
-  options.kernel = args.kernel == "multiquadric" ? core::RbfKernel::kMultiquadric
-                   : args.kernel == "thin-plate"  ? core::RbfKernel::kThinPlate
-                   : args.kernel == "linear"      ? core::RbfKernel::kLinear
-                                                  : core::RbfKernel::kGaussian;
+  options.kernel = core::parseRbfKernel(args.kernel).value_or(core::RbfKernel::kGaussian);
   options.gamma = args.gamma;
   options.rest_frame = args.rest_frame;
   options.remove_head_motion = !args.keep_head_motion;

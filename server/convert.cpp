@@ -5,7 +5,9 @@
 #include "core/diagnostics_json.h"
 #include "core/landmarks.h"
 #include "core/mesh_io.h"
+#include "core/retarget_options.h"
 #include "core/rig_io.h"
+#include "core/trc_io.h"
 #include "core/tps.h"
 #include "core/transfer.h"
 #include "core/transfer_options.h"
@@ -114,27 +116,112 @@ std::optional<api::Problem> checkJobInputs(const api::JobSpec& spec,
     if (!positions) return problemFromCoreError(positions.error(), instance);
     return std::nullopt;
   }
+  if (spec.kind == "retarget") {
+    auto settings = core::parseRetargetOptions(spec.options.dump(), "spec.options");
+    if (!settings) return problemFromCoreError(settings.error(), instance);
+    const auto& [mesh_name, mesh_bytes] = files.at("mesh");
+    auto mesh = core::readMeshFromMemory(mesh_bytes, mesh_name, "mesh '" + mesh_name + "'");
+    if (!mesh) return problemFromCoreError(mesh.error(), instance);
+    auto markers = core::parseLandmarks(asText(files.at("markers").second), "markers");
+    if (!markers) return problemFromCoreError(markers.error(), instance);
+    if (auto p = checkCounts(mesh->mesh, markers->landmarks.size(), "mesh '" + mesh_name + "'", limits)) return p;
+    if (auto positions = core::resolveLandmarks(*markers, mesh->mesh, "markers"); !positions) {
+      return problemFromCoreError(positions.error(), instance);
+    }
+    auto clip = core::parseTrc(asText(files.at("mocap").second), files.at("mocap").first);
+    if (!clip) return problemFromCoreError(clip.error(), instance);
+    if (const auto it = files.find("stiffness"); it != files.end()) {
+      if (auto stiffness = core::parseStiffness(std::string(asText(it->second.second)), "stiffness"); !stiffness) {
+        return problemFromCoreError(stiffness.error(), instance);
+      }
+    }
+    return std::nullopt;
+  }
   return api::makeProblem(api::WireError::kMalformedRequest, "spec.kind: '" + spec.kind + "' is not served yet", instance);
 }
 
-std::variant<JobOutput, core::Error> runJob(const JobRecord& job, const RigRecord* rig_record, const BlobStore& blobs,
-                                            RigCache& cache, const StageHook& on_stage, int threads) {
-  const auto t_start = Clock::now();
-  if (job.kind != "transfer" || rig_record == nullptr) {
-    return core::makeError(core::ErrorCode::kInvalidArgument, "job " + job.id + ": kind '" + job.kind + "' cannot run");
+namespace {
+
+// A job's stored inputs and spec, as the runners read them.
+struct JobFiles {
+  const JobRecord& job;
+  const BlobStore& blobs;
+  core::Result<std::vector<std::uint8_t>> bytes(const std::string& field) const {
+    const auto it = job.inputs.find(field);
+    if (it == job.inputs.end()) return core::makeError(core::ErrorCode::kInvalidArgument, "job " + job.id + " has no " + field);
+    return blobs.read(it->second);
   }
-  auto blob = [&](const std::string& field) { return blobs.read(job.inputs.at(field)); };
-  const auto name = [&](const std::string& field) {
+  bool has(const std::string& field) const { return job.inputs.count(field) > 0; }
+  std::string name(const std::string& field) const {
     const auto it = job.input_names.find(field);
     return it == job.input_names.end() ? field : it->second;
-  };
+  }
+  std::string optionsText() const {
+    const auto spec = nlohmann::json::parse(job.spec_json, nullptr, false);
+    return spec.is_object() && spec.contains("options") ? spec["options"].dump() : "{}";
+  }
+};
+
+core::Error stoppedBefore(const JobRecord& job, const std::string& stage) {
+  return core::makeError(core::ErrorCode::kCancelled, "job " + job.id + ": stopped before " + stage);
+}
+
+std::variant<JobOutput, core::Error> runRetargetJob(const JobFiles& in, const StageHook& on_stage, int threads) {
+  const auto t_start = Clock::now();
+  if (!on_stage("read", 0.02)) return stoppedBefore(in.job, "reading inputs");
+  auto settings = core::parseRetargetOptions(in.optionsText(), "spec.options");
+  if (!settings) return settings.error();
+  settings->distances.threads = threads;
+  settings->retarget.threads = threads;
+  auto mesh_bytes = in.bytes("mesh");
+  if (!mesh_bytes) return mesh_bytes.error();
+  auto mesh = core::readMeshFromMemory(*mesh_bytes, in.name("mesh"), in.name("mesh"));
+  if (!mesh) return mesh.error();
+  auto marker_bytes = in.bytes("markers");
+  if (!marker_bytes) return marker_bytes.error();
+  auto markers = core::parseLandmarks(asText(*marker_bytes), in.name("markers"));
+  if (!markers) return markers.error();
+  auto clip_bytes = in.bytes("mocap");
+  if (!clip_bytes) return clip_bytes.error();
+  auto clip = core::parseTrc(asText(*clip_bytes), in.name("mocap"));
+  if (!clip) return clip.error();
+  if (in.has("stiffness")) {
+    auto stiffness_bytes = in.bytes("stiffness");
+    if (!stiffness_bytes) return stiffness_bytes.error();
+    auto stiffness = core::parseStiffness(std::string(asText(*stiffness_bytes)), in.name("stiffness"));
+    if (!stiffness) return stiffness.error();
+    settings->retarget.stiffness = std::move(*stiffness);
+  }
+  const double read_ms = msSince(t_start);
+
+  if (!on_stage("retarget", 0.1)) return stoppedBefore(in.job, "retarget");
+  auto result = core::retargetMocap(mesh->mesh, *markers, *clip, in.name("mesh"), settings->distances, settings->retarget);
+  if (!result) return result.error();
+
+  if (!on_stage("write", 0.9)) return stoppedBefore(in.job, "write");
+  auto t0 = Clock::now();
+  auto glb = core::encodeRigGlb(result->rig);
+  if (!glb) return glb.error();
+  const double write_ms = msSince(t0);
+  JobOutput out;
+  out.result = std::move(*glb);
+  const double total_ms = msSince(t_start);
+  out.diagnostics = core::formatRetargetDiagnostics(result->report, {{"read", read_ms}, {"write", write_ms}}, total_ms);
+  out.timings_ms = {{"read", read_ms}, {"retarget", total_ms - read_ms - write_ms}, {"write", write_ms}, {"total", total_ms}};
+  return out;
+}
+
+std::variant<JobOutput, core::Error> runTransferJob(const JobFiles& in, const RigRecord& rig_record, const BlobStore& blobs,
+                                                    RigCache& cache, const StageHook& on_stage, int threads) {
+  const JobRecord& job = in.job;
+  const auto t_start = Clock::now();
+  auto blob = [&](const std::string& field) { return in.bytes(field); };
+  const auto name = [&](const std::string& field) { return in.name(field); };
 
   // --- read the job's inputs
-  if (!on_stage("read", 0.02)) return core::makeError(core::ErrorCode::kCancelled, "job " + job.id + ": cancelled before reading inputs");
+  if (!on_stage("read", 0.02)) return stoppedBefore(job, "reading inputs");
   auto t0 = Clock::now();
-  const auto spec_json = nlohmann::json::parse(job.spec_json, nullptr, false);
-  auto settings = core::parseTransferOptions(spec_json.is_object() && spec_json.contains("options") ? spec_json["options"].dump() : "{}",
-                                             "spec.options");
+  auto settings = core::parseTransferOptions(in.optionsText(), "spec.options");
   if (!settings) return settings.error();
   settings->transfer.threads = threads;
   auto target_bytes = blob("target");
@@ -148,22 +235,22 @@ std::variant<JobOutput, core::Error> runJob(const JobRecord& job, const RigRecor
   const double read_ms = msSince(t0);
 
   // --- prepare (cached per rig content id; a hit skips all source-only work)
-  if (!on_stage("prepare", 0.05)) return core::makeError(core::ErrorCode::kCancelled, "job " + job.id + ": cancelled before prepare");
+  if (!on_stage("prepare", 0.05)) return stoppedBefore(job, "prepare");
   t0 = Clock::now();
   core::MeshReadReport source_read;
-  auto prepared = cache.get(rig_record->info.id, [&]() -> core::Result<core::PreparedRig> {
-    auto rig_bytes = blobs.read(rig_record->rig_blob);
+  auto prepared = cache.get(rig_record.info.id, [&]() -> core::Result<core::PreparedRig> {
+    auto rig_bytes = blobs.read(rig_record.rig_blob);
     if (!rig_bytes) return rig_bytes.error();
-    auto rig = readRigBytes(*rig_bytes, rig_record->info.name);
+    auto rig = readRigBytes(*rig_bytes, rig_record.info.name);
     if (!rig) return rig.error();
     source_read = rig->report;
-    auto source_landmark_bytes = blobs.read(rig_record->landmarks_blob);
+    auto source_landmark_bytes = blobs.read(rig_record.landmarks_blob);
     if (!source_landmark_bytes) return source_landmark_bytes.error();
     auto source_landmarks = core::parseLandmarks(asText(*source_landmark_bytes), "landmarks");
     if (!source_landmarks) return source_landmarks.error();
     core::PrepareOptions prepare_options;
     prepare_options.threads = threads;
-    return core::prepareRig(std::move(rig->rig), std::move(*source_landmarks), rig_record->info.name, prepare_options);
+    return core::prepareRig(std::move(rig->rig), std::move(*source_landmarks), rig_record.info.name, prepare_options);
   });
   if (!prepared) return prepared.error();
   const double prepare_ms = msSince(t0);
@@ -174,12 +261,12 @@ std::variant<JobOutput, core::Error> runJob(const JobRecord& job, const RigRecor
   };
   auto result = core::transferRig(*prepared->rig, target->mesh, *target_landmarks, name("target"), settings->transfer);
   if (!result) return result.error();
-  if (rig_record->info.has_components) {
+  if (rig_record.info.has_components) {
     result->report.warnings.push_back("rig components (components JSON) are stored but not transferred yet");
   }
 
   // --- assemble
-  if (!on_stage("write", 0.92)) return core::makeError(core::ErrorCode::kCancelled, "job " + job.id + ": cancelled before write");
+  if (!on_stage("write", 0.92)) return stoppedBefore(job, "write");
   t0 = Clock::now();
   auto glb = core::encodeRigGlb(result->rig, settings->write);
   if (!glb) return glb.error();
@@ -205,6 +292,16 @@ std::variant<JobOutput, core::Error> runJob(const JobRecord& job, const RigRecor
                     {"write", write_ms},
                     {"total", context.total_ms}};
   return out;
+}
+
+}  // namespace
+
+std::variant<JobOutput, core::Error> runJob(const JobRecord& job, const RigRecord* rig, const BlobStore& blobs,
+                                            RigCache& cache, const StageHook& on_stage, int threads) {
+  const JobFiles files{job, blobs};
+  if (job.kind == "transfer" && rig != nullptr) return runTransferJob(files, *rig, blobs, cache, on_stage, threads);
+  if (job.kind == "retarget") return runRetargetJob(files, on_stage, threads);
+  return core::makeError(core::ErrorCode::kInvalidArgument, "job " + job.id + ": kind '" + job.kind + "' cannot run");
 }
 
 }  // namespace server

@@ -1,0 +1,126 @@
+// Job kind "retarget" through the service: mesh + marker placement + TRC clip
+// -> animated GLB, byte-identical to `rigport retarget` in-process.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+#include "core/landmarks.h"
+#include "core/mesh_io.h"
+#include "core/synthetic_head.h"
+#include "tests/server/service_fixture.h"
+#include "tests/test_support.h"
+
+namespace rigport_test {
+namespace {
+
+struct RetargetFiles {
+  std::filesystem::path mesh, markers, mocap;
+};
+
+// A head with an open mouth, 16 markers from its landmarks, and a 24-frame
+// TRC clip (centimetres, shifted) in which the lower-lip and jaw markers open.
+RetargetFiles writeRetargetFiles(const std::filesystem::path& dir) {
+  core::HeadShape shape;
+  shape.mouth_open = 0.04;
+  const core::SyntheticHead head = core::generateHead(shape, core::HeadResolution{64, 56});
+  const char* names[] = {"brow_right_0", "brow_right_4", "brow_left_0", "brow_left_4", "nose_bridge_0", "nose_base_2",
+                         "eye_right_0", "eye_left_3", "jaw_04", "jaw_08", "jaw_12", "mouth_outer_0",
+                         "mouth_outer_3", "mouth_outer_6", "mouth_outer_9", "mouth_outer_10"};
+  core::LandmarkSet markers;
+  for (const char* n : names) markers.landmarks.push_back(head.landmarks.landmarks[static_cast<std::size_t>(head.landmarks.indexOf(n))]);
+  auto placed = core::resolveLandmarks(markers, head.mesh, "head");
+  EXPECT_TRUE(placed.ok());
+  RetargetFiles f{dir / "face.glb", dir / "face.markers.json", dir / "jaw.trc"};
+  EXPECT_TRUE(core::writeMeshGlb(head.mesh, f.mesh).ok());
+  std::ofstream(f.markers) << core::formatLandmarks(markers);
+  const int frames = 24;
+  std::ostringstream trc;
+  trc << "PathFileType\t4\t(X/Y/Z)\tjaw.trc\n"
+      << "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\tOrigDataStartFrame\tOrigNumFrames\n"
+      << "30.00\t30.00\t" << frames << "\t" << markers.landmarks.size() << "\tcm\t30.00\t1\t" << frames << "\n"
+      << "Frame#\tTime";
+  for (const auto& m : markers.landmarks) trc << "\t" << m.name << "\t\t";
+  trc << "\n\t";
+  for (std::size_t i = 1; i <= markers.landmarks.size(); ++i) trc << "\tX" << i << "\tY" << i << "\tZ" << i;
+  trc << "\n\n";
+  for (int frame = 0; frame < frames; ++frame) {
+    trc << frame + 1 << "\t" << frame / 30.0;
+    for (std::size_t i = 0; i < markers.landmarks.size(); ++i) {
+      Eigen::Vector3d p = placed->row(static_cast<Eigen::Index>(i)).transpose();
+      const std::string& name = markers.landmarks[i].name;
+      if (name == "jaw_08" || name == "mouth_outer_9" || name == "mouth_outer_10") {
+        p += Eigen::Vector3d(0.0, -0.006, -0.001) * frame / (frames - 1.0);
+      }
+      p = 100.0 * p + Eigen::Vector3d(2.0, 60.0, 0.0);
+      trc << "\t" << p.x() << "\t" << p.y() << "\t" << p.z();
+    }
+    trc << "\n";
+  }
+  std::ofstream(f.mocap) << trc.str();
+  return f;
+}
+
+std::string fileText(const std::filesystem::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+Reply submitRetarget(httplib::Client& client, const RetargetFiles& f, const std::string& options) {
+  httplib::MultipartFormDataItems items = {
+      {"spec", R"({"kind":"retarget","options":)" + options + "}", "spec.json", "application/json"},
+      {"mesh", fileText(f.mesh), "face.glb", "model/gltf-binary"},
+      {"markers", fileText(f.markers), "face.markers.json", "application/json"},
+      {"mocap", fileText(f.mocap), "jaw.trc", "text/plain"}};
+  auto res = client.Post("/v1/jobs", items);
+  Reply r;
+  if (!res) return r;
+  r.status = res->status;
+  r.raw = res->body;
+  r.body = nlohmann::json::parse(res->body, nullptr, false);
+  return r;
+}
+
+TEST(RetargetJobs, ServiceResultEqualsTheCliAndIsValidGltf) {
+  const auto dir = makeTempDir("retarget");
+  const RetargetFiles files = writeRetargetFiles(dir);
+  const auto cli_out = dir / "cli.glb";
+  const std::string cmd = std::string("'") + RIGPORT_CLI_PATH + "' -q retarget --mesh '" + files.mesh.string() +
+                          "' --markers '" + files.markers.string() + "' --mocap '" + files.mocap.string() + "' -o '" +
+                          cli_out.string() + "' --method geodesic";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+
+  InProcessService service(testConfig(dir / "data"));
+  auto client = service.client();
+  Reply job = submitRetarget(*client, files, R"({"method":"geodesic"})");
+  ASSERT_EQ(job.status, 202) << job.raw;
+  const nlohmann::json done = waitForJob(*client, job.body["id"]);
+  ASSERT_EQ(done["status"], "succeeded") << done.dump();
+  Reply result = get(*client, "/v1/jobs/" + done["id"].get<std::string>() + "/result");
+  ASSERT_EQ(result.status, 200);
+  EXPECT_TRUE(result.raw == fileText(cli_out)) << "service retarget differs from the in-process CLI";
+  const auto glb = dir / "service.glb";
+  std::ofstream(glb, std::ios::binary) << result.raw;
+  EXPECT_GLTF_VALID(glb);
+  Reply diagnostics = get(*client, "/v1/jobs/" + done["id"].get<std::string>() + "/diagnostics");
+  EXPECT_EQ(diagnostics.status, 200);
+}
+
+TEST(RetargetJobs, BadOptionsAndClipsAreRejectedBeforeQueueing) {
+  const auto dir = makeTempDir("retarget_errors");
+  const RetargetFiles files = writeRetargetFiles(dir);
+  InProcessService service(testConfig(dir / "data"));
+  auto client = service.client();
+  Reply r = submitRetarget(*client, files, R"({"method":"manhattan"})");
+  EXPECT_EQ(r.status, 400) << r.raw;
+  EXPECT_NE(r.body.value("detail", "").find("method"), std::string::npos) << r.raw;
+  std::ofstream(files.mocap) << "PathFileType\t4\n";  // truncated clip
+  r = submitRetarget(*client, files, "{}");
+  EXPECT_EQ(r.status, 400) << r.raw;
+  EXPECT_NE(r.body.value("detail", "").find("jaw.trc"), std::string::npos) << r.raw;
+  EXPECT_TRUE(get(*client, "/v1/jobs").body["items"].empty());
+}
+
+}  // namespace
+}  // namespace rigport_test
