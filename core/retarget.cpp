@@ -204,6 +204,14 @@ const char* distanceMethodName(DistanceMethod method) {
   return "unknown";
 }
 
+std::size_t MarkerDistances::memoryBytes() const {
+  std::size_t bytes = sizeof(*this);
+  for (const auto& n : marker_names) bytes += n.capacity();
+  bytes += sizeof(double) * static_cast<std::size_t>(marker_positions.size() + marker_marker.size() + vertex_marker.size() +
+                                                    geodesic_weight.size());
+  return bytes + regions.size() * sizeof(GeodesicRegion);
+}
+
 Result<MarkerDistances> computeMarkerDistances(const Mesh& mesh, const LandmarkSet& markers, const std::string& label,
                                                const MarkerDistanceOptions& options) {
   const auto t0 = Clock::now();

@@ -95,6 +95,8 @@ struct MarkerDistances {
   int boundary_loops = 0;                 // hole loops of the mesh (hybrid)
   double mesh_diagonal = 0.0;             // bounding-box diagonal, model units
   double compute_ms = 0.0;                // time to make this object
+
+  std::size_t memoryBytes() const;        // for byte-bounded caches
 };
 
 // Resolves the markers on `mesh` (face/vertex landmarks; position landmarks

@@ -15,7 +15,7 @@ struct ServerConfig {
   std::filesystem::path data_dir = "rigport-data";  // SQLite file, blobs, upload spool
   int workers = 0;                       // job worker threads; 0 = hardware threads
   int threads_per_job = 1;               // core threads inside one job (parallelism is across jobs)
-  std::size_t cache_bytes = 512ull << 20;  // prepared-rig cache bound
+  std::size_t cache_bytes = 512ull << 20;  // prepared rigs (3/4) + marker distances (1/4), bytes
   std::filesystem::path api_keys_file;   // "key tenant" per line; empty + no env = auth off
   bool auth = true;                      // false: every request is tenant "" (local use, demo)
 

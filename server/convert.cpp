@@ -2,6 +2,7 @@
 
 #include <chrono>
 
+#include "api/content_id.h"
 #include "core/diagnostics_json.h"
 #include "core/landmarks.h"
 #include "core/mesh_io.h"
@@ -166,7 +167,8 @@ core::Error stoppedBefore(const JobRecord& job, const std::string& stage) {
   return core::makeError(core::ErrorCode::kCancelled, "job " + job.id + ": stopped before " + stage);
 }
 
-std::variant<JobOutput, core::Error> runRetargetJob(const JobFiles& in, const StageHook& on_stage, int threads) {
+std::variant<JobOutput, core::Error> runRetargetJob(const JobFiles& in, DistanceCache& cache, const StageHook& on_stage,
+                                                    int threads) {
   const auto t_start = Clock::now();
   if (!on_stage("read", 0.02)) return stoppedBefore(in.job, "reading inputs");
   auto settings = core::parseRetargetOptions(in.optionsText(), "spec.options");
@@ -194,9 +196,21 @@ std::variant<JobOutput, core::Error> runRetargetJob(const JobFiles& in, const St
   }
   const double read_ms = msSince(t_start);
 
-  if (!on_stage("retarget", 0.1)) return stoppedBefore(in.job, "retarget");
-  auto result = core::retargetMocap(mesh->mesh, *markers, *clip, in.name("mesh"), settings->distances, settings->retarget);
+  // Distance fields depend only on (mesh, markers, distance options): cached.
+  if (!on_stage("distances", 0.05)) return stoppedBefore(in.job, "distances");
+  const core::MarkerDistanceOptions& d = settings->distances;
+  const std::string key = api::sha256Hex(
+      in.job.inputs.at("mesh") + "|" + in.job.inputs.at("markers") + "|" + core::distanceMethodName(d.method) + "|" +
+      std::to_string(d.geodesic.time_factor) + "|" + std::to_string(d.geodesic.average_boundary_conditions) + "|" +
+      std::to_string(d.geodesic.clamp_heat_weights) + "|" + std::to_string(d.hybrid.region_factor) + "|" +
+      std::to_string(d.hybrid.blend_gamma) + "|" + std::to_string(d.hybrid.regions.size()));
+  auto distances = cache.get(key, [&] { return core::computeMarkerDistances(mesh->mesh, *markers, in.name("mesh"), d); });
+  if (!distances) return distances.error();
+
+  if (!on_stage("retarget", 0.3)) return stoppedBefore(in.job, "retarget");
+  auto result = core::retargetMocap(mesh->mesh, *distances->value, *clip, settings->retarget);
   if (!result) return result.error();
+  result->report.timings_ms["distances"] = distances->hit ? 0.0 : distances->value->compute_ms;
 
   if (!on_stage("write", 0.9)) return stoppedBefore(in.job, "write");
   auto t0 = Clock::now();
@@ -205,6 +219,7 @@ std::variant<JobOutput, core::Error> runRetargetJob(const JobFiles& in, const St
   const double write_ms = msSince(t0);
   JobOutput out;
   out.result = std::move(*glb);
+  out.cache_hit = distances->hit;
   const double total_ms = msSince(t_start);
   out.diagnostics = core::formatRetargetDiagnostics(result->report, {{"read", read_ms}, {"write", write_ms}}, total_ms);
   out.timings_ms = {{"read", read_ms}, {"retarget", total_ms - read_ms - write_ms}, {"write", write_ms}, {"total", total_ms}};
@@ -259,7 +274,7 @@ std::variant<JobOutput, core::Error> runTransferJob(const JobFiles& in, const Ri
   settings->transfer.on_stage = [&](std::string_view stage, double fraction) {
     return on_stage(stage, 0.1 + 0.8 * fraction);
   };
-  auto result = core::transferRig(*prepared->rig, target->mesh, *target_landmarks, name("target"), settings->transfer);
+  auto result = core::transferRig(*prepared->value, target->mesh, *target_landmarks, name("target"), settings->transfer);
   if (!result) return result.error();
   if (rig_record.info.has_components) {
     result->report.warnings.push_back("rig components (components JSON) are stored but not transferred yet");
@@ -297,10 +312,10 @@ std::variant<JobOutput, core::Error> runTransferJob(const JobFiles& in, const Ri
 }  // namespace
 
 std::variant<JobOutput, core::Error> runJob(const JobRecord& job, const RigRecord* rig, const BlobStore& blobs,
-                                            RigCache& cache, const StageHook& on_stage, int threads) {
+                                            Caches& caches, const StageHook& on_stage, int threads) {
   const JobFiles files{job, blobs};
-  if (job.kind == "transfer" && rig != nullptr) return runTransferJob(files, *rig, blobs, cache, on_stage, threads);
-  if (job.kind == "retarget") return runRetargetJob(files, on_stage, threads);
+  if (job.kind == "transfer" && rig != nullptr) return runTransferJob(files, *rig, blobs, caches.rigs, on_stage, threads);
+  if (job.kind == "retarget") return runRetargetJob(files, caches.distances, on_stage, threads);
   return core::makeError(core::ErrorCode::kInvalidArgument, "job " + job.id + ": kind '" + job.kind + "' cannot run");
 }
 

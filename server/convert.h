@@ -17,7 +17,7 @@
 #include "api/types.h"
 #include "core/error.h"
 #include "server/config.h"
-#include "server/rig_cache.h"
+#include "server/prepared_cache.h"
 #include "server/store.h"
 
 namespace server {
@@ -55,6 +55,6 @@ using StageHook = std::function<bool(std::string_view stage, double progress)>;
 // Runs a queued job on the calling (worker) thread. `rig` is the job's rig
 // record (nullptr for kinds without one).
 std::variant<JobOutput, core::Error> runJob(const JobRecord& job, const RigRecord* rig, const BlobStore& blobs,
-                                            RigCache& cache, const StageHook& on_stage, int threads);
+                                            Caches& caches, const StageHook& on_stage, int threads);
 
 }  // namespace server

@@ -48,9 +48,9 @@ api::JobInfo jobInfoOf(const JobRecord& job, const std::optional<LiveProgress>& 
   return info;
 }
 
-JobManager::JobManager(MetadataStore& store, BlobStore& blobs, RigCache& cache, Metrics& metrics,
+JobManager::JobManager(MetadataStore& store, BlobStore& blobs, Caches& caches, Metrics& metrics,
                        const ServerConfig& config, JsonLog log)
-    : store_(store), blobs_(blobs), cache_(cache), metrics_(metrics), config_(config), log_(std::move(log)) {}
+    : store_(store), blobs_(blobs), caches_(caches), metrics_(metrics), config_(config), log_(std::move(log)) {}
 
 JobManager::~JobManager() { stop(0.0); }
 
@@ -226,7 +226,7 @@ void JobManager::runOne(const std::string& tenant, const std::string& id) {
   auto outcome = (!job->rig.empty() && !rig)
                      ? std::variant<JobOutput, core::Error>(core::makeError(
                            core::ErrorCode::kInvalidArgument, "rig " + job->rig + " was deleted before the job ran"))
-                     : runJob(*job, rig ? &*rig : nullptr, blobs_, cache_, on_stage, config_.threads_per_job);
+                     : runJob(*job, rig ? &*rig : nullptr, blobs_, caches_, on_stage, config_.threads_per_job);
   if (!stage_name.empty()) metrics_.observeStage(stage_name, std::chrono::duration<double>(Clock::now() - stage_start).count());
 
   job->finished_ms = nowMs();

@@ -23,7 +23,7 @@
 #include "server/config.h"
 #include "server/json_log.h"
 #include "server/metrics.h"
-#include "server/rig_cache.h"
+#include "server/prepared_cache.h"
 #include "server/store.h"
 #include "server/timestamps.h"
 
@@ -37,7 +37,7 @@ struct LiveProgress {
 
 class JobManager {
  public:
-  JobManager(MetadataStore& store, BlobStore& blobs, RigCache& cache, Metrics& metrics, const ServerConfig& config,
+  JobManager(MetadataStore& store, BlobStore& blobs, Caches& caches, Metrics& metrics, const ServerConfig& config,
              JsonLog log);
   ~JobManager();  // stop(0): workers abandon nothing durable, queued/running rows stay for the next start
   JobManager(const JobManager&) = delete;
@@ -75,7 +75,7 @@ class JobManager {
 
   MetadataStore& store_;
   BlobStore& blobs_;
-  RigCache& cache_;
+  Caches& caches_;
   Metrics& metrics_;
   const ServerConfig config_;
   JsonLog log_;

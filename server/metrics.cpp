@@ -37,18 +37,19 @@ std::string Metrics::render(const GaugeSnapshot& g) const {
       << "rigport_queue_depth " << g.queue_depth << "\n"
       << "# HELP rigport_running_jobs Jobs on a worker now.\n# TYPE rigport_running_jobs gauge\n"
       << "rigport_running_jobs " << g.running_jobs << "\n"
-      << "# HELP rigport_cache_bytes Bytes held by the prepared-rig cache.\n# TYPE rigport_cache_bytes gauge\n"
-      << "rigport_cache_bytes " << g.cache_bytes << "\n"
-      << "# HELP rigport_cache_capacity_bytes Bound of the prepared-rig cache.\n# TYPE rigport_cache_capacity_bytes gauge\n"
-      << "rigport_cache_capacity_bytes " << g.cache_capacity_bytes << "\n"
-      << "# HELP rigport_cache_entries Prepared rigs in the cache.\n# TYPE rigport_cache_entries gauge\n"
-      << "rigport_cache_entries " << g.cache_entries << "\n"
-      << "# HELP rigport_cache_hits_total Jobs that found their rig prepared.\n# TYPE rigport_cache_hits_total counter\n"
-      << "rigport_cache_hits_total " << g.cache_hits << "\n"
-      << "# HELP rigport_cache_misses_total Rig preparations.\n# TYPE rigport_cache_misses_total counter\n"
-      << "rigport_cache_misses_total " << g.cache_misses << "\n"
-      << "# HELP rigport_cache_evictions_total Prepared rigs evicted by the byte bound.\n# TYPE rigport_cache_evictions_total counter\n"
-      << "rigport_cache_evictions_total " << g.cache_evictions << "\n";
+      ;
+  // One family per statistic, one series per cache ("rig", "distances").
+  const std::pair<const char*, std::int64_t CacheStats::*> families[] = {
+      {"bytes", &CacheStats::bytes},   {"capacity_bytes", &CacheStats::capacity_bytes},
+      {"entries", &CacheStats::entries}, {"hits_total", &CacheStats::hits},
+      {"misses_total", &CacheStats::misses}, {"evictions_total", &CacheStats::evictions}};
+  for (const auto& [name, field] : families) {
+    const std::string family = std::string("rigport_cache_") + name;
+    const bool counter = family.size() > 6 && family.compare(family.size() - 6, 6, "_total") == 0;
+    out << "# HELP " << family << " Prepared-product cache (rig: prepared rigs; distances: marker distance fields).\n"
+        << "# TYPE " << family << (counter ? " counter\n" : " gauge\n");
+    for (const auto& [cache, stats] : g.caches) out << family << "{cache=\"" << cache << "\"} " << stats.*field << "\n";
+  }
   std::lock_guard lock(mutex_);
   out << "# HELP rigport_job_outcomes_total Jobs finished since start, by final state.\n# TYPE rigport_job_outcomes_total counter\n";
   for (const auto& [status, n] : outcomes_) out << "rigport_job_outcomes_total{status=\"" << status << "\"} " << n << "\n";

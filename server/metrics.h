@@ -12,16 +12,16 @@
 
 namespace server {
 
+struct CacheStats {
+  std::int64_t bytes = 0, capacity_bytes = 0, entries = 0;
+  std::int64_t hits = 0, misses = 0, evictions = 0;
+};
+
 struct GaugeSnapshot {
   std::map<std::string, std::int64_t> jobs_by_state;  // state name -> count (store)
   std::int64_t queue_depth = 0;
   std::int64_t running_jobs = 0;
-  std::int64_t cache_bytes = 0;
-  std::int64_t cache_entries = 0;
-  std::int64_t cache_capacity_bytes = 0;
-  std::int64_t cache_hits = 0;
-  std::int64_t cache_misses = 0;
-  std::int64_t cache_evictions = 0;
+  std::map<std::string, CacheStats> caches;           // "rig", "distances"
 };
 
 class Metrics {

@@ -211,7 +211,7 @@ void deleteRig(const Request& req, Response& res, RouteContext& ctx) {
   for (const std::string& hash : {rig->rig_blob, rig->landmarks_blob, rig->components_blob}) {
     if (!hash.empty() && !ctx.store.blobReferenced(hash)) ctx.blobs.remove(hash);
   }
-  ctx.cache.erase(id);  // a later job (any tenant) prepares it again
+  ctx.caches.rigs.erase(id);  // a later job (any tenant) prepares it again
   ctx.log.info("rig_deleted", {{"tenant", *tenant}, {"rig", id}});
   res.status = 204;
 }
@@ -373,13 +373,7 @@ void registerRoutes(httplib::Server& http, RouteContext& ctx) {
     for (const auto& [status, n] : ctx.store.countJobsByStatus()) g.jobs_by_state[api::jobStatusName(status)] = n;
     g.queue_depth = ctx.jobs.queueDepth();
     g.running_jobs = ctx.jobs.runningJobs();
-    const CacheStats c = ctx.cache.stats();
-    g.cache_bytes = c.bytes;
-    g.cache_capacity_bytes = c.capacity_bytes;
-    g.cache_entries = c.entries;
-    g.cache_hits = c.hits;
-    g.cache_misses = c.misses;
-    g.cache_evictions = c.evictions;
+    g.caches = {{"rig", ctx.caches.rigs.stats()}, {"distances", ctx.caches.distances.stats()}};
     res.set_content(ctx.metrics.render(g), "text/plain; version=0.0.4");
   });
   http.Get("/openapi.json", [](const Request&, Response& res) {

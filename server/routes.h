@@ -13,7 +13,7 @@
 #include "server/jobs.h"
 #include "server/json_log.h"
 #include "server/metrics.h"
-#include "server/rig_cache.h"
+#include "server/prepared_cache.h"
 #include "server/store.h"
 
 namespace server {
@@ -23,7 +23,7 @@ struct RouteContext {
   const ApiKeys& keys;
   MetadataStore& store;
   BlobStore& blobs;
-  RigCache& cache;
+  Caches& caches;
   JobManager& jobs;
   Metrics& metrics;
   JsonLog log;

@@ -25,9 +25,9 @@ Service::Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<Metad
       log_(std::move(log)),
       store_(std::move(store)),
       blobs_(config.data_dir / "blobs"),
-      cache_(config.cache_bytes),
-      jobs_(*store_, blobs_, cache_, metrics_, config_, log_),
-      routes_{config_, keys_, *store_, blobs_, cache_, jobs_, metrics_, log_, ready_, uploads_, blob_collection_} {
+      caches_(config.cache_bytes),
+      jobs_(*store_, blobs_, caches_, metrics_, config_, log_),
+      routes_{config_, keys_, *store_, blobs_, caches_, jobs_, metrics_, log_, ready_, uploads_, blob_collection_} {
   blobs_.removeTemporaries();
   // cpp-httplib serves one connection per pool thread: the pool is sized
   // explicitly and keep-alive bounded so idle clients cannot pin every thread.

@@ -15,7 +15,7 @@
 #include "server/jobs.h"
 #include "server/json_log.h"
 #include "server/metrics.h"
-#include "server/rig_cache.h"
+#include "server/prepared_cache.h"
 #include "server/routes.h"
 #include "server/store.h"
 
@@ -47,7 +47,7 @@ class Service {
   JsonLog log_;
   std::unique_ptr<MetadataStore> store_;
   BlobStore blobs_;
-  RigCache cache_;
+  Caches caches_;
   Metrics metrics_;
   JobManager jobs_;
   std::atomic<bool> ready_{false};

@@ -105,6 +105,16 @@ TEST(RetargetJobs, ServiceResultEqualsTheCliAndIsValidGltf) {
   EXPECT_GLTF_VALID(glb);
   Reply diagnostics = get(*client, "/v1/jobs/" + done["id"].get<std::string>() + "/diagnostics");
   EXPECT_EQ(diagnostics.status, 200);
+  EXPECT_FALSE(done["cache_hit"].get<bool>());
+
+  // Another clip on the same mesh and markers reuses the distance fields.
+  Reply again = submitRetarget(*client, files, R"({"method":"geodesic"})");
+  ASSERT_EQ(again.status, 202) << again.raw;
+  const nlohmann::json again_done = waitForJob(*client, again.body["id"]);
+  ASSERT_EQ(again_done["status"], "succeeded");
+  EXPECT_TRUE(again_done["cache_hit"].get<bool>());
+  EXPECT_TRUE(get(*client, "/v1/jobs/" + again_done["id"].get<std::string>() + "/result").raw == result.raw);
+  EXPECT_EQ(metricValue(*client, "rigport_cache_misses_total{cache=\"distances\"}"), 1.0);
 }
 
 TEST(RetargetJobs, BadOptionsAndClipsAreRejectedBeforeQueueing) {

@@ -99,8 +99,8 @@ TEST(TransferJobs, SixtyFourJobsFromEightClientsAllSucceedWithOnePreparation) {
   EXPECT_EQ(succeeded, kClients * kJobsPerClient);
   EXPECT_EQ(identical, kClients * kJobsPerClient);
   EXPECT_EQ(other, 0);
-  EXPECT_EQ(metricValue(*setup, "rigport_cache_misses_total"), 1.0) << "the rig must be prepared exactly once";
-  EXPECT_EQ(metricValue(*setup, "rigport_cache_hits_total"), kClients * kJobsPerClient - 1.0);
+  EXPECT_EQ(metricValue(*setup, "rigport_cache_misses_total{cache=\"rig\"}"), 1.0) << "the rig must be prepared exactly once";
+  EXPECT_EQ(metricValue(*setup, "rigport_cache_hits_total{cache=\"rig\"}"), kClients * kJobsPerClient - 1.0);
   EXPECT_EQ(metricValue(*setup, "rigport_queue_depth"), 0.0);
 }
 
