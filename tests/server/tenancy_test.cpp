@@ -25,6 +25,16 @@ TEST(Tenancy, RequestsWithoutAKnownKeyGet401) {
   auto wrong = service.client("key-mallory");
   EXPECT_EQ(get(*wrong, "/v1/jobs").status, 401);
   EXPECT_EQ(get(*anonymous, "/healthz").status, 200);  // probes need no key
+  EXPECT_EQ(get(*anonymous, "/readyz").status, 200);
+  Reply spec = get(*anonymous, "/openapi.json");
+  ASSERT_EQ(spec.status, 200);
+  EXPECT_EQ(spec.body.value("openapi", "").substr(0, 2), "3.");
+  EXPECT_TRUE(spec.body["paths"].contains("/v1/jobs/{id}/result"));
+  Reply metrics = get(*anonymous, "/metrics");
+  ASSERT_EQ(metrics.status, 200);
+  EXPECT_NE(metrics.raw.find("rigport_http_requests_total{method=\"GET\",route=\"/v1/rigs\",status=\"401\"} 1"),
+            std::string::npos) << metrics.raw;
+  EXPECT_NE(metrics.raw.find("rigport_queue_depth 0"), std::string::npos);
 }
 
 TEST(Tenancy, ATenantCannotSeeFetchCancelOrDeleteAnothersRigsAndJobs) {
