@@ -29,6 +29,7 @@ Service::Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<Metad
       jobs_(*store_, blobs_, caches_, metrics_, config_, log_),
       routes_{config_, keys_, *store_, blobs_, caches_, jobs_, metrics_, log_, ready_, uploads_, blob_collection_} {
   blobs_.removeTemporaries();
+  store_->setErrorReporter([this](const std::string& message) { log_.error("store_error", {{"detail", message}}); });
   // cpp-httplib serves one connection per pool thread: the pool is sized
   // explicitly and keep-alive bounded so idle clients cannot pin every thread.
   const int http_threads = config_.http_threads;

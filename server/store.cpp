@@ -32,7 +32,6 @@
 #include <unordered_map>
 
 #include <nlohmann/json.hpp>
-#include <spdlog/spdlog.h>
 
 namespace server {
 
@@ -602,7 +601,38 @@ class Transaction {
 
 }  // namespace
 
+namespace {
+
+// Runs a SELECT: `bind` binds its parameters, `read` turns each row into a Row.
+template <typename Row, typename Bind, typename Read>
+core::Result<std::vector<Row>> selectRows(SqliteConnection& c, const std::string& sql, Bind bind, Read read,
+                                          const std::string& what) {
+  auto stmt = c.prepare(sql.c_str());
+  if (!stmt) return stmt.error();
+  Stmt s(*stmt);
+  bind(s);
+  std::vector<Row> out;
+  int rc;
+  while ((rc = s.step()) == SQLITE_ROW) out.push_back(read(s));
+  if (rc != SQLITE_DONE) return c.error(what);
+  return out;
+}
+
+}  // namespace
+
 struct MetadataStore::Connection : SqliteConnection {};
+
+void MetadataStore::setErrorReporter(std::function<void(const std::string&)> report) {
+  std::lock_guard lock(mutex_);
+  report_error_ = std::move(report);
+}
+
+template <typename T>
+T MetadataStore::valueOr(core::Result<T> result, T fallback) {
+  if (result) return std::move(*result);
+  if (report_error_) report_error_(result.error().message);
+  return fallback;
+}
 
 MetadataStore::MetadataStore(std::unique_ptr<Connection> connection) : connection_(std::move(connection)) {}
 
@@ -718,54 +748,32 @@ core::Result<std::pair<RigRecord, bool>> MetadataStore::insertRig(const RigRecor
 
 std::optional<RigRecord> MetadataStore::getRig(const std::string& tenant, const std::string& id) {
   std::lock_guard lock(mutex_);
-  Connection& c = *connection_;
   static const std::string kSelect = std::string("SELECT ") + kRigColumns + " FROM rigs WHERE tenant = ?1 AND id = ?2";
-  auto stmt = c.prepare(kSelect.c_str());
-  if (!stmt) {
-    spdlog::error("{}", stmt.error().message);
-    return std::nullopt;
-  }
-  Stmt s(*stmt);
-  s.bind(1, tenant).bind(2, id);
-  const int rc = s.step();
-  if (rc == SQLITE_ROW) return readRig(s);
-  if (rc != SQLITE_DONE) spdlog::error("{}", c.error("cannot read rig " + id).message);
-  return std::nullopt;
+  auto rows = valueOr(selectRows<RigRecord>(
+                          *connection_, kSelect, [&](Stmt& s) { s.bind(1, tenant).bind(2, id); }, readRig,
+                          "cannot read rig " + id),
+                      std::vector<RigRecord>{});
+  if (rows.empty()) return std::nullopt;
+  return std::move(rows.front());
 }
 
 std::vector<RigRecord> MetadataStore::listRigs(const std::string& tenant) {
   std::lock_guard lock(mutex_);
-  Connection& c = *connection_;
   static const std::string kSelect =
       std::string("SELECT ") + kRigColumns + " FROM rigs WHERE tenant = ?1 ORDER BY created_at, id";
-  std::vector<RigRecord> out;
-  auto stmt = c.prepare(kSelect.c_str());
-  if (!stmt) {
-    spdlog::error("{}", stmt.error().message);
-    return out;
-  }
-  Stmt s(*stmt);
-  s.bind(1, tenant);
-  int rc;
-  while ((rc = s.step()) == SQLITE_ROW) out.push_back(readRig(s));
-  if (rc != SQLITE_DONE) spdlog::error("{}", c.error("cannot list rigs").message);
-  return out;
+  return valueOr(selectRows<RigRecord>(
+                     *connection_, kSelect, [&](Stmt& s) { s.bind(1, tenant); }, readRig, "cannot list rigs"),
+                 std::vector<RigRecord>{});
 }
 
 bool MetadataStore::deleteRig(const std::string& tenant, const std::string& id) {
   std::lock_guard lock(mutex_);
   Connection& c = *connection_;
   auto stmt = c.prepare("DELETE FROM rigs WHERE tenant = ?1 AND id = ?2");
-  if (!stmt) {
-    spdlog::error("{}", stmt.error().message);
-    return false;
-  }
+  if (!stmt) return valueOr<bool>(stmt.error(), false);
   Stmt s(*stmt);
   s.bind(1, tenant).bind(2, id);
-  if (s.step() != SQLITE_DONE) {
-    spdlog::error("{}", c.error("cannot delete rig " + id).message);
-    return false;
-  }
+  if (s.step() != SQLITE_DONE) return valueOr<bool>(c.error("cannot delete rig " + id), false);
   return sqlite3_changes(c.db) > 0;
 }
 
@@ -851,57 +859,35 @@ core::Result<std::pair<JobRecord, bool>> MetadataStore::insertJob(const JobRecor
 
 std::optional<JobRecord> MetadataStore::getJob(const std::string& tenant, const std::string& id) {
   std::lock_guard lock(mutex_);
-  auto job = loadJob(*connection_, id);
-  if (!job) {
-    spdlog::error("{}", job.error().message);
-    return std::nullopt;
-  }
-  if (*job && (*job)->tenant != tenant) return std::nullopt;  // another tenant's job does not exist for this one
-  return std::move(*job);
+  auto job = valueOr(loadJob(*connection_, id), std::optional<JobRecord>{});
+  if (job && job->tenant != tenant) return std::nullopt;  // another tenant's job does not exist for this one
+  return job;
 }
 
 std::vector<JobRecord> MetadataStore::listJobs(const JobListQuery& query) {
   std::lock_guard lock(mutex_);
-  Connection& c = *connection_;
   static const std::string kSelect = std::string("SELECT ") + kJobColumns +
                                      " FROM jobs WHERE tenant = ?1 AND sequence > ?2 AND (?3 IS NULL OR status = ?3)"
                                      " ORDER BY sequence LIMIT ?4";
-  std::vector<JobRecord> out;
-  auto stmt = c.prepare(kSelect.c_str());
-  if (!stmt) {
-    spdlog::error("{}", stmt.error().message);
-    return out;
-  }
-  Stmt s(*stmt);
-  s.bind(1, query.tenant).bind(2, query.after_sequence);
-  if (query.status) {
-    s.bind(3, api::jobStatusName(*query.status));
-  } else {
-    s.bindNull(3);
-  }
-  s.bind(4, std::max(query.limit, 0));
-  int rc;
-  while ((rc = s.step()) == SQLITE_ROW) out.push_back(readJob(s));
-  if (rc != SQLITE_DONE) spdlog::error("{}", c.error("cannot list jobs").message);
-  return out;
+  auto bind = [&](Stmt& s) {
+    s.bind(1, query.tenant).bind(2, query.after_sequence);
+    if (query.status) {
+      s.bind(3, api::jobStatusName(*query.status));
+    } else {
+      s.bindNull(3);
+    }
+    s.bind(4, std::max(query.limit, 0));
+  };
+  return valueOr(selectRows<JobRecord>(*connection_, kSelect, bind, readJob, "cannot list jobs"), std::vector<JobRecord>{});
 }
 
 std::vector<JobRecord> MetadataStore::unfinishedJobs() {
   std::lock_guard lock(mutex_);
-  Connection& c = *connection_;
   static const std::string kSelect =
       std::string("SELECT ") + kJobColumns + " FROM jobs WHERE status IN ('queued', 'running') ORDER BY sequence";
-  std::vector<JobRecord> out;
-  auto stmt = c.prepare(kSelect.c_str());
-  if (!stmt) {
-    spdlog::error("{}", stmt.error().message);
-    return out;
-  }
-  Stmt s(*stmt);
-  int rc;
-  while ((rc = s.step()) == SQLITE_ROW) out.push_back(readJob(s));
-  if (rc != SQLITE_DONE) spdlog::error("{}", c.error("cannot list unfinished jobs").message);
-  return out;
+  return valueOr(selectRows<JobRecord>(
+                     *connection_, kSelect, [](Stmt&) {}, readJob, "cannot list unfinished jobs"),
+                 std::vector<JobRecord>{});
 }
 
 namespace {
@@ -979,17 +965,14 @@ std::map<api::JobStatus, std::int64_t> MetadataStore::countJobsByStatus() {
                       api::JobStatus::kFailed, api::JobStatus::kCancelled}) {
     out[status] = 0;
   }
-  auto stmt = c.prepare("SELECT status, COUNT(*) FROM jobs GROUP BY status");
-  if (!stmt) {
-    spdlog::error("{}", stmt.error().message);
-    return out;
+  using Count = std::pair<std::string, std::int64_t>;
+  const auto counts = valueOr(selectRows<Count>(
+                                  c, "SELECT status, COUNT(*) FROM jobs GROUP BY status", [](Stmt&) {},
+                                  [](const Stmt& s) { return Count{s.text(0), s.int64(1)}; }, "cannot count jobs"),
+                              std::vector<Count>{});
+  for (const auto& [name, n] : counts) {
+    if (auto status = api::parseJobStatus(name)) out[*status] = n;
   }
-  Stmt s(*stmt);
-  int rc;
-  while ((rc = s.step()) == SQLITE_ROW) {
-    if (auto status = api::parseJobStatus(s.text(0))) out[*status] = s.int64(1);
-  }
-  if (rc != SQLITE_DONE) spdlog::error("{}", c.error("cannot count jobs").message);
   return out;
 }
 
@@ -1005,16 +988,11 @@ bool MetadataStore::blobReferenced(const std::string& hash) {
       " OR EXISTS (SELECT 1 FROM jobs WHERE result_blob = ?1 AND result_blob <> '')"
       " OR EXISTS (SELECT 1 FROM jobs WHERE diagnostics_blob = ?1 AND diagnostics_blob <> '')"
       " OR EXISTS (SELECT 1 FROM job_inputs WHERE blob = ?1)");
-  if (!stmt) {
-    spdlog::error("{}", stmt.error().message);
-    return true;  // fail safe: a garbage collector must not delete what it cannot check
-  }
+  // Fail safe: a garbage collector must not delete what it cannot check.
+  if (!stmt) return valueOr<bool>(stmt.error(), true);
   Stmt s(*stmt);
   s.bind(1, hash);
-  if (s.step() != SQLITE_ROW) {
-    spdlog::error("{}", c.error("cannot check references to blob " + hash).message);
-    return true;
-  }
+  if (s.step() != SQLITE_ROW) return valueOr<bool>(c.error("cannot check references to blob " + hash), true);
   return s.int32(0) != 0;
 }
 

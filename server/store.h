@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -89,10 +90,13 @@ class MetadataStore {
   // Opens or creates <file> (WAL, synchronous=FULL, foreign keys, schema
   // version checked); errors name the file.
   static core::Result<std::unique_ptr<MetadataStore>> open(const std::filesystem::path& file);
+  // Where the read functions (which return empty results on a SQLite error)
+  // report the error: the server passes its structured log. Default: dropped.
+  void setErrorReporter(std::function<void(const std::string&)> report);
   ~MetadataStore();
 
   // Reads (getRig, listRigs, getJob, listJobs, unfinishedJobs, countJobsByStatus)
-  // log a SQLite failure with spdlog and answer empty. Tenant "" is an ordinary tenant.
+  // pass a SQLite failure to the error reporter and answer empty. Tenant "" is an ordinary tenant.
 
   // Inserts or, when (tenant, id) exists, returns the existing record and false.
   // An empty info.created_at is set to now (RFC 3339 UTC, milliseconds:
@@ -131,8 +135,12 @@ class MetadataStore {
  private:
   struct Connection;
   explicit MetadataStore(std::unique_ptr<Connection> connection);
+  // The value of a read, or `fallback` with the error passed to report_error_.
+  template <typename T>
+  T valueOr(core::Result<T> result, T fallback);
   std::unique_ptr<Connection> connection_;
   std::mutex mutex_;
+  std::function<void(const std::string&)> report_error_;
 };
 
 }  // namespace server
