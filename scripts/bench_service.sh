@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Service load benchmark (numbers in docs/BENCHMARKS.md): starts rigport-server
+# on loopback with a fresh store, runs `rigport bench` against it and samples
+# the server's resident memory every 5 s.
+#   bash scripts/bench_service.sh [JOBS] [CONCURRENCY] [WORKERS] [CACHE_MB]
+# Uses the ICT rig onto id_s02_remesh (5.9k vertices) when ../shared/data is
+# present, else the demo's generated rig and head. Needs build/release.
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+JOBS="${1:-1000}"; CONCURRENCY="${2:-16}"; WORKERS="${3:-0}"; CACHE_MB="${4:-256}"
+BIN="${RIGPORT_BUILD:-build/release}"
+OUT="$(mktemp -d /tmp/rigport-bench.XXXXXX)"
+DATA="$ROOT/../shared/data/ict"
+if [ -f "$DATA/source_face_skinned.glb" ]; then
+  INPUTS=(--source "$DATA/source_face_skinned.glb" --source-landmarks "$DATA/source_face.landmarks.json"
+          --target "$DATA/targets/id_s02_remesh.glb" --target-landmarks "$DATA/targets/id_s02_remesh.landmarks.json")
+else
+  "$BIN/client/rigport" -q demo --out "$OUT/demo" --inputs-only
+  INPUTS=(--source "$OUT/demo/source_rig.glb" --source-landmarks "$OUT/demo/source_rig.landmarks.json"
+          --target "$OUT/demo/target_head.glb" --target-landmarks "$OUT/demo/target_head.landmarks.json")
+fi
+"$BIN/server/rigport-server" --listen 127.0.0.1:0 --data-dir "$OUT/store" --no-auth --workers "$WORKERS" \
+  --cache-mb "$CACHE_MB" > "$OUT/server.out" 2> "$OUT/server.log" &
+PID=$!
+trap 'kill -TERM $PID 2>/dev/null || true' EXIT
+for _ in $(seq 1 100); do grep -q "listening on" "$OUT/server.out" && break; sleep 0.1; done
+URL="$(sed -n 's/^listening on //p' "$OUT/server.out")"
+( while kill -0 $PID 2>/dev/null; do
+    echo "$(date +%s) $(awk '/VmRSS/ {print $2}' /proc/$PID/status 2>/dev/null)" >> "$OUT/rss.txt"; sleep 5
+  done ) &
+"$BIN/client/rigport" bench --server "$URL" --concurrency "$CONCURRENCY" --jobs "$JOBS" --timeout 900 "${INPUTS[@]}" \
+  2> "$OUT/bench.log" | tail -1 | tee "$OUT/bench.json"
+awk '{ if ($2 > max) max = $2; if (min == "" || $2 < min) min = $2; n++; last = $2 }
+     END { printf "server RSS over %d samples: min %.0f MiB, max %.0f MiB, last %.0f MiB (cache bound %s MiB)\n",
+           n, min / 1024, max / 1024, last / 1024, "'"$CACHE_MB"'" }' "$OUT/rss.txt"
+echo "logs and samples in $OUT"
