@@ -36,7 +36,7 @@ const Row& row(WireError error) {
   for (const Row& r : kTable) {
     if (r.error == error) return r;
   }
-  return kTable[sizeof(kTable) / sizeof(kTable[0]) - 2];  // kInternal
+  return error == WireError::kInternal ? kTable[0] : row(WireError::kInternal);  // every code is in the table
 }
 
 }  // namespace

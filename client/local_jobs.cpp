@@ -187,11 +187,6 @@ int runGenerateHead(const GenerateHeadArgs& args) {
   return 0;
 }
 
-namespace {
-
-// {"marker": stiffness 1-9, ...}
-}  // namespace
-
 int runRetarget(const RetargetArgs& args) {
   const auto t_start = Clock::now();
   auto t0 = Clock::now();

@@ -230,8 +230,6 @@ std::variant<JobOutput, core::Error> runTransferJob(const JobFiles& in, const Ri
                                                     RigCache& cache, const StageHook& on_stage, int threads) {
   const JobRecord& job = in.job;
   const auto t_start = Clock::now();
-  auto blob = [&](const std::string& field) { return in.bytes(field); };
-  const auto name = [&](const std::string& field) { return in.name(field); };
 
   // --- read the job's inputs
   if (!on_stage("read", 0.02)) return stoppedBefore(job, "reading inputs");
@@ -239,13 +237,13 @@ std::variant<JobOutput, core::Error> runTransferJob(const JobFiles& in, const Ri
   auto settings = core::parseTransferOptions(in.optionsText(), "spec.options");
   if (!settings) return settings.error();
   settings->transfer.threads = threads;
-  auto target_bytes = blob("target");
+  auto target_bytes = in.bytes("target");
   if (!target_bytes) return target_bytes.error();
-  auto target = core::readMeshFromMemory(*target_bytes, name("target"), name("target"));
+  auto target = core::readMeshFromMemory(*target_bytes, in.name("target"), in.name("target"));
   if (!target) return target.error();
-  auto landmark_bytes = blob("target_landmarks");
+  auto landmark_bytes = in.bytes("target_landmarks");
   if (!landmark_bytes) return landmark_bytes.error();
-  auto target_landmarks = core::parseLandmarks(asText(*landmark_bytes), name("target_landmarks"));
+  auto target_landmarks = core::parseLandmarks(asText(*landmark_bytes), in.name("target_landmarks"));
   if (!target_landmarks) return target_landmarks.error();
   const double read_ms = msSince(t0);
 
@@ -274,7 +272,7 @@ std::variant<JobOutput, core::Error> runTransferJob(const JobFiles& in, const Ri
   settings->transfer.on_stage = [&](std::string_view stage, double fraction) {
     return on_stage(stage, 0.1 + 0.8 * fraction);
   };
-  auto result = core::transferRig(*prepared->value, target->mesh, *target_landmarks, name("target"), settings->transfer);
+  auto result = core::transferRig(*prepared->value, target->mesh, *target_landmarks, in.name("target"), settings->transfer);
   if (!result) return result.error();
   if (rig_record.info.has_components) {
     result->report.warnings.push_back("rig components (components JSON) are stored but not transferred yet");
