@@ -1,6 +1,7 @@
 #include "core/warp_job.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 
@@ -21,43 +22,51 @@ double percentile(std::vector<double> v, double q) {
   return v[k];
 }
 
-// Trusted projection displacements (guide - warped), spread over the source
-// mesh by normalised convolution: smooth w*d and w with the same uniform
-// Laplacian passes and divide, so untrusted vertices borrow from neighbours.
+Eigen::MatrixX3d selectRows(const Eigen::MatrixX3d& m, const std::vector<int>& rows) {
+  Eigen::MatrixX3d out(static_cast<Eigen::Index>(rows.size()), 3);
+  for (std::size_t k = 0; k < rows.size(); ++k) out.row(static_cast<Eigen::Index>(k)) = m.row(rows[k]);
+  return out;
+}
+
+// Trusted projection displacements (projected - warped) of the sampled
+// vertices `rows` (guide row k belongs to vertex rows[k]), spread over the
+// source mesh by normalised convolution: smooth w*d and w with the same
+// uniform Laplacian passes and divide, so every other vertex borrows from
+// its sampled neighbours.
 Eigen::MatrixX3d smoothedDisplacement(const PreparedSource& source, const Eigen::MatrixX3d& warped,
-                                      const GuideModel& guide, double trust, int passes) {
+                                      const std::vector<int>& rows, const GuideModel& guide, double trust,
+                                      int passes) {
   const Eigen::Index nv = warped.rows();
-  Eigen::MatrixX3d wd = Eigen::MatrixX3d::Zero(nv, 3);
-  Eigen::VectorXd w = Eigen::VectorXd::Zero(nv);
-  for (Eigen::Index v = 0; v < nv; ++v) {
-    if (guide.on_target[static_cast<std::size_t>(v)].found() && guide.distance(v) <= trust) {
-      w(v) = 1.0;
-      wd.row(v) = guide.positions.row(v) - warped.row(v);
+  // w*d and w packed per vertex (one cache line holds two vertices): the
+  // passes gather neighbours, and this keeps each gather to one load.
+  using Packed = std::array<double, 4>;
+  std::vector<Packed> acc(static_cast<std::size_t>(nv), Packed{0.0, 0.0, 0.0, 0.0});
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    const auto g = static_cast<Eigen::Index>(k);
+    if (guide.on_target[k].found() && guide.distance(g) <= trust) {
+      const Eigen::RowVector3d d = guide.positions.row(g) - warped.row(rows[k]);
+      acc[static_cast<std::size_t>(rows[k])] = Packed{d(0), d(1), d(2), 1.0};
     }
   }
-  Eigen::MatrixX3d wd_next(nv, 3);
-  Eigen::VectorXd w_next(nv);
+  std::vector<Packed> next(acc.size());
   for (int pass = 0; pass < passes; ++pass) {
-    for (Eigen::Index v = 0; v < nv; ++v) {
-      const int begin = source.neighbor_offsets[static_cast<std::size_t>(v)];
-      const int end = source.neighbor_offsets[static_cast<std::size_t>(v) + 1];
-      Eigen::RowVector3d sum = wd.row(v);
-      double wsum = w(v);
+    for (std::size_t v = 0; v < acc.size(); ++v) {
+      const int begin = source.neighbor_offsets[v];
+      const int end = source.neighbor_offsets[v + 1];
+      Packed sum = acc[v];
       for (int k = begin; k < end; ++k) {
-        const int u = source.neighbor_indices[static_cast<std::size_t>(k)];
-        sum += wd.row(u);
-        wsum += w(u);
+        const Packed& u = acc[static_cast<std::size_t>(source.neighbor_indices[static_cast<std::size_t>(k)])];
+        for (int c = 0; c < 4; ++c) sum[c] += u[c];
       }
       const double inv = 1.0 / (1 + end - begin);
-      wd_next.row(v) = sum * inv;
-      w_next(v) = wsum * inv;
+      for (int c = 0; c < 4; ++c) next[v][c] = sum[c] * inv;
     }
-    wd.swap(wd_next);
-    w.swap(w_next);
+    acc.swap(next);
   }
   Eigen::MatrixX3d out = Eigen::MatrixX3d::Zero(nv, 3);
   for (Eigen::Index v = 0; v < nv; ++v) {
-    if (w(v) > 1e-6) out.row(v) = wd.row(v) / w(v);
+    const Packed& a = acc[static_cast<std::size_t>(v)];
+    if (a[3] > 1e-6) out.row(v) << a[0] / a[3], a[1] / a[3], a[2] / a[3];
   }
   return out;
 }
@@ -69,7 +78,7 @@ std::size_t PreparedSource::memoryBytes() const {
   bytes += static_cast<std::size_t>(mesh.positions.size() + mesh.normals.size() + mesh.uvs.size()) * sizeof(double);
   bytes += static_cast<std::size_t>(mesh.triangles.size()) * sizeof(int);
   bytes += static_cast<std::size_t>(dense_centres.size() + landmark_positions.size()) * sizeof(double);
-  bytes += (neighbor_offsets.size() + neighbor_indices.size()) * sizeof(int);
+  bytes += (neighbor_offsets.size() + neighbor_indices.size() + projection_sample.size()) * sizeof(int);
   if (dense_factorization) bytes += dense_factorization->memoryBytes();
   return bytes;
 }
@@ -124,7 +133,9 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
     if (!f) return Error{f.error().code, label + ": dense map: " + f.error().message};
     prepared.dense_factorization = std::move(*f);
   }
-  // Vertex adjacency (unique neighbours, sorted) for smoothing on the source.
+  // Vertex adjacency (unique neighbours, sorted) for smoothing on the source;
+  // the projection sample is a maximal independent set of it (greedy in index
+  // order: deterministic, every vertex sampled or next to a sampled one).
   {
     const Eigen::Index nv = prepared.mesh.vertexCount();
     std::vector<std::vector<int>> nbrs(static_cast<std::size_t>(nv));
@@ -143,6 +154,12 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
       n.erase(std::unique(n.begin(), n.end()), n.end());
       prepared.neighbor_offsets[static_cast<std::size_t>(v) + 1] = prepared.neighbor_offsets[static_cast<std::size_t>(v)] + static_cast<int>(n.size());
       prepared.neighbor_indices.insert(prepared.neighbor_indices.end(), n.begin(), n.end());
+    }
+    std::vector<char> covered(static_cast<std::size_t>(nv), 0);
+    for (Eigen::Index v = 0; v < nv; ++v) {
+      if (covered[static_cast<std::size_t>(v)]) continue;
+      prepared.projection_sample.push_back(static_cast<int>(v));
+      for (const int u : nbrs[static_cast<std::size_t>(v)]) covered[static_cast<std::size_t>(u)] = 1;
     }
   }
   prepared.prepare_ms = msSince(t0);
@@ -252,17 +269,21 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
     result.warped_positions = dense.apply(source.mesh.positions);
     warped_normals = computeVertexNormals(result.warped_positions, tris);
   }
+  // Local rounds: only the sampled vertices are projected to compute each
+  // step (the smoothing spreads their displacements over the rest); the last
+  // projection, the guide, covers every vertex.
+  for (int round = 0; round < options.local_rounds; ++round) {
+    const std::vector<int>& rows = source.projection_sample;
+    const GuideModel sampled =
+        projectToTarget(selectRows(result.warped_positions, rows), selectRows(warped_normals, rows), target_index,
+                        report.target_diagonal, projection);
+    result.warped_positions += smoothedDisplacement(source, result.warped_positions, rows, sampled,
+                                                    options.refine_max_distance * report.target_diagonal,
+                                                    options.smoothing_passes);
+    warped_normals = computeVertexNormals(result.warped_positions, tris);
+  }
   result.guide = projectToTarget(result.warped_positions, warped_normals, target_index, report.target_diagonal,
                                  projection);
-  for (int round = 0; round < options.local_rounds; ++round) {
-    const Eigen::MatrixX3d step =
-        smoothedDisplacement(source, result.warped_positions, result.guide,
-                             options.refine_max_distance * report.target_diagonal, options.smoothing_passes);
-    result.warped_positions += step;
-    warped_normals = computeVertexNormals(result.warped_positions, tris);
-    result.guide = projectToTarget(result.warped_positions, warped_normals, target_index, report.target_diagonal,
-                                   projection);
-  }
   if (source.dense_factorization) {
     const Eigen::Index nl = source.landmark_positions.rows();
     Eigen::MatrixX3d centre_targets(source.dense_centres.rows(), 3);

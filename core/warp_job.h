@@ -40,6 +40,10 @@ struct PreparedSource {
   // neighbor_indices[neighbor_offsets[v] .. neighbor_offsets[v+1]).
   std::vector<int> neighbor_offsets;
   std::vector<int> neighbor_indices;
+  // Source vertices projected in the local rounds (a maximal independent set
+  // of the adjacency, ~1/4 of the vertices): the rounds' smoothed steps need
+  // only this density, and the guide itself is projected in full.
+  std::vector<int> projection_sample;
   double prepare_ms = 0.0;
 
   std::size_t memoryBytes() const;
@@ -56,9 +60,10 @@ struct WarpOptions {
   // Projections farther than this (fraction of the target diagonal) do not
   // pull their dense centre during refinement.
   double refine_max_distance = 0.1;
-  // Local rounds after the dense map: the trusted projection displacements are
-  // smoothed over the source mesh (`smoothing_passes` Jacobi passes of
-  // normalised convolution) and applied, then the surface is projected again.
+  // Local rounds after the dense map: the trusted projection displacements of
+  // the projection sample are smoothed over the source mesh
+  // (`smoothing_passes` Jacobi passes of normalised convolution) and applied;
+  // the surface is projected again after the last round.
   // Corrects misfit finer than the dense centres' spacing.
   int local_rounds = 3;
   int smoothing_passes = 10;
