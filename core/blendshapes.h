@@ -20,6 +20,7 @@ struct ShapeTransferOptions {
   double exaggeration = 1.0;                    // applied to every delta
   std::map<std::string, double> per_shape;      // overrides `exaggeration` by target name
   bool inpaint_untrusted = true;                // harmonic deltas at mismatched vertices
+  int threads = 0;                              // shapes in parallel; 0 = hardware threads
 };
 
 // adaptation: #Vt matrices (one per target vertex) or a single one for all.

@@ -190,6 +190,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
     ShapeTransferOptions shape_options;
     shape_options.exaggeration = options.exaggeration;
     shape_options.per_shape = options.shape_exaggeration;
+    shape_options.threads = options.threads;
     out.morph_targets = transferMorphTargets(src.morph_targets, src_mesh.triangles, locations, vertex_adaptation,
                                              target, target_laplacian, shape_options);
     out.morph_default_weights = src.morph_default_weights;
