@@ -267,13 +267,19 @@ Vec3 coveringCentre(const Vec3& a, const Vec3& b, const Vec3& c) {
 // centre to its farthest corner) is <= h_target. Appends the samples and returns true, or returns
 // false (appending nothing) when more than `cap` pieces would be needed.
 // `slack` (absolute) absorbs rounding in later distance computations.
+constexpr int kMaxPieces = 64;  // most pieces per triangle on one level
+
 bool sampleTriangle(const Vec3& a, const Vec3& b, const Vec3& c, int face, double h_target, int cap, double slack,
                     std::vector<Sample>& out) {
+  assert(cap <= kMaxPieces);
   const std::size_t start = out.size();
-  std::vector<std::array<Vec3, 3>> stack{{a, b, c}};
-  while (!stack.empty()) {
-    const std::array<Vec3, 3> t = stack.back();
-    stack.pop_back();
+  // Pending pieces: at most cap + 1 at any time (checked below), so a fixed
+  // array serves and the common one-piece triangle costs no allocation.
+  std::array<std::array<Vec3, 3>, kMaxPieces + 2> stack;
+  int depth = 0;
+  stack[depth++] = {a, b, c};
+  while (depth > 0) {
+    const std::array<Vec3, 3> t = stack[--depth];
     const Eigen::Vector3f gf = coveringCentre(t[0], t[1], t[2]).cast<float>();
     const Vec3 gr = gf.cast<double>();
     const double h =
@@ -286,7 +292,7 @@ bool sampleTriangle(const Vec3& a, const Vec3& b, const Vec3& c, int face, doubl
       out.push_back(Sample{{gf.x(), gf.y(), gf.z()}, face, roundUpToFloat(h * (1.0 + 1e-9) + slack)});
       continue;
     }
-    if (static_cast<int>(out.size() - start + stack.size()) + 2 > cap) {
+    if (static_cast<int>(out.size() - start) + depth + 2 > cap) {
       out.resize(start);
       return false;
     }
@@ -299,8 +305,8 @@ bool sampleTriangle(const Vec3& a, const Vec3& b, const Vec3& c, int face, doubl
     const Vec3& p1 = t[(i + 1) % 3];
     const Vec3& p2 = t[(i + 2) % 3];
     const Vec3 m = 0.5 * (p0 + p1);
-    stack.push_back({p0, m, p2});
-    stack.push_back({m, p1, p2});
+    stack[depth++] = {p0, m, p2};
+    stack[depth++] = {m, p1, p2};
   }
   return true;
 }
@@ -555,7 +561,7 @@ ClosestPointIndex::ClosestPointIndex(const Eigen::MatrixX3d& positions, const Ei
   // benchmark: 0.5-1.0 are within 10%). A triangle needing more than kCap
   // pieces moves to the next level, whose target is kGrowth times coarser.
   constexpr double kSpacing = 0.7;
-  constexpr int kCap = 64;
+  constexpr int kCap = kMaxPieces;
   constexpr double kGrowth = 4.0;
   std::nth_element(edge_lengths.begin(), edge_lengths.begin() + edge_lengths.size() / 2, edge_lengths.end());
   double h_target = kSpacing * edge_lengths[edge_lengths.size() / 2];

@@ -1921,9 +1921,11 @@ std::pair<std::vector<double>, std::vector<double>> floatBounds(const std::vecto
   const auto n = static_cast<std::size_t>(components);
   std::vector<double> min(n, std::numeric_limits<double>::infinity());
   std::vector<double> max(n, -std::numeric_limits<double>::infinity());
-  for (std::size_t i = 0; i < values.size(); ++i) {
-    min[i % n] = std::min(min[i % n], static_cast<double>(values[i]));
-    max[i % n] = std::max(max[i % n], static_cast<double>(values[i]));
+  for (std::size_t row = 0; row + n <= values.size(); row += n) {
+    for (std::size_t c = 0; c < n; ++c) {
+      min[c] = std::min(min[c], static_cast<double>(values[row + c]));
+      max[c] = std::max(max[c], static_cast<double>(values[row + c]));
+    }
   }
   return {min, max};
 }

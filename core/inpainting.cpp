@@ -6,17 +6,34 @@
 namespace core {
 
 Eigen::SparseMatrix<double> uniformLaplacian(Eigen::Index vertex_count, const Eigen::MatrixX3i& triangles) {
-  // Unique undirected edges first (an interior edge appears in two faces).
+  // Unique undirected edges first (an interior edge appears in two faces):
+  // bucketed by their lower vertex, each short bucket sorted on its own (a
+  // global sort of all half-edges cost more than the rest of the function).
+  std::vector<int> offsets(static_cast<std::size_t>(vertex_count) + 1, 0);
+  auto forEachEdge = [&](auto&& fn) {
+    for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
+      for (int k = 0; k < 3; ++k) {
+        const int a = triangles(f, k), b = triangles(f, (k + 1) % 3);
+        if (a != b) fn(std::min(a, b), std::max(a, b));
+      }
+    }
+  };
+  forEachEdge([&](int a, int) { ++offsets[static_cast<std::size_t>(a) + 1]; });
+  for (std::size_t v = 0; v + 1 < offsets.size(); ++v) offsets[v + 1] += offsets[v];
+  std::vector<int> upper(static_cast<std::size_t>(offsets.back()));
+  {
+    std::vector<int> fill(offsets.begin(), offsets.end() - 1);
+    forEachEdge([&](int a, int b) { upper[static_cast<std::size_t>(fill[static_cast<std::size_t>(a)]++)] = b; });
+  }
   std::vector<std::pair<int, int>> edges;
-  edges.reserve(static_cast<std::size_t>(triangles.rows()) * 3);
-  for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
-    for (int k = 0; k < 3; ++k) {
-      const int a = triangles(f, k), b = triangles(f, (k + 1) % 3);
-      if (a != b) edges.emplace_back(std::min(a, b), std::max(a, b));
+  edges.reserve(upper.size());
+  for (std::size_t a = 0; a + 1 < offsets.size(); ++a) {
+    const auto first = upper.begin() + offsets[a], last = upper.begin() + offsets[a + 1];
+    std::sort(first, last);
+    for (auto it = first; it != last; ++it) {
+      if (it == first || *it != *(it - 1)) edges.emplace_back(static_cast<int>(a), *it);
     }
   }
-  std::sort(edges.begin(), edges.end());
-  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
   // One triplet pass, diagonal included: inserting into a compressed matrix
   // afterwards costs O(nnz) per entry.
   std::vector<Eigen::Triplet<double>> triplets;
