@@ -31,6 +31,10 @@ URL="$(sed -n 's/^listening on //p' "$OUT/server.out")"
   done ) &
 "$BIN/client/rigport" bench --server "$URL" --concurrency "$CONCURRENCY" --jobs "$JOBS" --timeout 900 "${INPUTS[@]}" \
   2> "$OUT/bench.log" | tail -1 | tee "$OUT/bench.json"
+# Server CPU per job: steadier than jobs/s on a noisy machine.
+read -r UTIME STIME < <(awk '{print $14, $15}' /proc/$PID/stat)
+python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); n=d["succeeded"]+d["failed"]; t=(int(sys.argv[2])+int(sys.argv[3]))/float(sys.argv[4]); print("server CPU %.1f s for %d jobs: %.1f ms per job" % (t, n, 1000*t/max(n,1)))' \
+  "$OUT/bench.json" "$UTIME" "$STIME" "$(getconf CLK_TCK)"
 awk '{ if ($2 > max) max = $2; if (min == "" || $2 < min) min = $2; n++; last = $2 }
      END { printf "server RSS over %d samples: min %.0f MiB, max %.0f MiB, last %.0f MiB (cache bound %s MiB)\n",
            n, min / 1024, max / 1024, last / 1024, "'"$CACHE_MB"'" }' "$OUT/rss.txt"
