@@ -69,28 +69,37 @@ namespace {
 #define RIGPORT_VECTOR_CLONES
 #endif
 
+// Column pointers of a #n by 3 matrix (column-major: each column contiguous).
+struct Columns {
+  explicit Columns(const Eigen::MatrixX3d& m) : x(m.col(0).data()), y(m.col(1).data()), z(m.col(2).data()) {}
+  const double* x;
+  const double* y;
+  const double* z;
+};
+
+// Points [b, b + m) into the block's coordinate arrays.
+inline void loadBlock(const Eigen::MatrixX3d& points, std::ptrdiff_t b, std::ptrdiff_t m, double* x, double* y,
+                      double* z) {
+  for (std::ptrdiff_t j = 0; j < m; ++j) {
+    x[j] = points(b + j, 0);
+    y[j] = points(b + j, 1);
+    z[j] = points(b + j, 2);
+  }
+}
+
 RIGPORT_VECTOR_CLONES
 void kernelSums(const Eigen::MatrixX3d& centres, const Eigen::MatrixX3d& weights, const Eigen::MatrixX3d& points,
                 std::ptrdiff_t begin, std::ptrdiff_t end, Eigen::MatrixX3d& out) {
   const Eigen::Index n = centres.rows();
-  const double* cx = centres.col(0).data();
-  const double* cy = centres.col(1).data();
-  const double* cz = centres.col(2).data();
-  const double* wx = weights.col(0).data();
-  const double* wy = weights.col(1).data();
-  const double* wz = weights.col(2).data();
+  const Columns c(centres), w(weights);
   constexpr std::ptrdiff_t kBlock = 64;
   alignas(64) double x[kBlock], y[kBlock], z[kBlock], sx[kBlock], sy[kBlock], sz[kBlock];
   for (std::ptrdiff_t b = begin; b < end; b += kBlock) {
     const std::ptrdiff_t m = std::min(kBlock, end - b);
-    for (std::ptrdiff_t j = 0; j < m; ++j) {
-      x[j] = points(b + j, 0);
-      y[j] = points(b + j, 1);
-      z[j] = points(b + j, 2);
-      sx[j] = sy[j] = sz[j] = 0.0;
-    }
+    loadBlock(points, b, m, x, y, z);
+    for (std::ptrdiff_t j = 0; j < m; ++j) sx[j] = sy[j] = sz[j] = 0.0;
     for (Eigen::Index i = 0; i < n; ++i) {
-      const double px = cx[i], py = cy[i], pz = cz[i], ax = wx[i], ay = wy[i], az = wz[i];
+      const double px = c.x[i], py = c.y[i], pz = c.z[i], ax = w.x[i], ay = w.y[i], az = w.z[i];
       for (std::ptrdiff_t j = 0; j < m; ++j) {
         const double dx = x[j] - px, dy = y[j] - py, dz = z[j] - pz;
         const double r = std::sqrt(dx * dx + dy * dy + dz * dz);
@@ -115,25 +124,16 @@ void kernelGradientSums(const Eigen::MatrixX3d& centres, const Eigen::MatrixX3d&
                         const Eigen::MatrixX3d& points, std::ptrdiff_t begin, std::ptrdiff_t end,
                         std::vector<Eigen::Matrix3d>& out) {
   const Eigen::Index n = centres.rows();
-  const double* cx = centres.col(0).data();
-  const double* cy = centres.col(1).data();
-  const double* cz = centres.col(2).data();
-  const double* wx = weights.col(0).data();
-  const double* wy = weights.col(1).data();
-  const double* wz = weights.col(2).data();
+  const Columns c(centres), w(weights);
   constexpr std::ptrdiff_t kBlock = 32;
   alignas(64) double x[kBlock], y[kBlock], z[kBlock];
   alignas(64) double s[9][kBlock];
   for (std::ptrdiff_t b = begin; b < end; b += kBlock) {
     const std::ptrdiff_t m = std::min(kBlock, end - b);
-    for (std::ptrdiff_t j = 0; j < m; ++j) {
-      x[j] = points(b + j, 0);
-      y[j] = points(b + j, 1);
-      z[j] = points(b + j, 2);
-      for (auto& row : s) row[j] = 0.0;
-    }
+    loadBlock(points, b, m, x, y, z);
+    for (auto& row : s) std::fill(row, row + m, 0.0);
     for (Eigen::Index i = 0; i < n; ++i) {
-      const double px = cx[i], py = cy[i], pz = cz[i], ax = wx[i], ay = wy[i], az = wz[i];
+      const double px = c.x[i], py = c.y[i], pz = c.z[i], ax = w.x[i], ay = w.y[i], az = w.z[i];
       for (std::ptrdiff_t j = 0; j < m; ++j) {
         const double dx = x[j] - px, dy = y[j] - py, dz = z[j] - pz;
         // The cone tip at a centre has no derivative and contributes
@@ -155,8 +155,8 @@ void kernelGradientSums(const Eigen::MatrixX3d& centres, const Eigen::MatrixX3d&
     }
     for (std::ptrdiff_t j = 0; j < m; ++j) {
       Eigen::Matrix3d& jac = out[static_cast<std::size_t>(b + j)];
-      for (int r = 0; r < 3; ++r) {
-        for (int c = 0; c < 3; ++c) jac(r, c) = s[3 * r + c][j];
+      for (int row = 0; row < 3; ++row) {
+        for (int col = 0; col < 3; ++col) jac(row, col) = s[3 * row + col][j];
       }
     }
   }
