@@ -7,6 +7,52 @@
 
 namespace core {
 
+namespace {
+
+// Vertex normals of the displaced target minus the rest ones, recomputed only
+// at vertices next to a moving one (elsewhere the delta is exactly 0). Each
+// such vertex sums its faces in ascending order with the formula of
+// computeVertexNormals, so the values are bit-identical to recomputing the
+// whole mesh (53 shapes did that: most of the shape stage).
+Eigen::MatrixX3d normalDeltas(const Mesh& target, const Eigen::MatrixX3d& base_normals,
+                              const Eigen::MatrixX3d& deltas) {
+  const Eigen::Index nv = target.vertexCount();
+  const Eigen::MatrixX3i& tris = target.triangles;
+  std::vector<unsigned char> moving(static_cast<std::size_t>(nv), 0), affected(static_cast<std::size_t>(nv), 0);
+  for (Eigen::Index v = 0; v < nv; ++v) moving[static_cast<std::size_t>(v)] = deltas.row(v).isZero(0.0) ? 0 : 1;
+  auto touches = [&](const std::vector<unsigned char>& mark, Eigen::Index f) {
+    return mark[static_cast<std::size_t>(tris(f, 0))] | mark[static_cast<std::size_t>(tris(f, 1))] |
+           mark[static_cast<std::size_t>(tris(f, 2))];
+  };
+  for (Eigen::Index f = 0; f < tris.rows(); ++f) {
+    if (!touches(moving, f)) continue;
+    for (int k = 0; k < 3; ++k) affected[static_cast<std::size_t>(tris(f, k))] = 1;
+  }
+  Eigen::MatrixX3d normals = Eigen::MatrixX3d::Zero(nv, 3);
+  for (Eigen::Index f = 0; f < tris.rows(); ++f) {
+    if (!touches(affected, f)) continue;
+    const Eigen::Vector3d a = target.positions.row(tris(f, 0)) + deltas.row(tris(f, 0));
+    const Eigen::Vector3d b = target.positions.row(tris(f, 1)) + deltas.row(tris(f, 1));
+    const Eigen::Vector3d c = target.positions.row(tris(f, 2)) + deltas.row(tris(f, 2));
+    const Eigen::RowVector3d n = (b - a).cross(c - a).transpose();
+    for (int k = 0; k < 3; ++k) {
+      if (affected[static_cast<std::size_t>(tris(f, k))]) normals.row(tris(f, k)) += n;
+    }
+  }
+  Eigen::MatrixX3d out = Eigen::MatrixX3d::Zero(nv, 3);
+  for (Eigen::Index v = 0; v < nv; ++v) {
+    if (!affected[static_cast<std::size_t>(v)]) continue;
+    // The same expressions on the same matrix rows as computeVertexNormals
+    // (a contiguous vector's norm() may sum in another order).
+    const double len = normals.row(v).norm();
+    if (len > 0.0) normals.row(v) /= len;
+    out.row(v) = normals.row(v) - base_normals.row(v);
+  }
+  return out;
+}
+
+}  // namespace
+
 std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& source,
                                               const Eigen::MatrixX3i& source_triangles,
                                               const TargetLocations& locations,
@@ -16,6 +62,21 @@ std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& so
   const Eigen::Index nt = target.vertexCount();
   std::vector<MorphTarget> out(source.size());
   const Eigen::MatrixX3d base_normals = computeVertexNormals(target.positions, target.triangles);
+  // Each located target vertex's source corners and weights, read once per
+  // shape from this compact table (the SurfacePoints are 80 bytes each).
+  struct Corners {
+    int vertex[3];
+    double weight[3];
+  };
+  std::vector<Corners> corners(static_cast<std::size_t>(nt), Corners{{-1, -1, -1}, {0.0, 0.0, 0.0}});
+  for (Eigen::Index v = 0; v < nt; ++v) {
+    const SurfacePoint& sp = locations.on_source[static_cast<std::size_t>(v)];
+    if (!sp.found()) continue;
+    for (int c = 0; c < 3; ++c) {
+      corners[static_cast<std::size_t>(v)].vertex[c] = source_triangles(sp.face, c);
+      corners[static_cast<std::size_t>(v)].weight[c] = sp.barycentric(c);
+    }
+  }
   parallelFor(static_cast<std::ptrdiff_t>(source.size()), options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     std::vector<unsigned char> moving;
     for (std::ptrdiff_t k = begin; k < end; ++k) {
@@ -34,15 +95,14 @@ std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& so
         for (Eigen::Index i = 0; i < ns; ++i) moving[static_cast<std::size_t>(i)] |= col[i] != 0.0 ? 1 : 0;
       }
       for (Eigen::Index v = 0; v < nt; ++v) {
-        const SurfacePoint& sp = locations.on_source[static_cast<std::size_t>(v)];
-        if (!sp.found()) continue;
-        if (!(moving[static_cast<std::size_t>(source_triangles(sp.face, 0))] |
-              moving[static_cast<std::size_t>(source_triangles(sp.face, 1))] |
-              moving[static_cast<std::size_t>(source_triangles(sp.face, 2))])) {
+        const Corners& at = corners[static_cast<std::size_t>(v)];
+        if (at.vertex[0] < 0) continue;  // no location
+        if (!(moving[static_cast<std::size_t>(at.vertex[0])] | moving[static_cast<std::size_t>(at.vertex[1])] |
+              moving[static_cast<std::size_t>(at.vertex[2])])) {
           continue;
         }
         Eigen::Vector3d d = Eigen::Vector3d::Zero();
-        for (int c = 0; c < 3; ++c) d += sp.barycentric(c) * s.position_deltas.row(source_triangles(sp.face, c)).transpose();
+        for (int c = 0; c < 3; ++c) d += at.weight[c] * s.position_deltas.row(at.vertex[c]).transpose();
         if (d.isZero(0.0)) continue;  // keeps sparse shapes sparse
         const Eigen::Matrix3d& a = adaptation.size() == 1 ? adaptation[0] : adaptation[static_cast<std::size_t>(v)];
         t.position_deltas.row(v) = gain * (a * d).transpose();
@@ -82,7 +142,7 @@ std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& so
     for (std::ptrdiff_t k = begin; k < end; ++k) {
       if (source[static_cast<std::size_t>(k)].normal_deltas.rows() == 0) continue;
       MorphTarget& t = out[static_cast<std::size_t>(k)];
-      t.normal_deltas = computeVertexNormals(target.positions + t.position_deltas, target.triangles) - base_normals;
+      t.normal_deltas = normalDeltas(target, base_normals, t.position_deltas);
       // Exact zeros where the shape does not move, so sparse output stays sparse.
       for (Eigen::Index v = 0; v < nt; ++v) {
         if (t.normal_deltas.row(v).cwiseAbs().maxCoeff() < 1e-12) t.normal_deltas.row(v).setZero();

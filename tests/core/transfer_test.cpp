@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include "core/mesh.h"
 #include "core/skinning.h"
 #include "core/synthetic_rig.h"
 #include "tests/test_support.h"
@@ -126,6 +127,39 @@ TEST(TransferRig, WeightsAreNormalisedPrunedAndShapesSparseOnAnotherFace) {
   const auto& blink = out.morph_targets[5];
   EXPECT_EQ(blink.name, "eyeBlink_R");
   EXPECT_LT((blink.position_deltas.rowwise().norm().array() > 0).count(), out.mesh.vertexCount() / 10);
+}
+
+// Normal deltas are recomputed on the target only around moving vertices;
+// the result must equal recomputing every vertex normal, bit for bit.
+TEST(TransferRig, NormalDeltasEqualAFullRecomputeOfTheDisplacedTarget) {
+  core::Rig rig = sourceRig().rig;
+  const Eigen::MatrixX3d rest = core::computeVertexNormals(rig.mesh.positions, rig.mesh.triangles);
+  for (auto& shape : rig.morph_targets) {
+    shape.normal_deltas = core::computeVertexNormals(rig.mesh.positions + shape.position_deltas, rig.mesh.triangles) - rest;
+  }
+  auto prepared = core::prepareRig(rig, sourceRig().landmarks, "source with normal deltas");
+  ASSERT_TRUE(prepared) << prepared.error().message;
+  core::HeadResolution res;
+  res.columns = 70;
+  res.rows = 66;
+  res.alternate_diagonals = true;
+  res.seed = 5;
+  const core::SyntheticRig target = core::generateRig(core::randomHeadShape(5, 0.2), res);
+  auto result = core::transferRig(*prepared, target.rig.mesh, target.landmarks, "other");
+  ASSERT_TRUE(result) << result.error().message;
+  const core::Mesh& mesh = target.rig.mesh;
+  const Eigen::MatrixX3d base = core::computeVertexNormals(mesh.positions, mesh.triangles);
+  ASSERT_FALSE(result->rig.morph_targets.empty());
+  for (const auto& shape : result->rig.morph_targets) {
+    ASSERT_EQ(shape.normal_deltas.rows(), mesh.vertexCount()) << shape.name;
+    Eigen::MatrixX3d expected = core::computeVertexNormals(mesh.positions + shape.position_deltas, mesh.triangles) - base;
+    for (Eigen::Index v = 0; v < expected.rows(); ++v) {
+      if (expected.row(v).cwiseAbs().maxCoeff() < 1e-12) expected.row(v).setZero();
+    }
+    EXPECT_TRUE(shape.normal_deltas == expected)
+        << shape.name << ": max difference " << (shape.normal_deltas - expected).cwiseAbs().maxCoeff();
+    EXPECT_GT((shape.normal_deltas.rowwise().norm().array() > 0).count(), 0) << shape.name;
+  }
 }
 
 TEST(TransferRig, LowerLipNeverTakesTheUpperLip) {
