@@ -28,7 +28,9 @@
 // non-finite query, a negative or NaN max_distance, or a mask allowing no
 // present label give face = -1; the query normal is used as given (unit
 // expected); faces with non-finite corners are skipped like degenerate ones.
-// Vertex coordinates must stay within float range of the mesh centre (~1e18).
+// Vertex coordinates must stay within float range of the mesh centre (~1e18),
+// and squared sample distances within float's normal range: meshes from
+// ~1e-17 to ~1e18 units across.
 #include "core/closest_point.h"
 
 #include <algorithm>
@@ -217,14 +219,14 @@ struct Sample {
 };
 static_assert(sizeof(Sample) == 20, "compact samples: more of the tree stays in cache");
 
-// nanoflann dataset adaptor over a sample array.
-// Coordinates are returned as double so that nanoflann's point distances are
-// computed in double (float inputs, exact differences).
+// nanoflann dataset adaptor over a sample array. Point and cell distances
+// are computed in float (4-12% faster queries than double, measured); every
+// bound that uses them carries a relative slack far above float rounding.
 struct SampleCloud {
   const Sample* data = nullptr;
   std::size_t size = 0;
   std::size_t kdtree_get_point_count() const { return size; }
-  double kdtree_get_pt(std::uint32_t i, std::size_t dim) const {
+  float kdtree_get_pt(std::uint32_t i, std::size_t dim) const {
     return data[i].p[dim];
   }
   template <class Bbox>
@@ -233,7 +235,7 @@ struct SampleCloud {
   }
 };
 
-using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, SampleCloud, double, std::uint32_t>,
+using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, SampleCloud, float, std::uint32_t>,
                                                    SampleCloud, 3, std::uint32_t>;
 
 // nanoflann leaf_max_size. Larger than the usual 10: leaf scans are cheap and
@@ -393,9 +395,11 @@ struct ClosestPointIndex::Impl::Search {
   int pending_count = 0;
 
   // Slightly generous bounds so that rounding never prunes an exact tie.
-  // nanoflann computes some cell distances from float coordinates in float
-  // (relative error ~1e-7), hence the looser factor on the tree radius.
-  static constexpr double kInflate = 1.0 + 1e-12;
+  // nanoflann computes sample and cell distances from float coordinates in
+  // float: a squared distance carries a relative error of a few 1e-7, so the
+  // sample test inflates its reach by 1e-6 (2e-6 squared) and the tree radius
+  // by 1e-5.
+  static constexpr double kInflate = 1.0 + 1e-6;
   static constexpr double kTreeInflate = 1.0 + 1e-5;
 
   void setLevel(const Level& level) {
@@ -411,11 +415,11 @@ struct ClosestPointIndex::Impl::Search {
   // nanoflann result-set interface.
   std::size_t size() const { return 0; }
   bool full() const { return true; }
-  double worstDist() {
+  float worstDist() {
     flush();
-    return radius_sq;
+    return static_cast<float>(radius_sq);
   }
-  bool addPoint(double dist_sq, std::uint32_t index) {
+  bool addPoint(float dist_sq, std::uint32_t index) {
     if (best_face >= 0) {
       consider(dist_sq, samples[index]);
       return true;
