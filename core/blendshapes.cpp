@@ -120,17 +120,28 @@ std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& so
     unknown += known[static_cast<std::size_t>(v)] ? 0 : 1;
   }
   if (options.inpaint_untrusted && unknown > 0 && unknown < static_cast<std::size_t>(nt) && !out.empty()) {
-    Eigen::MatrixXd stacked(nt, 3 * static_cast<Eigen::Index>(out.size()));
-    for (std::size_t k = 0; k < out.size(); ++k) stacked.middleCols<3>(3 * static_cast<Eigen::Index>(k)) = out[k].position_deltas;
     assert(target_laplacian.rows() == nt);
-    auto solved = inpaintHarmonic(target_laplacian, known, stacked);
-    if (solved) {
+    auto inpainting = HarmonicInpainting::create(target_laplacian, known);
+    if (inpainting) {
+      // Only the boundary rows of every shape enter the solve (stacking whole
+      // shapes cost #V x 3 #shapes doubles: 335 MB at 93k vertices, 150 shapes).
+      const std::vector<int>& boundary = inpainting->boundary();
+      Eigen::MatrixXd values(static_cast<Eigen::Index>(boundary.size()), 3 * static_cast<Eigen::Index>(out.size()));
+      for (std::size_t k = 0; k < out.size(); ++k) {
+        for (std::size_t i = 0; i < boundary.size(); ++i) {
+          values.block<1, 3>(static_cast<Eigen::Index>(i), 3 * static_cast<Eigen::Index>(k)) =
+              out[k].position_deltas.row(boundary[i]);
+        }
+      }
+      const Eigen::MatrixXd solved = inpainting->solve(values);
+      const std::vector<int>& unknown_vertices = inpainting->unknown();
       for (std::size_t k = 0; k < out.size(); ++k) {
         MorphTarget& t = out[k];
-        for (Eigen::Index v = 0; v < nt; ++v) {
-          if (known[static_cast<std::size_t>(v)]) continue;
-          const Eigen::RowVector3d d = solved->row(v).segment<3>(3 * static_cast<Eigen::Index>(k));
-          t.position_deltas.row(v) = d.cwiseAbs().maxCoeff() < 1e-12 ? Eigen::RowVector3d::Zero() : d;
+        for (std::size_t i = 0; i < unknown_vertices.size(); ++i) {
+          if (!inpainting->reached(i)) continue;
+          const Eigen::RowVector3d d =
+              solved.row(static_cast<Eigen::Index>(i)).segment<3>(3 * static_cast<Eigen::Index>(k));
+          t.position_deltas.row(unknown_vertices[i]) = d.cwiseAbs().maxCoeff() < 1e-12 ? Eigen::RowVector3d::Zero() : d;
         }
       }
     }

@@ -51,19 +51,24 @@ Eigen::SparseMatrix<double> uniformLaplacian(Eigen::Index vertex_count, const Ei
   return laplacian;
 }
 
-Result<Eigen::MatrixXd> inpaintHarmonic(const Eigen::SparseMatrix<double>& laplacian, const std::vector<char>& known,
-                                        const Eigen::MatrixXd& values) {
-  const Eigen::Index n = values.rows();
-  std::vector<int> unknown;
-  for (Eigen::Index v = 0; v < n; ++v) if (!known[static_cast<std::size_t>(v)]) unknown.push_back(static_cast<int>(v));
-  Eigen::MatrixXd out = values;
-  if (unknown.empty() || unknown.size() == static_cast<std::size_t>(n)) return out;
-  std::vector<int> slot(static_cast<std::size_t>(n), -1);
-  for (std::size_t i = 0; i < unknown.size(); ++i) slot[static_cast<std::size_t>(unknown[i])] = static_cast<int>(i);
-  const Eigen::Index nu = static_cast<Eigen::Index>(unknown.size());
+struct HarmonicInpainting::Solver {
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt;
+};
+
+Result<HarmonicInpainting> HarmonicInpainting::create(const Eigen::SparseMatrix<double>& laplacian,
+                                                      const std::vector<char>& known) {
+  const auto n = static_cast<Eigen::Index>(known.size());
+  HarmonicInpainting h;
+  std::vector<int> slot(known.size(), -1), boundary_slot(known.size(), -1);
+  for (Eigen::Index v = 0; v < n; ++v) {
+    if (!known[static_cast<std::size_t>(v)]) {
+      slot[static_cast<std::size_t>(v)] = static_cast<int>(h.unknown_.size());
+      h.unknown_.push_back(static_cast<int>(v));
+    }
+  }
+  const auto nu = static_cast<Eigen::Index>(h.unknown_.size());
   std::vector<Eigen::Triplet<double>> luu;
-  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nu, values.cols());
-  Eigen::VectorXd touches_known = Eigen::VectorXd::Zero(nu);
+  std::vector<char> touches_known(h.unknown_.size(), 0);
   for (int k = 0; k < laplacian.outerSize(); ++k) {
     for (Eigen::SparseMatrix<double>::InnerIterator it(laplacian, k); it; ++it) {
       const int r = slot[static_cast<std::size_t>(it.row())];
@@ -71,41 +76,86 @@ Result<Eigen::MatrixXd> inpaintHarmonic(const Eigen::SparseMatrix<double>& lapla
       const int c = slot[static_cast<std::size_t>(it.col())];
       if (c >= 0) {
         luu.emplace_back(r, c, it.value());
-      } else {
-        rhs.row(r) -= it.value() * values.row(it.col());
-        touches_known(r) = 1.0;
+        continue;
       }
+      int& b = boundary_slot[static_cast<std::size_t>(it.col())];
+      if (b < 0) {
+        b = static_cast<int>(h.boundary_.size());
+        h.boundary_.push_back(static_cast<int>(it.col()));
+      }
+      h.couplings_.push_back({r, b, -it.value()});
+      touches_known[static_cast<std::size_t>(r)] = 1;
     }
   }
+  // Boundary in ascending vertex order (it was collected in column order).
+  {
+    std::vector<int> order(h.boundary_.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+    std::sort(order.begin(), order.end(), [&](int a, int b) { return h.boundary_[static_cast<std::size_t>(a)] < h.boundary_[static_cast<std::size_t>(b)]; });
+    std::vector<int> rank(order.size());
+    std::vector<int> sorted(order.size());
+    for (std::size_t i = 0; i < order.size(); ++i) {
+      rank[static_cast<std::size_t>(order[i])] = static_cast<int>(i);
+      sorted[i] = h.boundary_[static_cast<std::size_t>(order[i])];
+    }
+    h.boundary_.swap(sorted);
+    for (Coupling& c : h.couplings_) c.boundary_index = rank[static_cast<std::size_t>(c.boundary_index)];
+  }
   // A tiny diagonal keeps components with no known vertex solvable (they
-  // come out ~0 and are restored below).
+  // come out ~0 and are reported as not reached).
   for (Eigen::Index i = 0; i < nu; ++i) luu.emplace_back(i, i, 1e-9);
   Eigen::SparseMatrix<double> a(nu, nu);
   a.setFromTriplets(luu.begin(), luu.end());
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(a);
-  if (solver.info() != Eigen::Success) {
+  auto solver = std::make_shared<Solver>();
+  solver->ldlt.compute(a);
+  if (solver->ldlt.info() != Eigen::Success) {
     return makeError(ErrorCode::kInvalidMesh, "inpainting: the target Laplacian could not be factorised");
   }
-  const Eigen::MatrixXd x = solver.solve(rhs);
+  h.solver_ = std::move(solver);
   // Components that touch no known vertex: find them by propagating from the
   // unknowns adjacent to known ones.
-  std::vector<char> reached(static_cast<std::size_t>(nu), 0);
+  h.reached_.assign(h.unknown_.size(), 0);
   std::vector<int> stack;
-  for (Eigen::Index i = 0; i < nu; ++i) if (touches_known(i) > 0) { reached[static_cast<std::size_t>(i)] = 1; stack.push_back(static_cast<int>(i)); }
+  for (std::size_t i = 0; i < touches_known.size(); ++i) {
+    if (touches_known[i]) {
+      h.reached_[i] = 1;
+      stack.push_back(static_cast<int>(i));
+    }
+  }
   while (!stack.empty()) {
-    const int r = stack.back();
+    const int v = h.unknown_[static_cast<std::size_t>(stack.back())];
     stack.pop_back();
-    const int v = unknown[static_cast<std::size_t>(r)];
     for (Eigen::SparseMatrix<double>::InnerIterator it(laplacian, v); it; ++it) {
       const int c = slot[static_cast<std::size_t>(it.row())];
-      if (c >= 0 && !reached[static_cast<std::size_t>(c)]) {
-        reached[static_cast<std::size_t>(c)] = 1;
+      if (c >= 0 && !h.reached_[static_cast<std::size_t>(c)]) {
+        h.reached_[static_cast<std::size_t>(c)] = 1;
         stack.push_back(c);
       }
     }
   }
-  for (Eigen::Index i = 0; i < nu; ++i) {
-    if (reached[static_cast<std::size_t>(i)]) out.row(unknown[static_cast<std::size_t>(i)]) = x.row(i);
+  return h;
+}
+
+Eigen::MatrixXd HarmonicInpainting::solve(const Eigen::MatrixXd& boundary_values) const {
+  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(unknown_.size()), boundary_values.cols());
+  for (const Coupling& c : couplings_) rhs.row(c.unknown_index) += c.weight * boundary_values.row(c.boundary_index);
+  return solver_->ldlt.solve(rhs);
+}
+
+Result<Eigen::MatrixXd> inpaintHarmonic(const Eigen::SparseMatrix<double>& laplacian, const std::vector<char>& known,
+                                        const Eigen::MatrixXd& values) {
+  Eigen::MatrixXd out = values;
+  const std::size_t unknown = static_cast<std::size_t>(std::count(known.begin(), known.end(), 0));
+  if (unknown == 0 || unknown == known.size()) return out;
+  auto inpainting = HarmonicInpainting::create(laplacian, known);
+  if (!inpainting) return inpainting.error();
+  Eigen::MatrixXd boundary(static_cast<Eigen::Index>(inpainting->boundary().size()), values.cols());
+  for (std::size_t i = 0; i < inpainting->boundary().size(); ++i) {
+    boundary.row(static_cast<Eigen::Index>(i)) = values.row(inpainting->boundary()[i]);
+  }
+  const Eigen::MatrixXd x = inpainting->solve(boundary);
+  for (std::size_t i = 0; i < inpainting->unknown().size(); ++i) {
+    if (inpainting->reached(i)) out.row(inpainting->unknown()[i]) = x.row(static_cast<Eigen::Index>(i));
   }
   return out;
 }

@@ -1,10 +1,15 @@
 // Rig transfer end to end (prepared rig; per stage), ICT rig onto a remeshed
 // ICT target when ../shared/data is present, else generated rigs.
 //   transfer_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+#include <algorithm>
+#include <chrono>
 #include <filesystem>
+#include <map>
 
 #include <benchmark/benchmark.h>
 
+#include "core/landmarks.h"
+#include "core/mesh.h"
 #include "core/mesh_io.h"
 #include "core/rig_io.h"
 #include "core/synthetic_rig.h"
@@ -84,6 +89,115 @@ void BM_TransferPrepared(benchmark::State& state) {
   state.SetLabel(c.name + ", " + std::to_string(state.range(0)) + " thread(s)");
 }
 BENCHMARK(BM_TransferPrepared)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
+
+// Each triangle split into four at its edge midpoints (shared midpoints
+// merged): the surface is unchanged, the vertex count roughly quadruples.
+core::Mesh subdivideMidpoints(const core::Mesh& mesh) {
+  std::map<std::pair<int, int>, int> midpoint;
+  std::vector<Eigen::RowVector3d> positions;
+  for (Eigen::Index v = 0; v < mesh.vertexCount(); ++v) positions.push_back(mesh.positions.row(v));
+  auto mid = [&](int a, int b) {
+    const auto key = std::minmax(a, b);
+    auto [it, added] = midpoint.try_emplace({key.first, key.second}, static_cast<int>(positions.size()));
+    if (added) positions.push_back(0.5 * (mesh.positions.row(a) + mesh.positions.row(b)));
+    return it->second;
+  };
+  core::Mesh out;
+  out.triangles.resize(4 * mesh.triangleCount(), 3);
+  for (Eigen::Index f = 0; f < mesh.triangleCount(); ++f) {
+    const int a = mesh.triangles(f, 0), b = mesh.triangles(f, 1), c = mesh.triangles(f, 2);
+    const int ab = mid(a, b), bc = mid(b, c), ca = mid(c, a);
+    out.triangles.row(4 * f) << a, ab, ca;
+    out.triangles.row(4 * f + 1) << ab, b, bc;
+    out.triangles.row(4 * f + 2) << ca, bc, c;
+    out.triangles.row(4 * f + 3) << ab, bc, ca;
+  }
+  out.positions.resize(static_cast<Eigen::Index>(positions.size()), 3);
+  for (std::size_t v = 0; v < positions.size(); ++v) out.positions.row(static_cast<Eigen::Index>(v)) = positions[v];
+  out.normals = core::computeVertexNormals(out.positions, out.triangles);
+  return out;
+}
+
+// The large case: a ~100k-vertex target and 150 shapes, on 2 threads,
+// transfer + GLB write. ICT rig with its shapes repeated to 150 onto
+// id_s01_remesh subdivided twice (94k vertices); landmarks as positions.
+struct LargeCase {
+  core::PreparedRig prepared;
+  core::Mesh target;
+  core::LandmarkSet target_landmarks;
+  std::string name;
+};
+
+const LargeCase& largeCase() {
+  static LargeCase c = [] {
+    LargeCase out;
+    const Case& base = benchCase();
+    core::Rig rig = base.rig;
+    const std::size_t original = rig.morph_targets.size();
+    for (std::size_t k = original; k < 150 && original > 0; ++k) {
+      core::MorphTarget copy = rig.morph_targets[k % original];
+      copy.name += "_copy" + std::to_string(k / original);
+      rig.morph_targets.push_back(std::move(copy));
+    }
+    // Morph-weight channels and default weights follow the repeated shapes.
+    for (auto& animation : rig.animations) {
+      for (auto& channel : animation.channels) {
+        if (channel.path != core::AnimationPath::kWeights || channel.values.cols() == 0) continue;
+        const Eigen::MatrixXd values = channel.values;
+        channel.values.resize(values.rows(), static_cast<Eigen::Index>(rig.morph_targets.size()));
+        for (Eigen::Index k = 0; k < channel.values.cols(); ++k) channel.values.col(k) = values.col(k % values.cols());
+      }
+    }
+    if (rig.morph_default_weights.size() > 0) {
+      const Eigen::VectorXd weights = rig.morph_default_weights;
+      rig.morph_default_weights.resize(static_cast<Eigen::Index>(rig.morph_targets.size()));
+      for (Eigen::Index k = 0; k < rig.morph_default_weights.size(); ++k) {
+        rig.morph_default_weights(k) = weights(k % weights.size());
+      }
+    }
+    out.prepared = std::move(*core::prepareRig(rig, base.landmarks, "source"));
+    out.target = subdivideMidpoints(subdivideMidpoints(base.target));
+    const auto positions = core::resolveLandmarks(base.target_landmarks, base.target, "target");
+    out.target_landmarks = base.target_landmarks;
+    for (std::size_t i = 0; i < out.target_landmarks.landmarks.size(); ++i) {
+      core::Landmark& lm = out.target_landmarks.landmarks[i];
+      lm.kind = core::LandmarkKind::kPosition;
+      lm.position = positions->row(static_cast<Eigen::Index>(i)).transpose();
+    }
+    out.name = std::to_string(rig.morph_targets.size()) + " shapes -> " + std::to_string(out.target.vertexCount()) +
+               " vertices (" + base.name + ", target subdivided twice)";
+    return out;
+  }();
+  return c;
+}
+
+void BM_TransferLargeTargetAndWrite(benchmark::State& state) {
+  const LargeCase& c = largeCase();
+  core::TransferOptions options;
+  options.threads = 2;
+  double transfer = 0, write = 0;
+  for (auto _ : state) {
+    const auto t0 = std::chrono::steady_clock::now();
+    auto r = core::transferRig(c.prepared, c.target, c.target_landmarks, "target", options);
+    if (!r) {
+      state.SkipWithError(r.error().message.c_str());
+      return;
+    }
+    const auto t1 = std::chrono::steady_clock::now();
+    auto glb = core::encodeRigGlb(r->rig);
+    if (!glb) {
+      state.SkipWithError(glb.error().message.c_str());
+      return;
+    }
+    benchmark::DoNotOptimize(glb->data());
+    transfer += std::chrono::duration<double, std::milli>(t1 - t0).count();
+    write += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t1).count();
+  }
+  state.counters["transfer_ms"] = transfer / static_cast<double>(state.iterations());
+  state.counters["write_ms"] = write / static_cast<double>(state.iterations());
+  state.SetLabel(c.name + ", 2 threads");
+}
+BENCHMARK(BM_TransferLargeTargetAndWrite)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_WriteRigGlb(benchmark::State& state) {
   const Case& c = benchCase();
