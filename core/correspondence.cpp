@@ -122,12 +122,23 @@ std::vector<int> farthestPointSample(const Eigen::MatrixX3d& positions, int coun
   Eigen::Index first = 0;
   (positions.rowwise() - centroid).rowwise().squaredNorm().minCoeff(&first);
   Eigen::VectorXd sq = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::infinity());
+  const double* x = positions.col(0).data();
+  const double* y = positions.col(1).data();
+  const double* z = positions.col(2).data();
   Eigen::Index next = first;
   for (int k = 0; k < count; ++k) {
     chosen.push_back(static_cast<int>(next));
-    const Eigen::RowVector3d p = positions.row(next);
-    for (Eigen::Index v = 0; v < n; ++v) sq(v) = std::min(sq(v), (positions.row(v) - p).squaredNorm());
-    sq.maxCoeff(&next);  // lowest index among ties: deterministic
+    const double px = x[next], py = y[next], pz = z[next];
+    // Column by column so that the loop vectorises.
+    for (Eigen::Index v = 0; v < n; ++v) {
+      const double dx = x[v] - px, dy = y[v] - py, dz = z[v] - pz;
+      sq(v) = std::min(sq(v), dx * dx + dy * dy + dz * dz);
+    }
+    // Lowest index among ties (deterministic): the vectorised maximum, then
+    // its first occurrence (an indexed maxCoeff is a serial compare chain).
+    const double farthest = sq.maxCoeff();
+    next = 0;
+    while (sq(next) != farthest) ++next;
   }
   return chosen;
 }
