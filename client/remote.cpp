@@ -356,9 +356,10 @@ RemoteResult<SubmittedJob> RemoteClient::submitJob(const nlohmann::json& spec,
   }
 }
 
-RemoteResult<api::JobInfo> RemoteClient::getJob(const std::string& id) {
+RemoteResult<api::JobInfo> RemoteClient::getJob(const std::string& id, std::chrono::milliseconds wait) {
   RIGPORT_REQUIRE_CLIENT();
-  const std::string path = "/v1/jobs/" + escape(id);
+  std::string path = "/v1/jobs/" + escape(id);
+  if (wait.count() > 0) path += "?wait_ms=" + std::to_string(wait.count());
   auto res = getWithRetries(*http_->client, options_, path);
   if (!res) return http_->transportProblem("GET", path, res.error());
   if (!isSuccess(res->status)) return http_->responseProblem("GET", path, *res);
@@ -428,18 +429,30 @@ RemoteResult<std::int64_t> RemoteClient::downloadDiagnostics(const std::string& 
 RemoteResult<api::JobInfo> RemoteClient::waitJob(const std::string& id, const JobProgressCallback& on_progress,
                                                  std::chrono::milliseconds poll_interval,
                                                  std::chrono::milliseconds timeout) {
-  const auto start = std::chrono::steady_clock::now();
+  using namespace std::chrono;
+  const auto start = steady_clock::now();
+  // Long polls stay well inside the read timeout (and the server's 60 s cap).
+  const milliseconds longest_wait = std::min<milliseconds>(seconds(10), options_.read_timeout / 2);
   for (;;) {
-    auto job = getJob(id);
+    const auto asked = steady_clock::now();
+    milliseconds wait{0};
+    if (!on_progress) {
+      wait = longest_wait;
+      if (timeout.count() > 0) wait = std::min(wait, duration_cast<milliseconds>(timeout - (asked - start)));
+    }
+    auto job = getJob(id, std::max(wait, milliseconds(0)));
     if (!job) return job.problem();
     if (on_progress) on_progress(*job);
     if (api::isFinal(job->status)) return job;
-    if (timeout.count() > 0 && std::chrono::steady_clock::now() - start + poll_interval > timeout) {
+    if (timeout.count() > 0 && steady_clock::now() - start + poll_interval > timeout) {
       return localProblem(kWaitTimeoutProblem, "Gave up waiting",
                           "job " + id + " still " + api::jobStatusName(job->status) + " after " +
                               std::to_string(timeout.count() / 1000) + " s");
     }
-    std::this_thread::sleep_for(poll_interval);
+    // A server that did not wait (too many waiters, or an older server)
+    // still gets no more than one request per poll interval.
+    const auto spent = steady_clock::now() - asked;
+    if (spent < poll_interval) std::this_thread::sleep_for(poll_interval - spent);
   }
 }
 

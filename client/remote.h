@@ -126,7 +126,10 @@ class RemoteClient {
   RemoteResult<SubmittedJob> submitJob(const nlohmann::json& spec,
                                        const std::map<std::string, std::filesystem::path>& files,
                                        const std::string& idempotency_key = {});
-  RemoteResult<api::JobInfo> getJob(const std::string& id);
+  // `wait` > 0 asks the server to answer when the job finishes or after
+  // `wait` (long polling, `wait_ms`), whichever comes first.
+  RemoteResult<api::JobInfo> getJob(const std::string& id,
+                                    std::chrono::milliseconds wait = std::chrono::milliseconds(0));
   RemoteResult<api::JobPage> listJobs(const JobQuery& query = {});
   RemoteResult<api::JobInfo> cancelJob(const std::string& id);
 
@@ -138,10 +141,12 @@ class RemoteClient {
   RemoteResult<std::string> fetchResult(const std::string& id);
   RemoteResult<std::string> fetchDiagnostics(const std::string& id);
 
-  // Polls GET /v1/jobs/{id} every `poll_interval` until the job is final
-  // (succeeded, failed or cancelled) and returns its last state; a failed job
-  // is a value, not a problem. Gives up with a timeout problem (status 0)
-  // after `timeout` (zero = never).
+  // Polls GET /v1/jobs/{id} until the job is final (succeeded, failed or
+  // cancelled) and returns its last state; a failed job is a value, not a
+  // problem. With a progress callback it polls every `poll_interval`;
+  // without, it long-polls (the server answers when the job finishes) and
+  // never asks more often than every `poll_interval`. Gives up with a timeout
+  // problem (status 0) after `timeout` (zero = never).
   RemoteResult<api::JobInfo> waitJob(const std::string& id, const JobProgressCallback& on_progress = {},
                                      std::chrono::milliseconds poll_interval = std::chrono::milliseconds(250),
                                      std::chrono::milliseconds timeout = std::chrono::milliseconds(0));

@@ -1,5 +1,6 @@
 #include "server/jobs.h"
 
+#include <algorithm>
 #include <chrono>
 
 #include "api/error_codes.h"
@@ -116,6 +117,7 @@ std::variant<JobRecord, api::Problem> JobManager::cancel(const std::string& tena
     return *job;
   }
   std::erase_if(queue_, [&](const auto& entry) { return entry.second == id; });
+  settled_.notify_all();  // waiters re-read the store after this function's commit (they need mutex_)
   job->status = api::JobStatus::kCancelled;
   job->stage = "cancelled";
   job->finished_ms = nowMs();
@@ -149,6 +151,7 @@ bool JobManager::stop(double grace_s) {
   std::unique_lock lock(mutex_);
   stopping_ = true;
   wake_.notify_all();
+  settled_.notify_all();
   const bool finished = idle_.wait_for(lock, std::chrono::duration<double>(grace_s), [&] { return running_.empty(); });
   if (!finished) {
     // Past the grace period: stop them at their next stage boundary and put
@@ -178,8 +181,22 @@ void JobManager::workerLoop() {
     runOne(next.first, next.second);
     std::lock_guard lock(mutex_);
     running_.erase(next.second);
+    settled_.notify_all();
     if (running_.empty()) idle_.notify_all();
   }
+}
+
+bool JobManager::waitUntilSettled(const std::string& id, std::chrono::milliseconds max_wait, int max_waiters) {
+  std::unique_lock lock(mutex_);
+  auto unsettled = [&] {
+    return running_.count(id) > 0 ||
+           std::any_of(queue_.begin(), queue_.end(), [&](const auto& entry) { return entry.second == id; });
+  };
+  if (stopping_ || !unsettled() || waiters_ >= max_waiters) return false;
+  ++waiters_;
+  settled_.wait_for(lock, max_wait, [&] { return stopping_ || !unsettled(); });
+  --waiters_;
+  return true;
 }
 
 void JobManager::runOne(const std::string& tenant, const std::string& id) {

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <deque>
 #include <map>
@@ -59,6 +60,12 @@ class JobManager {
   int queueDepth() const;
   int runningJobs() const;
 
+  // Long-polling GET: blocks until the job is neither queued nor running
+  // here (its final state is in the store), the server stops, or `max_wait`
+  // passes. At most `max_waiters` requests wait at once (each holds an HTTP
+  // thread); the others return at once. Returns false when it did not wait.
+  bool waitUntilSettled(const std::string& id, std::chrono::milliseconds max_wait, int max_waiters);
+
   // Graceful stop: no new jobs start; running ones get `grace_s` to finish.
   // Returns true when every running job finished in time (the others stay
   // `running` in the store and are requeued at the next start).
@@ -83,6 +90,8 @@ class JobManager {
   mutable std::mutex mutex_;
   std::condition_variable wake_;
   std::condition_variable idle_;
+  std::condition_variable settled_;                          // a job left the queue or finished running
+  int waiters_ = 0;                                          // requests in waitUntilSettled
   std::deque<std::pair<std::string, std::string>> queue_;   // (tenant, id)
   int reserved_ = 0;                                         // submissions between capacity check and commit
   std::map<std::string, std::shared_ptr<Running>> running_;  // by job id

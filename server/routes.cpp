@@ -1,5 +1,8 @@
 #include "server/routes.h"
 
+#include <algorithm>
+#include <charconv>
+#include <chrono>
 #include <fstream>
 #include <random>
 #include <set>
@@ -319,12 +322,30 @@ void getJobs(const Request& req, Response& res, RouteContext& ctx) {
   sendJson(res, 200, api::toJson(page));
 }
 
+// Longest long-poll a client may ask for (`wait_ms`), and the share of HTTP
+// threads that may be waiting at once (the rest keep serving uploads).
+constexpr int kMaxWaitMs = 60000;
+
 void getJob(const Request& req, Response& res, RouteContext& ctx) {
   const auto tenant = authenticate(req, res, ctx);
   if (!tenant) return;
+  int wait_ms = 0;
+  if (req.has_param("wait_ms")) {
+    const std::string text = req.get_param_value("wait_ms");
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), wait_ms);
+    if (ec != std::errc() || end != text.data() + text.size() || wait_ms < 0 || wait_ms > kMaxWaitMs) {
+      return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest,
+                                               "wait_ms: expected an integer 0.." + std::to_string(kMaxWaitMs) +
+                                                   " (milliseconds to wait for the job to finish)", req.path), ctx);
+    }
+  }
   const std::string id = req.matches[1];
   auto job = ctx.store.getJob(*tenant, id);
   if (!job) return sendProblem(res, api::makeProblem(api::WireError::kNotFound, "no job " + id, req.path), ctx);
+  if (wait_ms > 0 && !api::isFinal(job->status) &&
+      ctx.jobs.waitUntilSettled(id, std::chrono::milliseconds(wait_ms), std::max(1, ctx.config.http_threads / 2))) {
+    if (auto again = ctx.store.getJob(*tenant, id)) job = std::move(again);
+  }
   sendJson(res, 200, api::toJson(jobInfoOf(*job, ctx.jobs.live(id))));
 }
 

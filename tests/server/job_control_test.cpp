@@ -64,6 +64,33 @@ TEST(JobControl, FullQueueAnswers429AndCancelStopsQueuedAndRunningJobs) {
   EXPECT_EQ(get(*client, "/v1/jobs?status=cancelled").body["items"].size(), 2u);
 }
 
+// GET with wait_ms answers when the job finishes: one request sees the final
+// state of a job that was queued behind another.
+TEST(JobControl, LongPollAnswersWhenTheJobFinishes) {
+  const auto dir = makeTempDir("longpoll");
+  const TransferFiles files = writeTransferFiles(dir, 200);  // slow enough that a plain GET sees it unfinished
+  server::ServerConfig config = testConfig(dir / "data");
+  config.workers = 1;
+  InProcessService service(config);
+  auto client = service.client();
+  client->set_read_timeout(std::chrono::seconds(120));
+  const std::string rig_id = uploadRig(*client, files).body["id"];
+  const std::string first = submitTransfer(*client, rig_id, files).body["id"];
+  Reply second = submitTransfer(*client, rig_id, files);
+  ASSERT_EQ(second.status, 202) << second.raw;
+  ASSERT_NE(second.body["status"], "succeeded");
+  Reply settled = get(*client, "/v1/jobs/" + second.body["id"].get<std::string>() + "?wait_ms=60000");
+  ASSERT_EQ(settled.status, 200) << settled.raw;
+  EXPECT_EQ(settled.body["status"], "succeeded") << settled.raw;
+  EXPECT_EQ(get(*client, "/v1/jobs/" + first).body["status"], "succeeded");
+
+  for (const char* bad : {"-1", "60001", "abc", "5x"}) {
+    Reply r = get(*client, "/v1/jobs/" + first + "?wait_ms=" + bad);
+    EXPECT_EQ(r.status, 400) << bad;
+    EXPECT_NE(r.body.value("detail", "").find("wait_ms"), std::string::npos) << r.raw;
+  }
+}
+
 TEST(JobControl, ListsArePaginatedInSubmissionOrder) {
   const auto dir = makeTempDir("pages");
   const TransferFiles files = writeTransferFiles(dir);
