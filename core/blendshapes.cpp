@@ -51,6 +51,95 @@ Eigen::MatrixX3d normalDeltas(const Mesh& target, const Eigen::MatrixX3d& base_n
   return out;
 }
 
+
+// Each located target vertex's source corners and weights (corner -1: no
+// location), read once per shape from this compact table (the SurfacePoints
+// are 80 bytes each).
+struct Corners {
+  int vertex[3];
+  double weight[3];
+};
+
+std::vector<Corners> cornerTable(const Eigen::MatrixX3i& source_triangles, const TargetLocations& locations) {
+  std::vector<Corners> corners(locations.on_source.size(), Corners{{-1, -1, -1}, {0.0, 0.0, 0.0}});
+  for (std::size_t v = 0; v < corners.size(); ++v) {
+    const SurfacePoint& sp = locations.on_source[v];
+    if (!sp.found()) continue;
+    for (int c = 0; c < 3; ++c) {
+      corners[v].vertex[c] = source_triangles(sp.face, c);
+      corners[v].weight[c] = sp.barycentric(c);
+    }
+  }
+  return corners;
+}
+
+// One shape's deltas at the located target vertices: interpolated, adapted,
+// scaled by `gain`. `moving` is scratch space.
+Eigen::MatrixX3d gatherDeltas(const MorphTarget& s, const std::vector<Corners>& corners,
+                              const std::vector<Eigen::Matrix3d>& adaptation, double gain,
+                              std::vector<unsigned char>& moving) {
+  const auto nt = static_cast<Eigen::Index>(corners.size());
+  Eigen::MatrixX3d out = Eigen::MatrixX3d::Zero(nt, 3);
+  // Shapes are sparse: one sequential pass marks the source vertices that
+  // move, so target vertices located among still ones skip the gather.
+  const Eigen::Index ns = s.position_deltas.rows();
+  moving.assign(static_cast<std::size_t>(ns), 0);
+  for (int c = 0; c < 3; ++c) {
+    const double* col = s.position_deltas.col(c).data();
+    for (Eigen::Index i = 0; i < ns; ++i) moving[static_cast<std::size_t>(i)] |= col[i] != 0.0 ? 1 : 0;
+  }
+  for (Eigen::Index v = 0; v < nt; ++v) {
+    const Corners& at = corners[static_cast<std::size_t>(v)];
+    if (at.vertex[0] < 0) continue;  // no location
+    if (!(moving[static_cast<std::size_t>(at.vertex[0])] | moving[static_cast<std::size_t>(at.vertex[1])] |
+          moving[static_cast<std::size_t>(at.vertex[2])])) {
+      continue;
+    }
+    Eigen::Vector3d d = Eigen::Vector3d::Zero();
+    for (int c = 0; c < 3; ++c) d += at.weight[c] * s.position_deltas.row(at.vertex[c]).transpose();
+    if (d.isZero(0.0)) continue;  // keeps sparse shapes sparse
+    const Eigen::Matrix3d& a = adaptation.size() == 1 ? adaptation[0] : adaptation[static_cast<std::size_t>(v)];
+    out.row(v) = gain * (a * d).transpose();
+  }
+  return out;
+}
+
+// Mismatched vertices (no location, or matched across a thin gap) take
+// deltas blended from their surroundings, never a copy from the wrong lip or
+// lid: all shapes in one solve, from the boundary rows only (stacking whole
+// shapes cost #V x 3 #shapes doubles: 335 MB at 93k vertices, 150 shapes).
+void inpaintMismatched(const TargetLocations& locations, const Eigen::SparseMatrix<double>& target_laplacian,
+                       std::vector<MorphTarget>& shapes) {
+  const Eigen::Index nt = locations.mismatched.size();
+  std::vector<char> known(static_cast<std::size_t>(nt));
+  std::size_t unknown = 0;
+  for (Eigen::Index v = 0; v < nt; ++v) {
+    known[static_cast<std::size_t>(v)] = locations.mismatched(v) == 0;
+    unknown += known[static_cast<std::size_t>(v)] ? 0 : 1;
+  }
+  if (unknown == 0 || unknown == static_cast<std::size_t>(nt) || shapes.empty()) return;
+  assert(target_laplacian.rows() == nt);
+  auto inpainting = HarmonicInpainting::create(target_laplacian, known);
+  if (!inpainting) return;  // keeps the interpolated deltas (as before inpainting existed)
+  const std::vector<int>& boundary = inpainting->boundary();
+  Eigen::MatrixXd values(static_cast<Eigen::Index>(boundary.size()), 3 * static_cast<Eigen::Index>(shapes.size()));
+  for (std::size_t k = 0; k < shapes.size(); ++k) {
+    for (std::size_t i = 0; i < boundary.size(); ++i) {
+      values.block<1, 3>(static_cast<Eigen::Index>(i), 3 * static_cast<Eigen::Index>(k)) =
+          shapes[k].position_deltas.row(boundary[i]);
+    }
+  }
+  const Eigen::MatrixXd solved = inpainting->solve(values);
+  const std::vector<int>& unknown_vertices = inpainting->unknown();
+  for (std::size_t k = 0; k < shapes.size(); ++k) {
+    for (std::size_t i = 0; i < unknown_vertices.size(); ++i) {
+      if (!inpainting->reached(i)) continue;
+      const Eigen::RowVector3d d = solved.row(static_cast<Eigen::Index>(i)).segment<3>(3 * static_cast<Eigen::Index>(k));
+      shapes[k].position_deltas.row(unknown_vertices[i]) = d.cwiseAbs().maxCoeff() < 1e-12 ? Eigen::RowVector3d::Zero() : d;
+    }
+  }
+}
+
 }  // namespace
 
 std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& source,
@@ -61,94 +150,22 @@ std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& so
                                               const ShapeTransferOptions& options) {
   const Eigen::Index nt = target.vertexCount();
   std::vector<MorphTarget> out(source.size());
-  const Eigen::MatrixX3d base_normals = computeVertexNormals(target.positions, target.triangles);
-  // Each located target vertex's source corners and weights, read once per
-  // shape from this compact table (the SurfacePoints are 80 bytes each).
-  struct Corners {
-    int vertex[3];
-    double weight[3];
-  };
-  std::vector<Corners> corners(static_cast<std::size_t>(nt), Corners{{-1, -1, -1}, {0.0, 0.0, 0.0}});
-  for (Eigen::Index v = 0; v < nt; ++v) {
-    const SurfacePoint& sp = locations.on_source[static_cast<std::size_t>(v)];
-    if (!sp.found()) continue;
-    for (int c = 0; c < 3; ++c) {
-      corners[static_cast<std::size_t>(v)].vertex[c] = source_triangles(sp.face, c);
-      corners[static_cast<std::size_t>(v)].weight[c] = sp.barycentric(c);
-    }
-  }
+  const std::vector<Corners> corners = cornerTable(source_triangles, locations);
   parallelFor(static_cast<std::ptrdiff_t>(source.size()), options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     std::vector<unsigned char> moving;
     for (std::ptrdiff_t k = begin; k < end; ++k) {
       const MorphTarget& s = source[static_cast<std::size_t>(k)];
-      MorphTarget& t = out[static_cast<std::size_t>(k)];
-      t.name = s.name;
       const auto found = options.per_shape.find(s.name);
       const double gain = found != options.per_shape.end() ? found->second : options.exaggeration;
-      t.position_deltas = Eigen::MatrixX3d::Zero(nt, 3);
-      // Shapes are sparse: one sequential pass marks the source vertices that
-      // move, so target vertices located among still ones skip the gather.
-      const Eigen::Index ns = s.position_deltas.rows();
-      moving.assign(static_cast<std::size_t>(ns), 0);
-      for (int c = 0; c < 3; ++c) {
-        const double* col = s.position_deltas.col(c).data();
-        for (Eigen::Index i = 0; i < ns; ++i) moving[static_cast<std::size_t>(i)] |= col[i] != 0.0 ? 1 : 0;
-      }
-      for (Eigen::Index v = 0; v < nt; ++v) {
-        const Corners& at = corners[static_cast<std::size_t>(v)];
-        if (at.vertex[0] < 0) continue;  // no location
-        if (!(moving[static_cast<std::size_t>(at.vertex[0])] | moving[static_cast<std::size_t>(at.vertex[1])] |
-              moving[static_cast<std::size_t>(at.vertex[2])])) {
-          continue;
-        }
-        Eigen::Vector3d d = Eigen::Vector3d::Zero();
-        for (int c = 0; c < 3; ++c) d += at.weight[c] * s.position_deltas.row(at.vertex[c]).transpose();
-        if (d.isZero(0.0)) continue;  // keeps sparse shapes sparse
-        const Eigen::Matrix3d& a = adaptation.size() == 1 ? adaptation[0] : adaptation[static_cast<std::size_t>(v)];
-        t.position_deltas.row(v) = gain * (a * d).transpose();
-      }
+      out[static_cast<std::size_t>(k)].name = s.name;
+      out[static_cast<std::size_t>(k)].position_deltas = gatherDeltas(s, corners, adaptation, gain, moving);
     }
   }, 1);
-
-  // Mismatched vertices (no location, or matched across a thin gap) take
-  // deltas blended from their surroundings, never a copy from the wrong lip or
-  // lid. All shapes in one solve.
-  std::vector<char> known(static_cast<std::size_t>(nt));
-  std::size_t unknown = 0;
-  for (Eigen::Index v = 0; v < nt; ++v) {
-    known[static_cast<std::size_t>(v)] = locations.mismatched(v) == 0;
-    unknown += known[static_cast<std::size_t>(v)] ? 0 : 1;
-  }
-  if (options.inpaint_untrusted && unknown > 0 && unknown < static_cast<std::size_t>(nt) && !out.empty()) {
-    assert(target_laplacian.rows() == nt);
-    auto inpainting = HarmonicInpainting::create(target_laplacian, known);
-    if (inpainting) {
-      // Only the boundary rows of every shape enter the solve (stacking whole
-      // shapes cost #V x 3 #shapes doubles: 335 MB at 93k vertices, 150 shapes).
-      const std::vector<int>& boundary = inpainting->boundary();
-      Eigen::MatrixXd values(static_cast<Eigen::Index>(boundary.size()), 3 * static_cast<Eigen::Index>(out.size()));
-      for (std::size_t k = 0; k < out.size(); ++k) {
-        for (std::size_t i = 0; i < boundary.size(); ++i) {
-          values.block<1, 3>(static_cast<Eigen::Index>(i), 3 * static_cast<Eigen::Index>(k)) =
-              out[k].position_deltas.row(boundary[i]);
-        }
-      }
-      const Eigen::MatrixXd solved = inpainting->solve(values);
-      const std::vector<int>& unknown_vertices = inpainting->unknown();
-      for (std::size_t k = 0; k < out.size(); ++k) {
-        MorphTarget& t = out[k];
-        for (std::size_t i = 0; i < unknown_vertices.size(); ++i) {
-          if (!inpainting->reached(i)) continue;
-          const Eigen::RowVector3d d =
-              solved.row(static_cast<Eigen::Index>(i)).segment<3>(3 * static_cast<Eigen::Index>(k));
-          t.position_deltas.row(unknown_vertices[i]) = d.cwiseAbs().maxCoeff() < 1e-12 ? Eigen::RowVector3d::Zero() : d;
-        }
-      }
-    }
-  }
+  if (options.inpaint_untrusted) inpaintMismatched(locations, target_laplacian, out);
 
   // Normal deltas from the final position deltas (the source's are not
   // transferable: they belong to the source's surface).
+  const Eigen::MatrixX3d base_normals = computeVertexNormals(target.positions, target.triangles);
   parallelFor(static_cast<std::ptrdiff_t>(source.size()), options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     for (std::ptrdiff_t k = begin; k < end; ++k) {
       if (source[static_cast<std::size_t>(k)].normal_deltas.rows() == 0) continue;
