@@ -1,9 +1,14 @@
 #include "tests/test_support.h"
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <map>
 #include <sstream>
+#include <utility>
+#include <vector>
 
 namespace rigport_test {
 
@@ -65,6 +70,43 @@ ValidatorResult validateGltf(const std::filesystem::path& file) {
     }
   }
   return ::testing::AssertionSuccess();
+}
+
+Icosphere unitIcosphere(int levels) {
+  const double g = (1.0 + std::sqrt(5.0)) / 2.0;
+  std::vector<Eigen::Vector3d> v = {{-1, g, 0}, {1, g, 0}, {-1, -g, 0}, {1, -g, 0}, {0, -1, g}, {0, 1, g},
+                                    {0, -1, -g}, {0, 1, -g}, {g, 0, -1}, {g, 0, 1}, {-g, 0, -1}, {-g, 0, 1}};
+  for (auto& p : v) p.normalize();
+  std::vector<Eigen::Vector3i> f = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                                    {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4}, {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+                                    {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},  {9, 8, 1}};
+  for (int l = 0; l < levels; ++l) {
+    std::map<std::pair<int, int>, int> mid;
+    auto midpoint = [&](int a, int b) {
+      const auto key = std::minmax(a, b);
+      auto it = mid.find(key);
+      if (it != mid.end()) return it->second;
+      v.push_back((v[static_cast<std::size_t>(a)] + v[static_cast<std::size_t>(b)]).normalized());
+      const int id = static_cast<int>(v.size()) - 1;
+      mid.emplace(key, id);
+      return id;
+    };
+    std::vector<Eigen::Vector3i> next;
+    for (const auto& t : f) {
+      const int ab = midpoint(t(0), t(1)), bc = midpoint(t(1), t(2)), ca = midpoint(t(2), t(0));
+      next.emplace_back(t(0), ab, ca);
+      next.emplace_back(t(1), bc, ab);
+      next.emplace_back(t(2), ca, bc);
+      next.emplace_back(ab, bc, ca);
+    }
+    f = std::move(next);
+  }
+  Icosphere mesh;
+  mesh.positions.resize(static_cast<Eigen::Index>(v.size()), 3);
+  for (std::size_t i = 0; i < v.size(); ++i) mesh.positions.row(static_cast<Eigen::Index>(i)) = v[i].transpose();
+  mesh.triangles.resize(static_cast<Eigen::Index>(f.size()), 3);
+  for (std::size_t i = 0; i < f.size(); ++i) mesh.triangles.row(static_cast<Eigen::Index>(i)) = f[i].transpose();
+  return mesh;
 }
 
 }  // namespace rigport_test

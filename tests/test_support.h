@@ -41,6 +41,14 @@ ValidatorResult validateGltf(const std::filesystem::path& file);
     EXPECT_EQ(vr_.errors, 0) << "glTF validator errors in " << (path) << ": " << vr_.output; \
   } while (0)
 
+// Unit icosphere: an icosahedron subdivided 1:4 `levels` times, vertices
+// projected onto the sphere (~20 * 4^levels faces; levels = 5: 10242 vertices).
+struct Icosphere {
+  Eigen::MatrixX3d positions;
+  Eigen::MatrixX3i triangles;
+};
+Icosphere unitIcosphere(int levels);
+
 // Compares two matrices elementwise; the failure names the first (i, j) apart.
 ::testing::AssertionResult matricesNear(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b, double tol);
 

@@ -8,7 +8,6 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
-#include <map>
 #include <numbers>
 #include <random>
 #include <utility>
@@ -43,39 +42,12 @@ TestMesh fromLists(const std::vector<Vector3d>& v, const std::vector<Eigen::Vect
 // Icosphere with `levels` 1:4 subdivisions, radius 1, vertices moved radially by
 // up to `bump` (random, fixed seed): closed, irregular, ~20 * 4^levels faces.
 TestMesh makeBumpySphere(int levels, double bump, unsigned seed) {
-  const double t = (1.0 + std::sqrt(5.0)) / 2.0;
-  std::vector<Vector3d> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
-                             {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
-  for (auto& p : v) p.normalize();
-  std::vector<Eigen::Vector3i> f = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
-                                    {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
-                                    {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
-                                    {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
-  for (int l = 0; l < levels; ++l) {
-    std::map<std::pair<int, int>, int> mid;
-    auto midpoint = [&](int a, int b) {
-      const auto key = std::minmax(a, b);
-      auto it = mid.find(key);
-      if (it != mid.end()) return it->second;
-      v.push_back((v[a] + v[b]).normalized());
-      return mid[key] = static_cast<int>(v.size()) - 1;
-    };
-    std::vector<Eigen::Vector3i> next;
-    for (const auto& tri : f) {
-      const int a = midpoint(tri(0), tri(1));
-      const int b = midpoint(tri(1), tri(2));
-      const int c = midpoint(tri(2), tri(0));
-      next.push_back({tri(0), a, c});
-      next.push_back({tri(1), b, a});
-      next.push_back({tri(2), c, b});
-      next.push_back({a, b, c});
-    }
-    f.swap(next);
-  }
+  const rigport_test::Icosphere sphere = rigport_test::unitIcosphere(levels);
+  TestMesh m{sphere.positions, sphere.triangles};
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(-bump, bump);
-  for (auto& p : v) p *= 1.0 + u(rng);
-  return fromLists(v, f);
+  for (Eigen::Index i = 0; i < m.positions.rows(); ++i) m.positions.row(i) *= 1.0 + u(rng);
+  return m;
 }
 
 // A triangle soup mixing regular triangles, slivers (thin and needle-like),
