@@ -2,6 +2,7 @@
 
 #include <cassert>
 #include <map>
+#include <optional>
 
 #include "core/inpainting.h"
 
@@ -58,11 +59,12 @@ TransferredAttributes transferAttributes(const Mesh& source_mesh, const VertexAt
     any_untrusted = any_untrusted || !trusted[static_cast<std::size_t>(v)];
   }
   assert(!any_untrusted || target_laplacian.rows() == nt);
-  const Eigen::SparseMatrix<double>& laplacian = target_laplacian;
+  // One factorisation for every attribute (same trusted set), made on first use.
+  std::optional<Result<HarmonicInpainting>> inpainting;
   auto inpaint = [&](const Eigen::MatrixXd& values) -> Eigen::MatrixXd {
     if (!any_untrusted) return values;
-    auto solved = inpaintHarmonic(laplacian, trusted, values);
-    return solved ? *solved : values;
+    if (!inpainting) inpainting = HarmonicInpainting::create(target_laplacian, trusted);
+    return *inpainting ? (*inpainting)->apply(values) : values;
   };
   const Eigen::MatrixX3i& tris = source_mesh.triangles;
   if (options.uvs) {
@@ -92,7 +94,7 @@ TransferredAttributes transferAttributes(const Mesh& source_mesh, const VertexAt
       }
       result(v) = best;
     }
-    if (any_untrusted) fillUntrustedLabels(result, trusted, laplacian);
+    if (any_untrusted) fillUntrustedLabels(result, trusted, target_laplacian);
     out.attributes.labels[name] = result;
   }
   return out;

@@ -142,22 +142,25 @@ Eigen::MatrixXd HarmonicInpainting::solve(const Eigen::MatrixXd& boundary_values
   return solver_->ldlt.solve(rhs);
 }
 
-Result<Eigen::MatrixXd> inpaintHarmonic(const Eigen::SparseMatrix<double>& laplacian, const std::vector<char>& known,
-                                        const Eigen::MatrixXd& values) {
+Eigen::MatrixXd HarmonicInpainting::apply(const Eigen::MatrixXd& values) const {
   Eigen::MatrixXd out = values;
-  const std::size_t unknown = static_cast<std::size_t>(std::count(known.begin(), known.end(), 0));
-  if (unknown == 0 || unknown == known.size()) return out;
-  auto inpainting = HarmonicInpainting::create(laplacian, known);
-  if (!inpainting) return inpainting.error();
-  Eigen::MatrixXd boundary(static_cast<Eigen::Index>(inpainting->boundary().size()), values.cols());
-  for (std::size_t i = 0; i < inpainting->boundary().size(); ++i) {
-    boundary.row(static_cast<Eigen::Index>(i)) = values.row(inpainting->boundary()[i]);
-  }
-  const Eigen::MatrixXd x = inpainting->solve(boundary);
-  for (std::size_t i = 0; i < inpainting->unknown().size(); ++i) {
-    if (inpainting->reached(i)) out.row(inpainting->unknown()[i]) = x.row(static_cast<Eigen::Index>(i));
+  if (unknown_.empty()) return out;
+  Eigen::MatrixXd boundary(static_cast<Eigen::Index>(boundary_.size()), values.cols());
+  for (std::size_t i = 0; i < boundary_.size(); ++i) boundary.row(static_cast<Eigen::Index>(i)) = values.row(boundary_[i]);
+  const Eigen::MatrixXd x = solve(boundary);
+  for (std::size_t i = 0; i < unknown_.size(); ++i) {
+    if (reached(i)) out.row(unknown_[i]) = x.row(static_cast<Eigen::Index>(i));
   }
   return out;
+}
+
+Result<Eigen::MatrixXd> inpaintHarmonic(const Eigen::SparseMatrix<double>& laplacian, const std::vector<char>& known,
+                                        const Eigen::MatrixXd& values) {
+  const std::size_t unknown = static_cast<std::size_t>(std::count(known.begin(), known.end(), 0));
+  if (unknown == 0 || unknown == known.size()) return values;
+  auto inpainting = HarmonicInpainting::create(laplacian, known);
+  if (!inpainting) return inpainting.error();
+  return inpainting->apply(values);
 }
 
 }  // namespace core

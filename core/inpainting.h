@@ -37,6 +37,9 @@ class HarmonicInpainting {
   // Returns #unknown by k (row i = values at unknown()[i]).
   Eigen::MatrixXd solve(const Eigen::MatrixXd& boundary_values) const;
 
+  // values: #V by k; returns them with the reached unknown rows solved.
+  Eigen::MatrixXd apply(const Eigen::MatrixXd& values) const;
+
  private:
   struct Coupling {
     int unknown_index;
