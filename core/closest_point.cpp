@@ -72,6 +72,7 @@ inline P3 cross(const P3& a, const P3& b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
 inline P3 toP3(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
+inline bool isFinite(const P3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 inline Vec3 toVec3(const P3& v) { return {v.x, v.y, v.z}; }
 
 // Closest point of p on one triangle: squared distance, barycentrics, point.
@@ -264,34 +265,53 @@ Vec3 coveringCentre(const Vec3& a, const Vec3& b, const Vec3& c) {
   return centre.allFinite() ? centre : (a + b + c) / 3.0;
 }
 
+constexpr int kMaxPieces = 64;  // most pieces per triangle on one level
+
+// One piece's sample: its covering centre rounded to float, and the covering
+// radius measured from the rounded point (so it holds for the stored sample).
+struct Piece {
+  Eigen::Vector3f centre;
+  double h;
+};
+inline Piece coverPiece(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Eigen::Vector3f gf = coveringCentre(a, b, c).cast<float>();
+  const Vec3 gr = gf.cast<double>();
+  return {gf, std::sqrt(std::max({(a - gr).squaredNorm(), (b - gr).squaredNorm(), (c - gr).squaredNorm()}))};
+}
+
+inline Sample makeSample(const Piece& piece, int face, double slack) {
+  return Sample{{piece.centre.x(), piece.centre.y(), piece.centre.z()}, face,
+                roundUpToFloat(piece.h * (1.0 + 1e-9) + slack)};
+}
+
 // Covers triangle (a, b, c) (relative to the index origin) by longest-edge
 // bisection until every piece's covering radius (from its rounded covering
 // centre to its farthest corner) is <= h_target. Appends the samples and returns true, or returns
 // false (appending nothing) when more than `cap` pieces would be needed.
 // `slack` (absolute) absorbs rounding in later distance computations.
-constexpr int kMaxPieces = 64;  // most pieces per triangle on one level
-
 bool sampleTriangle(const Vec3& a, const Vec3& b, const Vec3& c, int face, double h_target, int cap, double slack,
                     std::vector<Sample>& out) {
   assert(cap <= kMaxPieces);
+  if (const Piece whole = coverPiece(a, b, c); whole.h <= h_target) {  // most triangles: one piece, no stack
+    if (cap < 1) return false;
+    out.push_back(makeSample(whole, face, slack));
+    return true;
+  }
   const std::size_t start = out.size();
   // Pending pieces: at most cap + 1 at any time (checked below), so a fixed
-  // array serves and the common one-piece triangle costs no allocation.
+  // array serves without allocation.
   std::array<std::array<Vec3, 3>, kMaxPieces + 2> stack;
   int depth = 0;
   stack[depth++] = {a, b, c};
   while (depth > 0) {
     const std::array<Vec3, 3> t = stack[--depth];
-    const Eigen::Vector3f gf = coveringCentre(t[0], t[1], t[2]).cast<float>();
-    const Vec3 gr = gf.cast<double>();
-    const double h =
-        std::sqrt(std::max({(t[0] - gr).squaredNorm(), (t[1] - gr).squaredNorm(), (t[2] - gr).squaredNorm()}));
-    if (h <= h_target) {
+    const Piece piece = coverPiece(t[0], t[1], t[2]);
+    if (piece.h <= h_target) {
       if (static_cast<int>(out.size() - start) >= cap) {
         out.resize(start);
         return false;
       }
-      out.push_back(Sample{{gf.x(), gf.y(), gf.z()}, face, roundUpToFloat(h * (1.0 + 1e-9) + slack)});
+      out.push_back(makeSample(piece, face, slack));
       continue;
     }
     if (static_cast<int>(out.size() - start) + depth + 2 > cap) {
@@ -533,28 +553,34 @@ ClosestPointIndex::ClosestPointIndex(const Eigen::MatrixX3d& positions, const Ei
   }
 
   // Indexed faces in caller order first; re-slotted in tree order at the end.
-  const Eigen::MatrixX3d normals = computeFaceNormals(positions, triangles);
+  // Degeneracy and normal as isDegenerateTriangle() and computeFaceNormals()
+  // (same operations, same bits), from one cross product.
+  const double degenerate_eps = 1e-10 * diagonal;
   std::vector<Impl::Face> faces;
-  std::vector<double> edge_lengths;
-  edge_lengths.reserve(3 * nf);
+  faces.reserve(static_cast<std::size_t>(nf));
+  std::vector<double> sq_edge_lengths;
+  sq_edge_lengths.reserve(3 * static_cast<std::size_t>(nf));
   for (Eigen::Index f = 0; f < nf; ++f) {
-    const Eigen::Vector3i t = triangles.row(f);
-    if (isDegenerateTriangle(positions, t, diagonal)) continue;
-    if (!(positions.row(t(0)).allFinite() && positions.row(t(1)).allFinite() && positions.row(t(2)).allFinite())) {
+    const int i0 = triangles(f, 0), i1 = triangles(f, 1), i2 = triangles(f, 2);
+    if (i0 == i1 || i1 == i2 || i0 == i2) continue;
+    Impl::Face face;
+    face.a = toP3(row(positions, i0));
+    face.b = toP3(row(positions, i1));
+    face.c = toP3(row(positions, i2));
+    if (!(isFinite(face.a) && isFinite(face.b) && isFinite(face.c))) {
       continue;  // NaN/Inf corners: no usable geometry (validateMesh rejects these upstream)
     }
-    Impl::Face face;
-    face.a = toP3(row(positions, t(0)));
-    face.b = toP3(row(positions, t(1)));
-    face.c = toP3(row(positions, t(2)));
-    face.n = toP3(row(normals, f));
+    const P3 n = cross(face.b - face.a, face.c - face.a);
+    const double len = std::sqrt(dot(n, n));
+    if (len <= degenerate_eps * degenerate_eps) continue;
+    face.n = {n.x / len, n.y / len, n.z / len};
     face.id = static_cast<std::int32_t>(f);
     face.well_shaped = isWellShaped(face.a, face.b, face.c);
     faces.push_back(face);
     const P3 e0 = face.b - face.a, e1 = face.c - face.b, e2 = face.a - face.c;
-    edge_lengths.push_back(std::sqrt(dot(e0, e0)));
-    edge_lengths.push_back(std::sqrt(dot(e1, e1)));
-    edge_lengths.push_back(std::sqrt(dot(e2, e2)));
+    sq_edge_lengths.push_back(dot(e0, e0));
+    sq_edge_lengths.push_back(dot(e1, e1));
+    sq_edge_lengths.push_back(dot(e2, e2));
   }
   m.indexed_faces = static_cast<int>(faces.size());
   if (faces.empty()) return;
@@ -571,14 +597,16 @@ ClosestPointIndex::ClosestPointIndex(const Eigen::MatrixX3d& positions, const Ei
   constexpr double kEdgeQuantile = 0.75;
   constexpr int kCap = kMaxPieces;
   constexpr double kGrowth = 4.0;
-  const auto quantile = static_cast<std::size_t>(kEdgeQuantile * static_cast<double>(edge_lengths.size() - 1));
-  std::nth_element(edge_lengths.begin(), edge_lengths.begin() + static_cast<std::ptrdiff_t>(quantile), edge_lengths.end());
-  double h_target = kSpacing * edge_lengths[quantile];
+  const auto quantile = static_cast<std::size_t>(kEdgeQuantile * static_cast<double>(sq_edge_lengths.size() - 1));
+  std::nth_element(sq_edge_lengths.begin(), sq_edge_lengths.begin() + static_cast<std::ptrdiff_t>(quantile),
+                   sq_edge_lengths.end());
+  double h_target = kSpacing * std::sqrt(sq_edge_lengths[quantile]);
 
   std::vector<int> pending(faces.size());  // positions in `faces`
   for (std::size_t i = 0; i < faces.size(); ++i) pending[i] = static_cast<int>(i);
   while (!pending.empty()) {
     auto level = std::make_unique<Impl::Level>();
+    level->samples.reserve(pending.size() + pending.size() / 4);
     std::vector<int> rest;
     for (const int f : pending) {
       const Impl::Face& face = faces[f];
@@ -589,7 +617,6 @@ ClosestPointIndex::ClosestPointIndex(const Eigen::MatrixX3d& positions, const Ei
     }
     if (!level->samples.empty()) {
       for (const Sample& s : level->samples) level->h_max = std::max(level->h_max, static_cast<double>(s.h));
-      level->samples.shrink_to_fit();
       level->cloud.data = level->samples.data();
       level->cloud.size = level->samples.size();
       level->tree = std::make_unique<KdTree>(3, level->cloud, nanoflann::KDTreeSingleIndexAdaptorParams(kLeafSize));
