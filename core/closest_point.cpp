@@ -365,8 +365,17 @@ struct ClosestPointIndex::Impl {
   std::size_t tree_bytes = 0;
 
   struct Search;
-  SurfacePoint query(const Vec3& q, const Vec3* normal, std::uint64_t label_mask,
-                     const ClosestPointOptions& options) const;
+  // ClosestPointOptions as the search uses them, converted once per batch
+  // (the cosine is not free per query).
+  struct Limits {
+    explicit Limits(const ClosestPointOptions& options)
+        : max_distance(options.max_distance),
+          min_cos(options.max_normal_angle_deg < 180.0 ? std::cos(options.max_normal_angle_deg * (std::numbers::pi / 180.0))
+                                                       : -2.0) {}
+    double max_distance;
+    double min_cos;  // -2: no normal filter
+  };
+  SurfacePoint query(const Vec3& q, const Vec3* normal, std::uint64_t label_mask, const Limits& limits) const;
 };
 
 // nanoflann result set that evaluates triangles as their samples are reached.
@@ -496,22 +505,22 @@ struct ClosestPointIndex::Impl::Search {
 };
 
 SurfacePoint ClosestPointIndex::Impl::query(const Vec3& q, const Vec3* normal, std::uint64_t label_mask,
-                                            const ClosestPointOptions& options) const {
-  if (levels.empty() || !q.allFinite() || !(options.max_distance >= 0.0)) return {};
+                                            const Limits& limits) const {
+  if (levels.empty() || !q.allFinite() || !(limits.max_distance >= 0.0)) return {};
   const bool use_labels = !labels.empty();
   if (use_labels && (label_mask & present_labels) == 0) return {};  // no face can pass
 
   Search search(*this, q);
   search.use_labels = use_labels;
   search.label_mask = label_mask;
-  if (normal != nullptr && options.max_normal_angle_deg < 180.0) {
+  if (normal != nullptr && limits.min_cos > -2.0) {
     search.normal_value = toP3(*normal);
     search.normal = &search.normal_value;
-    search.min_cos = std::cos(options.max_normal_angle_deg * (std::numbers::pi / 180.0));
+    search.min_cos = limits.min_cos;
   }
-  if (std::isfinite(options.max_distance)) {
-    search.best_d = options.max_distance;
-    search.best_sq = options.max_distance * options.max_distance;
+  if (std::isfinite(limits.max_distance)) {
+    search.best_d = limits.max_distance;
+    search.best_sq = limits.max_distance * limits.max_distance;
   }
   // The tree works in float relative to `origin`. Clamping keeps nanoflann's
   // float squares finite for absurdly far queries; their query_eps then just
@@ -666,13 +675,13 @@ ClosestPointIndex& ClosestPointIndex::operator=(ClosestPointIndex&&) noexcept = 
 
 SurfacePoint ClosestPointIndex::closestPoint(const Eigen::Vector3d& query) const {
   if (!impl_) return {};  // moved-from
-  return impl_->query(query, nullptr, ~std::uint64_t{0}, ClosestPointOptions{});
+  return impl_->query(query, nullptr, ~std::uint64_t{0}, Impl::Limits(ClosestPointOptions{}));
 }
 
 SurfacePoint ClosestPointIndex::closestPoint(const Eigen::Vector3d& query, const Eigen::Vector3d* normal,
                                              std::uint64_t label_mask, const ClosestPointOptions& options) const {
   if (!impl_) return {};
-  return impl_->query(query, normal, label_mask, options);
+  return impl_->query(query, normal, label_mask, Impl::Limits(options));
 }
 
 std::vector<SurfacePoint> ClosestPointIndex::closestPoints(const Eigen::MatrixX3d& queries,
@@ -685,13 +694,14 @@ std::vector<SurfacePoint> ClosestPointIndex::closestPoints(const Eigen::MatrixX3
   const bool use_normals = filters.normals.rows() == nq && nq > 0;
   const bool use_masks = static_cast<Eigen::Index>(filters.label_masks.size()) == nq;
   std::vector<SurfacePoint> out(static_cast<std::size_t>(nq));
+  const Impl::Limits limits(options);
   parallelFor(nq, options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     for (std::ptrdiff_t i = begin; i < end; ++i) {
       const Vec3 q = row(queries, i);
       Vec3 n;
       if (use_normals) n = row(filters.normals, i);
       const std::uint64_t mask = use_masks ? filters.label_masks[i] : ~std::uint64_t{0};
-      out[i] = impl_->query(q, use_normals ? &n : nullptr, mask, options);
+      out[i] = impl_->query(q, use_normals ? &n : nullptr, mask, limits);
     }
   });
   return out;
