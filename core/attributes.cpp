@@ -2,9 +2,6 @@
 
 #include <cassert>
 #include <map>
-#include <optional>
-
-#include "core/inpainting.h"
 
 namespace core {
 
@@ -49,7 +46,7 @@ void fillUntrustedLabels(Eigen::VectorXi& labels, std::vector<char> assigned, co
 
 TransferredAttributes transferAttributes(const Mesh& source_mesh, const VertexAttributes& source,
                                          const TargetLocations& locations, const Eigen::SparseMatrix<double>& target_laplacian,
-                                         const AttributeTransferOptions& options) {
+                                         const HarmonicInpainting* mismatched, const AttributeTransferOptions& options) {
   TransferredAttributes out;
   const Eigen::Index nt = locations.confidence.size();
   std::vector<char> trusted(static_cast<std::size_t>(nt));
@@ -58,13 +55,9 @@ TransferredAttributes transferAttributes(const Mesh& source_mesh, const VertexAt
     trusted[static_cast<std::size_t>(v)] = locations.mismatched(v) == 0;
     any_untrusted = any_untrusted || !trusted[static_cast<std::size_t>(v)];
   }
-  assert(!any_untrusted || target_laplacian.rows() == nt);
-  // One factorisation for every attribute (same trusted set), made on first use.
-  std::optional<Result<HarmonicInpainting>> inpainting;
+  assert(!any_untrusted || (target_laplacian.rows() == nt && mismatched != nullptr));
   auto inpaint = [&](const Eigen::MatrixXd& values) -> Eigen::MatrixXd {
-    if (!any_untrusted) return values;
-    if (!inpainting) inpainting = HarmonicInpainting::create(target_laplacian, trusted);
-    return *inpainting ? (*inpainting)->apply(values) : values;
+    return mismatched != nullptr ? mismatched->apply(values) : values;
   };
   const Eigen::MatrixX3i& tris = source_mesh.triangles;
   if (options.uvs) {

@@ -7,6 +7,7 @@
 #include <Eigen/SparseCore>
 
 #include "core/correspondence.h"
+#include "core/inpainting.h"
 #include "core/rig.h"
 
 namespace core {
@@ -21,11 +22,11 @@ struct TransferredAttributes {
 };
 
 // Mismatched target vertices (see TargetLocations) take labels by majority of
-// their neighbours and fields/colours by harmonic inpainting. target_laplacian:
-// uniformLaplacian of the target (#Vt by #Vt; may be empty when no vertex is
-// mismatched).
+// their neighbours (target_laplacian: uniformLaplacian of the target, as the
+// adjacency; may be empty when no vertex is mismatched) and fields/colours by
+// harmonic inpainting (`mismatched`, null when no vertex is mismatched).
 TransferredAttributes transferAttributes(const Mesh& source_mesh, const VertexAttributes& source,
                                          const TargetLocations& locations, const Eigen::SparseMatrix<double>& target_laplacian,
-                                         const AttributeTransferOptions& options = {});
+                                         const HarmonicInpainting* mismatched, const AttributeTransferOptions& options = {});
 
 }  // namespace core

@@ -2,7 +2,6 @@
 
 #include <cassert>
 
-#include "core/inpainting.h"
 #include "core/parallel.h"
 
 namespace core {
@@ -108,20 +107,9 @@ Eigen::MatrixX3d gatherDeltas(const MorphTarget& s, const std::vector<Corners>& 
 // deltas blended from their surroundings, never a copy from the wrong lip or
 // lid: all shapes in one solve, from the boundary rows only (stacking whole
 // shapes cost #V x 3 #shapes doubles: 335 MB at 93k vertices, 150 shapes).
-void inpaintMismatched(const TargetLocations& locations, const Eigen::SparseMatrix<double>& target_laplacian,
-                       std::vector<MorphTarget>& shapes) {
-  const Eigen::Index nt = locations.mismatched.size();
-  std::vector<char> known(static_cast<std::size_t>(nt));
-  std::size_t unknown = 0;
-  for (Eigen::Index v = 0; v < nt; ++v) {
-    known[static_cast<std::size_t>(v)] = locations.mismatched(v) == 0;
-    unknown += known[static_cast<std::size_t>(v)] ? 0 : 1;
-  }
-  if (unknown == 0 || unknown == static_cast<std::size_t>(nt) || shapes.empty()) return;
-  assert(target_laplacian.rows() == nt);
-  auto inpainting = HarmonicInpainting::create(target_laplacian, known);
-  if (!inpainting) return;  // keeps the interpolated deltas (as before inpainting existed)
-  const std::vector<int>& boundary = inpainting->boundary();
+void inpaintMismatched(const HarmonicInpainting& inpainting, std::vector<MorphTarget>& shapes) {
+  if (shapes.empty()) return;
+  const std::vector<int>& boundary = inpainting.boundary();
   Eigen::MatrixXd values(static_cast<Eigen::Index>(boundary.size()), 3 * static_cast<Eigen::Index>(shapes.size()));
   for (std::size_t k = 0; k < shapes.size(); ++k) {
     for (std::size_t i = 0; i < boundary.size(); ++i) {
@@ -129,11 +117,11 @@ void inpaintMismatched(const TargetLocations& locations, const Eigen::SparseMatr
           shapes[k].position_deltas.row(boundary[i]);
     }
   }
-  const Eigen::MatrixXd solved = inpainting->solve(values);
-  const std::vector<int>& unknown_vertices = inpainting->unknown();
+  const Eigen::MatrixXd solved = inpainting.solve(values);
+  const std::vector<int>& unknown_vertices = inpainting.unknown();
   for (std::size_t k = 0; k < shapes.size(); ++k) {
     for (std::size_t i = 0; i < unknown_vertices.size(); ++i) {
-      if (!inpainting->reached(i)) continue;
+      if (!inpainting.reached(i)) continue;
       const Eigen::RowVector3d d = solved.row(static_cast<Eigen::Index>(i)).segment<3>(3 * static_cast<Eigen::Index>(k));
       shapes[k].position_deltas.row(unknown_vertices[i]) = d.cwiseAbs().maxCoeff() < 1e-12 ? Eigen::RowVector3d::Zero() : d;
     }
@@ -146,8 +134,9 @@ std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& so
                                               const Eigen::MatrixX3i& source_triangles,
                                               const TargetLocations& locations,
                                               const std::vector<Eigen::Matrix3d>& adaptation, const Mesh& target,
-                                              const Eigen::SparseMatrix<double>& target_laplacian,
+                                              const HarmonicInpainting* mismatched,
                                               const ShapeTransferOptions& options) {
+  assert(target.normals.rows() == target.vertexCount());
   const Eigen::Index nt = target.vertexCount();
   std::vector<MorphTarget> out(source.size());
   const std::vector<Corners> corners = cornerTable(source_triangles, locations);
@@ -161,16 +150,15 @@ std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& so
       out[static_cast<std::size_t>(k)].position_deltas = gatherDeltas(s, corners, adaptation, gain, moving);
     }
   }, 1);
-  if (options.inpaint_untrusted) inpaintMismatched(locations, target_laplacian, out);
+  if (mismatched != nullptr) inpaintMismatched(*mismatched, out);
 
   // Normal deltas from the final position deltas (the source's are not
   // transferable: they belong to the source's surface).
-  const Eigen::MatrixX3d base_normals = computeVertexNormals(target.positions, target.triangles);
   parallelFor(static_cast<std::ptrdiff_t>(source.size()), options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     for (std::ptrdiff_t k = begin; k < end; ++k) {
       if (source[static_cast<std::size_t>(k)].normal_deltas.rows() == 0) continue;
       MorphTarget& t = out[static_cast<std::size_t>(k)];
-      t.normal_deltas = normalDeltas(target, base_normals, t.position_deltas);
+      t.normal_deltas = normalDeltas(target, target.normals, t.position_deltas);
       // Exact zeros where the shape does not move, so sparse output stays sparse.
       for (Eigen::Index v = 0; v < nt; ++v) {
         if (t.normal_deltas.row(v).cwiseAbs().maxCoeff() < 1e-12) t.normal_deltas.row(v).setZero();

@@ -9,9 +9,8 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/SparseCore>
-
 #include "core/correspondence.h"
+#include "core/inpainting.h"
 #include "core/rig.h"
 
 namespace core {
@@ -19,19 +18,20 @@ namespace core {
 struct ShapeTransferOptions {
   double exaggeration = 1.0;                    // applied to every delta
   std::map<std::string, double> per_shape;      // overrides `exaggeration` by target name
-  bool inpaint_untrusted = true;                // harmonic deltas at mismatched vertices
   int threads = 0;                              // shapes in parallel; 0 = hardware threads
 };
 
 // adaptation: #Vt matrices (one per target vertex) or a single one for all.
 // Normal deltas, when the source has them, are recomputed on the target from
-// the transferred position deltas. target_laplacian: uniformLaplacian of the
-// target (may be empty when no vertex is mismatched).
+// the transferred position deltas, relative to target.normals (which must be
+// computeVertexNormals of the target: the rest normals written with it).
+// mismatched: the inpainting of the target's mismatched vertices (see
+// TargetLocations; mismatchedInpainting()), or null when there are none.
 std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& source,
                                               const Eigen::MatrixX3i& source_triangles,
                                               const TargetLocations& locations,
                                               const std::vector<Eigen::Matrix3d>& adaptation, const Mesh& target,
-                                              const Eigen::SparseMatrix<double>& target_laplacian,
+                                              const HarmonicInpainting* mismatched,
                                               const ShapeTransferOptions& options = {});
 
 }  // namespace core

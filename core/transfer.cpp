@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <numbers>
+#include <optional>
 
 #include "core/inpainting.h"
 #include "core/similarity.h"
@@ -145,10 +146,20 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   out.mesh_node = src.mesh_node;
 
   // One graph Laplacian of the target for every stage that inpaints
-  // untrusted vertices (mismatched vertices are also low-confidence).
+  // untrusted vertices (mismatched vertices are also low-confidence), and one
+  // factorisation of the mismatched split for shapes and attributes.
   const Eigen::SparseMatrix<double> target_laplacian =
       locations.low_confidence > 0 ? uniformLaplacian(target.vertexCount(), target.triangles)
                                    : Eigen::SparseMatrix<double>();
+  std::optional<HarmonicInpainting> mismatched;
+  if (locations.mismatched.any() && (options.shapes || options.attributes || options.uvs)) {
+    std::vector<char> known(static_cast<std::size_t>(target.vertexCount()));
+    for (Eigen::Index v = 0; v < target.vertexCount(); ++v) known[static_cast<std::size_t>(v)] = locations.mismatched(v) == 0;
+    auto created = HarmonicInpainting::create(target_laplacian, known);
+    if (!created) return Error{created.error().code, target_label + ": inpainting mismatched vertices: " + created.error().message};
+    mismatched = std::move(*created);
+  }
+  const HarmonicInpainting* mismatched_inpainting = mismatched ? &*mismatched : nullptr;
 
   // --- weights
   if (stopBefore("weights", 0.6)) return stopped("weights");
@@ -192,7 +203,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
     shape_options.per_shape = options.shape_exaggeration;
     shape_options.threads = options.threads;
     out.morph_targets = transferMorphTargets(src.morph_targets, src_mesh.triangles, locations, vertex_adaptation,
-                                             target, target_laplacian, shape_options);
+                                             out.mesh, mismatched_inpainting, shape_options);
     out.morph_default_weights = src.morph_default_weights;
     report.shapes = static_cast<int>(out.morph_targets.size());
   } else {
@@ -211,7 +222,8 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   if (options.attributes || options.uvs) {
     AttributeTransferOptions attribute_options;
     attribute_options.uvs = options.uvs;
-    TransferredAttributes attrs = transferAttributes(src_mesh, src.attributes, locations, target_laplacian, attribute_options);
+    TransferredAttributes attrs = transferAttributes(src_mesh, src.attributes, locations, target_laplacian,
+                                                     mismatched_inpainting, attribute_options);
     if (options.uvs && attrs.uvs.rows() > 0) out.mesh.uvs = attrs.uvs;
     if (!options.uvs) attrs.attributes.extra_uv_sets.clear();
     if (options.attributes) out.attributes = std::move(attrs.attributes);

@@ -198,6 +198,54 @@ TEST(TransferRig, LowerLipNeverTakesTheUpperLip) {
   EXPECT_LT(upper / nu, 0.1 * lower_motion / nl);
 }
 
+// Fields and colours follow the same rule as labels: a vertex matched across
+// the lip gap never copies the other lip's value; inpainted values blend
+// their surroundings (harmonic: within the range of the field). The field is
+// +1 on the lower lip, -1 on the upper one, 0 elsewhere.
+TEST(TransferRig, FieldsAndColoursNeverCrossTheLips) {
+  core::Rig rig = sourceRig().rig;
+  const Eigen::VectorXi& region = rig.attributes.labels.at("REGION");
+  const Eigen::VectorXd lips = (region.array() == core::kRegionLowerLip).cast<double>() -
+                               (region.array() == core::kRegionUpperLip).cast<double>();
+  rig.attributes.fields["LIPS"] = lips;
+  rig.attributes.colors = Eigen::MatrixXd::Ones(rig.mesh.vertexCount(), 4);
+  rig.attributes.colors.col(0) = 0.5 * (lips.array() + 1.0);
+  auto prepared = core::prepareRig(rig, sourceRig().landmarks, "source with a lip field");
+  ASSERT_TRUE(prepared) << prepared.error().message;
+  core::HeadResolution res;
+  res.columns = 84;
+  res.rows = 80;
+  res.alternate_diagonals = true;
+  res.jitter = 0.2;
+  res.seed = 4;
+  const core::SyntheticRig target = core::generateRig(core::randomHeadShape(4, 0.15), res);
+  auto result = core::transferRig(*prepared, target.rig.mesh, target.landmarks, "other");
+  ASSERT_TRUE(result) << result.error().message;
+  ASSERT_GT(result->report.warp.low_confidence_vertices, 0) << "the case must exercise untrusted vertices";
+  const Eigen::VectorXi& truth = target.rig.attributes.labels.at("REGION");
+  const Eigen::MatrixXd& field = result->rig.attributes.fields.at("LIPS");
+  const Eigen::MatrixXd& colors = result->rig.attributes.colors;
+  ASSERT_EQ(field.rows(), truth.size());
+  ASSERT_EQ(colors.rows(), truth.size());
+  EXPECT_GE(field.minCoeff(), -1.0 - 1e-12);
+  EXPECT_LE(field.maxCoeff(), 1.0 + 1e-12);
+  int upper = 0, lower = 0;
+  for (Eigen::Index v = 0; v < truth.size(); ++v) {
+    if (truth(v) == core::kRegionUpperLip) {
+      ++upper;
+      EXPECT_LT(field(v, 0), 0.5) << "upper-lip vertex " << v;
+      EXPECT_LT(colors(v, 0), 0.75) << "upper-lip vertex " << v;
+    }
+    if (truth(v) == core::kRegionLowerLip) {
+      ++lower;
+      EXPECT_GT(field(v, 0), -0.5) << "lower-lip vertex " << v;
+      EXPECT_GT(colors(v, 0), 0.25) << "lower-lip vertex " << v;
+    }
+  }
+  EXPECT_GT(upper, 20);
+  EXPECT_GT(lower, 20);
+}
+
 TEST(TransferRig, ExaggerationScalesShapesAndAnimatedDeltas) {
   const core::Rig& src = sourceRig().rig;
   core::TransferOptions options;
