@@ -10,6 +10,8 @@
 #include <utility>
 #include <vector>
 
+#include "core/skinning.h"
+
 namespace rigport_test {
 
 std::optional<std::filesystem::path> sharedDataDir() {
@@ -53,6 +55,12 @@ ValidatorResult validateGltf(const std::filesystem::path& file) {
   result.errors = std::atoi(result.output.c_str() + pos + 9);
   result.warnings = std::atoi(result.output.c_str() + wpos + 11);
   return result;
+}
+
+Eigen::MatrixX3d displacementAtKey(const core::Rig& rig, Eigen::Index key) {
+  const core::Animation& clip = rig.animations.at(0);
+  const double time = clip.channels.at(0).times(key);
+  return core::poseMesh(rig, core::samplePose(rig, clip, time)) - rig.mesh.positions;
 }
 
 ::testing::AssertionResult matricesNear(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b, double tol) {

@@ -9,6 +9,8 @@
 #include <Eigen/Core>
 #include <gtest/gtest.h>
 
+#include "core/rig.h"
+
 namespace rigport_test {
 
 // ../shared/data beside the repository (or $RIGPORT_SHARED_DATA); nullopt when absent.
@@ -48,6 +50,10 @@ struct Icosphere {
   Eigen::MatrixX3i triangles;
 };
 Icosphere unitIcosphere(int levels);
+
+// Displacement of the rig's mesh from rest at key `key` of its first
+// animation's first channel (core::samplePose + core::poseMesh).
+Eigen::MatrixX3d displacementAtKey(const core::Rig& rig, Eigen::Index key);
 
 // Compares two matrices elementwise; the failure names the first (i, j) apart.
 ::testing::AssertionResult matricesNear(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b, double tol);

@@ -4,7 +4,6 @@
 // from ../shared/data/mocap/ict_markers.json) and on a generated head of
 // similar size. Target: factorise + 41 fields <= 100 ms.
 // Run: geodesic_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
-#include <cstdlib>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -15,6 +14,7 @@
 #include "core/landmarks.h"
 #include "core/mesh_io.h"
 #include "core/synthetic_head.h"
+#include "tests/test_support.h"
 
 namespace {
 
@@ -25,11 +25,6 @@ struct Case {
   std::vector<core::SurfacePoint> sources;
   std::string error;  // non-empty: skip with this message
 };
-
-std::filesystem::path sharedData() {
-  if (const char* env = std::getenv("RIGPORT_SHARED_DATA"); env && *env) return env;
-  return std::filesystem::path(RIGPORT_SOURCE_DIR) / ".." / "shared" / "data";
-}
 
 // Spread `count` sources over the mesh's triangles when no markers are given.
 std::vector<core::SurfacePoint> spreadSources(const core::Mesh& mesh, int count) {
@@ -46,13 +41,14 @@ std::vector<core::SurfacePoint> spreadSources(const core::Mesh& mesh, int count)
 const Case& ictFace() {
   static const Case c = [] {
     Case out;
-    auto loaded = core::readMesh(sharedData() / "ict" / "source_face.glb");
+    const std::filesystem::path data = rigport_test::sharedDataDir().value_or(std::filesystem::path());
+    auto loaded = core::readMesh(data / "ict" / "source_face.glb");
     if (!loaded) {
       out.error = "ICT face not available: " + loaded.error().message;
       return out;
     }
     out.mesh = std::move(loaded->mesh);
-    auto markers = core::readLandmarks(sharedData() / "mocap" / "ict_markers.json");
+    auto markers = core::readLandmarks(data / "mocap" / "ict_markers.json");
     if (markers) {
       for (const auto& m : markers->landmarks) {
         if (m.kind == core::LandmarkKind::kFace) out.sources.push_back({m.face, m.barycentric});

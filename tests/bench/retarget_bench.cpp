@@ -16,6 +16,7 @@
 #include "core/retarget.h"
 #include "core/rig_io.h"
 #include "core/trc_io.h"
+#include "tests/test_support.h"
 
 namespace {
 
@@ -39,7 +40,7 @@ core::MarkerDistanceOptions distanceOptions(core::DistanceMethod method) {
 Case& benchCase() {
   static Case c = [] {
     Case out;
-    const std::filesystem::path data = std::filesystem::path(RIGPORT_SOURCE_DIR) / ".." / "shared" / "data";
+    const std::filesystem::path data = rigport_test::sharedDataDir().value_or(std::filesystem::path());
     auto mesh = core::readMesh(data / "ict" / "source_face.glb");
     auto markers = core::readLandmarks(data / "mocap" / "ict_markers.json");
     auto clip = core::readTrc(data / "mocap" / "animface_nose.trc");

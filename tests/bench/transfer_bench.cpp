@@ -14,6 +14,7 @@
 #include "core/rig_io.h"
 #include "core/synthetic_rig.h"
 #include "core/transfer.h"
+#include "tests/test_support.h"
 
 namespace {
 
@@ -29,7 +30,7 @@ struct Case {
 const Case& benchCase() {
   static Case c = [] {
     Case out;
-    const std::filesystem::path data = std::filesystem::path(RIGPORT_SOURCE_DIR) / ".." / "shared" / "data" / "ict";
+    const std::filesystem::path data = rigport_test::sharedDataDir().value_or(std::filesystem::path()) / "ict";
     auto rig = core::readRig(data / "source_face_skinned.glb");
     auto landmarks = core::readLandmarks(data / "source_face.landmarks.json");
     auto target = core::readMesh(data / "targets" / "id_s01_remesh.glb");

@@ -9,6 +9,7 @@
 #include "core/mesh_io.h"
 #include "core/synthetic_head.h"
 #include "core/warp_job.h"
+#include "tests/test_support.h"
 
 namespace {
 
@@ -22,7 +23,7 @@ struct Case {
 const Case& ictCase() {
   static Case c = [] {
     Case out;
-    const std::filesystem::path data = std::filesystem::path(RIGPORT_SOURCE_DIR) / ".." / "shared" / "data" / "ict";
+    const std::filesystem::path data = rigport_test::sharedDataDir().value_or(std::filesystem::path()) / "ict";
     core::PrepareOptions prepare;
     prepare.threads = 1;
     auto mesh = core::readMesh(data / "source_face.glb");

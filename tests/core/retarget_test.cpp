@@ -98,13 +98,6 @@ const core::MarkerDistances& distancesFor(core::DistanceMethod method) {
 }
 
 // #V by 3 displacement of the baked rig at frame f.
-Eigen::MatrixX3d displacementAt(const core::Rig& rig, int frame) {
-  const Eigen::MatrixXd& w = rig.animations.at(0).channels.at(0).values;
-  Eigen::MatrixX3d d = Eigen::MatrixX3d::Zero(rig.mesh.vertexCount(), 3);
-  for (std::size_t k = 0; k < rig.morph_targets.size(); ++k) d += w(frame, static_cast<Eigen::Index>(k)) * rig.morph_targets[k].position_deltas;
-  return d;
-}
-
 // Vertices just above the mouth slit near the midline (the upper lip's edge).
 std::vector<int> upperLipVertices() {
   const core::Mesh& mesh = head().mesh;
@@ -148,7 +141,7 @@ Decoupling measureDecoupling(core::DistanceMethod method) {
   const int frames = 10;
   auto out = core::retargetMocap(head().mesh, distancesFor(method), jawOpenClip(markers, frames), jawOptions());
   EXPECT_TRUE(out) << out.error().message;
-  const Eigen::MatrixX3d d = displacementAt(out->rig, frames - 1);
+  const Eigen::MatrixX3d d = rigport_test::displacementAtKey(out->rig, frames - 1);
   const std::vector<int> upper = upperLipVertices();
   EXPECT_GE(upper.size(), 3u);
   double mean = 0.0;
@@ -266,7 +259,7 @@ TEST(Retarget, CompressedRankMeetsTheToleranceAgainstExactFrames) {
     const auto& r = out->report;
     double err2 = 0.0, max_err = 0.0;
     for (int f = 0; f < 60; ++f) {
-      const Eigen::MatrixX3d e = displacementAt(out->rig, f) - exact->rig.morph_targets[static_cast<std::size_t>(f)].position_deltas;
+      const Eigen::MatrixX3d e = rigport_test::displacementAtKey(out->rig, f) - exact->rig.morph_targets[static_cast<std::size_t>(f)].position_deltas;
       err2 += e.squaredNorm();
       max_err = std::max(max_err, e.rowwise().norm().maxCoeff());
     }

@@ -48,13 +48,6 @@ const core::MarkerDistances& distancesFor(IctFace& face, core::DistanceMethod me
   return it->second;
 }
 
-Eigen::MatrixX3d displacementAt(const core::Rig& rig, int frame) {
-  const Eigen::MatrixXd& w = rig.animations.at(0).channels.at(0).values;
-  Eigen::MatrixX3d d = Eigen::MatrixX3d::Zero(rig.mesh.vertexCount(), 3);
-  for (std::size_t k = 0; k < rig.morph_targets.size(); ++k) d += w(frame, static_cast<Eigen::Index>(k)) * rig.morph_targets[k].position_deltas;
-  return d;
-}
-
 void checkClip(const std::filesystem::path& data, const std::string& clip_name) {
   IctFace* face = ictFace(data);
   ASSERT_NE(face, nullptr);
@@ -106,7 +99,7 @@ void checkClip(const std::filesystem::path& data, const std::string& clip_name) 
     // on its face) moves as the calibrated marker, sampled every 40 frames.
     double worst = 0.0, max_vertex = 0.0;
     for (int f = 0; f < clip->frameCount(); f += 40) {
-      const Eigen::MatrixX3d d = displacementAt(rig, f);
+      const Eigen::MatrixX3d d = rigport_test::displacementAtKey(rig, f);
       max_vertex = std::max(max_vertex, d.rowwise().norm().maxCoeff());
       for (std::size_t i = 0; i < face->markers.landmarks.size(); ++i) {
         const core::Landmark& lm = face->markers.landmarks[i];
