@@ -216,7 +216,9 @@ TEST(IctTransferLimits, TrueCorrespondenceAndTrueDenseCentres) {
                 "%.4f/%.4f\n",
                 name.c_str(), exact.median(), exact.worst(), static_cast<long>(centre_targets.rows()),
                 centres.median(), centres.worst(), pipeline.median(), pipeline.worst(), adapted.median(), adapted.worst());
-    if (name == "id_s01") EXPECT_LT(exact.worst(), 1e-9) << "ordinary identities keep ICT's deltas unchanged";
+    if (name == "id_s01") {
+      EXPECT_LT(exact.worst(), 1e-9) << "ordinary identities keep ICT's deltas unchanged";
+    }
     // The true centres beat the estimated correspondence: E follows the
     // correspondence, not something else in the pipeline.
     EXPECT_LT(centres.median(), pipeline.median());
