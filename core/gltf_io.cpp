@@ -2014,9 +2014,35 @@ Result<tinygltf::Primitive> addMeshPrimitive(tinygltf::Model& model, const Mesh&
 
 // Serialises `model` as GLB bytes (tinygltf's writer; deterministic since its
 // JSON objects are ordered maps).
+// An output stream appending to a byte vector reserved up front: the GLB of a
+// large rig (hundreds of MB of morph targets) is written once, not grown in
+// an ostringstream and copied out of it.
+class ByteSink : public std::streambuf {
+ public:
+  explicit ByteSink(std::size_t reserve) { bytes_.reserve(reserve); }
+  std::vector<std::uint8_t> take() { return std::move(bytes_); }
+
+ protected:
+  int_type overflow(int_type c) override {
+    if (!traits_type::eq_int_type(c, traits_type::eof())) bytes_.push_back(static_cast<std::uint8_t>(c));
+    return traits_type::not_eof(c);
+  }
+  std::streamsize xsputn(const char* s, std::streamsize n) override {
+    bytes_.insert(bytes_.end(), reinterpret_cast<const std::uint8_t*>(s), reinterpret_cast<const std::uint8_t*>(s) + n);
+    return n;
+  }
+
+ private:
+  std::vector<std::uint8_t> bytes_;
+};
+
 Result<std::vector<std::uint8_t>> serializeGlb(const tinygltf::Model& model) {
   tinygltf::TinyGLTF writer;
-  std::ostringstream stream;
+  std::size_t binary = 0;
+  for (const auto& buffer : model.buffers) binary += buffer.data.size();
+  // JSON: a few hundred bytes per accessor and buffer view, plus headroom.
+  ByteSink sink(binary + 256 * (model.accessors.size() + model.bufferViews.size()) + (64 << 10));
+  std::ostream stream(&sink);
   try {
     if (!writer.WriteGltfSceneToStream(&model, stream, /*prettyPrint=*/false, /*writeBinary=*/true)) {
       return makeError(ErrorCode::kIo, "GLB serialisation failed");
@@ -2024,8 +2050,8 @@ Result<std::vector<std::uint8_t>> serializeGlb(const tinygltf::Model& model) {
   } catch (const std::exception& e) {
     return makeError(ErrorCode::kIo, std::string("GLB serialisation failed: ") + e.what());
   }
-  const std::string text = std::move(stream).str();
-  return std::vector<std::uint8_t>(text.begin(), text.end());
+  if (!stream) return makeError(ErrorCode::kIo, "GLB serialisation failed (stream error)");
+  return sink.take();
 }
 
 // ---------------------------------------------------------------------------
@@ -2769,10 +2795,27 @@ Status addAnimations(tinygltf::Model& model, const Rig& rig, const MeshNodePlan&
   return Ok{};
 }
 
+// Bytes the rig's buffer can take at most (morph targets dense, every
+// attribute written): reserved once, so appending never re-copies the buffer
+// (untouched reserve costs address space, not memory).
+std::size_t rigBufferBound(const Rig& rig) {
+  const auto nv = static_cast<std::size_t>(rig.mesh.vertexCount());
+  std::size_t per_vertex = 3 * 12 + 2 * 8 + 2 * 16 * 4;  // position, normal, UVs, joints/weights (up to 2 sets)
+  per_vertex += 16 * (rig.attributes.extra_uv_sets.size() + rig.attributes.fields.size() + rig.attributes.labels.size() + 1);
+  std::size_t bytes = nv * per_vertex + static_cast<std::size_t>(rig.mesh.triangleCount()) * 12;
+  for (const auto& t : rig.morph_targets) bytes += nv * 12 * (t.normal_deltas.rows() > 0 ? 2 : 1) + 64;
+  for (const auto& a : rig.animations) {
+    for (const auto& c : a.channels) bytes += static_cast<std::size_t>(c.values.size() + c.times.size()) * 4 + 64;
+  }
+  return bytes + 64 * (rig.nodes.size() + 1);
+}
+
 Result<tinygltf::Model> buildRigModel(const Rig& rig, const RigWriteOptions& options) {
   tinygltf::Model model;
   model.asset.version = "2.0";
   model.asset.generator = "rigport";
+  model.buffers.emplace_back();
+  model.buffers[0].data.reserve(rigBufferBound(rig));
   const MeshNodePlan plan = planMeshNode(rig);
   auto space = meshNodeSpace(rig, plan);
   if (!space) return space.error();
