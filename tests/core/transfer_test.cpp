@@ -25,6 +25,21 @@ const core::PreparedRig& preparedSource() {
   return prepared;
 }
 
+// The lip tests' target: another head's proportions, jittered vertices,
+// alternating diagonals (its lips are close: closest point can cross them).
+const core::SyntheticRig& lipTarget() {
+  static const core::SyntheticRig target = [] {
+    core::HeadResolution res;
+    res.columns = 84;
+    res.rows = 80;
+    res.alternate_diagonals = true;
+    res.jitter = 0.2;
+    res.seed = 4;
+    return core::generateRig(core::randomHeadShape(4, 0.15), res);
+  }();
+  return target;
+}
+
 Eigen::MatrixX3d jointWorldPositions(const core::Rig& rig) {
   const auto world = core::nodeWorldTransforms(rig.nodes);
   Eigen::MatrixX3d p(static_cast<Eigen::Index>(rig.skin->joints.size()), 3);
@@ -163,13 +178,7 @@ TEST(TransferRig, NormalDeltasEqualAFullRecomputeOfTheDisplacedTarget) {
 }
 
 TEST(TransferRig, LowerLipNeverTakesTheUpperLip) {
-  core::HeadResolution res;
-  res.columns = 84;
-  res.rows = 80;
-  res.alternate_diagonals = true;
-  res.jitter = 0.2;
-  res.seed = 4;
-  const core::SyntheticRig target = core::generateRig(core::randomHeadShape(4, 0.15), res);
+  const core::SyntheticRig& target = lipTarget();
   core::TransferOptions lip_options;
   lip_options.diagnostic_attributes = true;
   auto result = core::transferRig(preparedSource(), target.rig.mesh, target.landmarks, "other", lip_options);
@@ -212,13 +221,7 @@ TEST(TransferRig, FieldsAndColoursNeverCrossTheLips) {
   rig.attributes.colors.col(0) = 0.5 * (lips.array() + 1.0);
   auto prepared = core::prepareRig(rig, sourceRig().landmarks, "source with a lip field");
   ASSERT_TRUE(prepared) << prepared.error().message;
-  core::HeadResolution res;
-  res.columns = 84;
-  res.rows = 80;
-  res.alternate_diagonals = true;
-  res.jitter = 0.2;
-  res.seed = 4;
-  const core::SyntheticRig target = core::generateRig(core::randomHeadShape(4, 0.15), res);
+  const core::SyntheticRig& target = lipTarget();
   auto result = core::transferRig(*prepared, target.rig.mesh, target.landmarks, "other");
   ASSERT_TRUE(result) << result.error().message;
   ASSERT_GT(result->report.warp.low_confidence_vertices, 0) << "the case must exercise untrusted vertices";
