@@ -26,7 +26,8 @@ struct ShapeTransferOptions {
 // the transferred position deltas, relative to target.normals (which must be
 // computeVertexNormals of the target: the rest normals written with it).
 // mismatched: the inpainting of the target's mismatched vertices (see
-// TargetLocations; mismatchedInpainting()), or null when there are none.
+// TargetLocations::mismatched; built once by transferRig), or null when there
+// are none.
 std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& source,
                                               const Eigen::MatrixX3i& source_triangles,
                                               const TargetLocations& locations,

@@ -2012,8 +2012,6 @@ Result<tinygltf::Primitive> addMeshPrimitive(tinygltf::Model& model, const Mesh&
   return primitive;
 }
 
-// Serialises `model` as GLB bytes (tinygltf's writer; deterministic since its
-// JSON objects are ordered maps).
 // An output stream appending to a byte vector reserved up front: the GLB of a
 // large rig (hundreds of MB of morph targets) is written once, not grown in
 // an ostringstream and copied out of it.
@@ -2036,6 +2034,8 @@ class ByteSink : public std::streambuf {
   std::vector<std::uint8_t> bytes_;
 };
 
+// Serialises `model` as GLB bytes (tinygltf's writer; deterministic since its
+// JSON objects are ordered maps).
 Result<std::vector<std::uint8_t>> serializeGlb(const tinygltf::Model& model) {
   tinygltf::TinyGLTF writer;
   std::size_t binary = 0;

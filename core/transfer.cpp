@@ -151,8 +151,12 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   const Eigen::SparseMatrix<double> target_laplacian =
       locations.low_confidence > 0 ? uniformLaplacian(target.vertexCount(), target.triangles)
                                    : Eigen::SparseMatrix<double>();
+  const bool attributes_inpainted =
+      (options.attributes || options.uvs) &&
+      (src.attributes.colors.rows() > 0 || !src.attributes.fields.empty() ||
+       (options.uvs && (src_mesh.uvs.rows() > 0 || !src.attributes.extra_uv_sets.empty())));
   std::optional<HarmonicInpainting> mismatched;
-  if (locations.mismatched.any() && (options.shapes || options.attributes || options.uvs)) {
+  if (locations.mismatched.any() && ((options.shapes && !src.morph_targets.empty()) || attributes_inpainted)) {
     std::vector<char> known(static_cast<std::size_t>(target.vertexCount()));
     for (Eigen::Index v = 0; v < target.vertexCount(); ++v) known[static_cast<std::size_t>(v)] = locations.mismatched(v) == 0;
     auto created = HarmonicInpainting::create(target_laplacian, known);

@@ -1,5 +1,9 @@
 #include "core/transfer.h"
 
+#include <cmath>
+#include <map>
+#include <numbers>
+
 #include <gtest/gtest.h>
 
 #include "core/mesh.h"
@@ -247,6 +251,78 @@ TEST(TransferRig, FieldsAndColoursNeverCrossTheLips) {
   }
   EXPECT_GT(upper, 20);
   EXPECT_GT(lower, 20);
+}
+
+// UVs are seam-aware: a cylindrical unwrap with its seam down one side of
+// the head (the vertices of triangles across it split into a second chart, as
+// in any UV-mapped mesh) transfers so that every target vertex takes the
+// chart of the source triangle it lies on - u near 0 or near 1 at the seam,
+// never a blend of the two charts (u near 0.5).
+TEST(TransferRig, UvsKeepEachTriangleOnItsOwnChart) {
+  core::Rig rig;
+  rig.mesh = sourceRig().rig.mesh;
+  const Eigen::RowVector3d centre =
+      0.5 * (rig.mesh.positions.colwise().minCoeff() + rig.mesh.positions.colwise().maxCoeff());
+  // Around the vertical axis, the seam (angle +-pi) down the side of the head.
+  auto angle = [&](const Eigen::RowVector3d& p) { return std::atan2(p(2) - centre(2), -(p(0) - centre(0))); };
+  const Eigen::Index nv = rig.mesh.vertexCount();
+  std::vector<Eigen::RowVector3d> positions(static_cast<std::size_t>(nv));
+  std::vector<Eigen::RowVector2d> uvs(static_cast<std::size_t>(nv));
+  for (Eigen::Index v = 0; v < nv; ++v) {
+    positions[static_cast<std::size_t>(v)] = rig.mesh.positions.row(v);
+    uvs[static_cast<std::size_t>(v)] << angle(rig.mesh.positions.row(v)) / (2 * std::numbers::pi) + 0.5,
+        (rig.mesh.positions(v, 1) - centre(1)) / 40.0 + 0.5;
+  }
+  std::map<int, int> second_chart;  // vertex -> its copy with u + 1
+  int crossing = 0;
+  for (Eigen::Index f = 0; f < rig.mesh.triangleCount(); ++f) {
+    double lo = 1.0, hi = 0.0;
+    for (int k = 0; k < 3; ++k) {
+      const double u = uvs[static_cast<std::size_t>(rig.mesh.triangles(f, k))](0);
+      lo = std::min(lo, u);
+      hi = std::max(hi, u);
+    }
+    if (hi - lo < 0.5) continue;  // not across the seam
+    ++crossing;
+    for (int k = 0; k < 3; ++k) {
+      const int v = rig.mesh.triangles(f, k);
+      if (uvs[static_cast<std::size_t>(v)](0) >= 0.5) continue;
+      auto [it, added] = second_chart.emplace(v, static_cast<int>(positions.size()));
+      if (added) {
+        positions.push_back(positions[static_cast<std::size_t>(v)]);
+        uvs.push_back(uvs[static_cast<std::size_t>(v)] + Eigen::RowVector2d(1.0, 0.0));
+      }
+      rig.mesh.triangles(f, k) = it->second;
+    }
+  }
+  ASSERT_GT(crossing, 10);
+  rig.mesh.positions.resize(static_cast<Eigen::Index>(positions.size()), 3);
+  rig.mesh.uvs.resize(static_cast<Eigen::Index>(uvs.size()), 2);
+  for (std::size_t v = 0; v < positions.size(); ++v) {
+    rig.mesh.positions.row(static_cast<Eigen::Index>(v)) = positions[v];
+    rig.mesh.uvs.row(static_cast<Eigen::Index>(v)) = uvs[v];
+  }
+  rig.mesh.normals.resize(0, 3);
+  auto prepared = core::prepareRig(rig, sourceRig().landmarks, "source with a UV seam");
+  ASSERT_TRUE(prepared) << prepared.error().message;
+
+  const core::SyntheticRig& target = lipTarget();
+  core::TransferOptions options;
+  options.weights = options.joints = options.shapes = options.animations = false;
+  options.uvs = true;
+  auto result = core::transferRig(*prepared, target.rig.mesh, target.landmarks, "other", options);
+  ASSERT_TRUE(result) << result.error().message;
+  const Eigen::MatrixX2d& out = result->rig.mesh.uvs;
+  ASSERT_EQ(out.rows(), target.rig.mesh.vertexCount());
+  int at_seam = 0;
+  for (Eigen::Index v = 0; v < out.rows(); ++v) {
+    ASSERT_TRUE(out.row(v).allFinite()) << "vertex " << v;
+    const double theta = angle(target.rig.mesh.positions.row(v));
+    if (std::abs(theta) < 0.97 * std::numbers::pi) continue;
+    ++at_seam;
+    EXPECT_GT(std::abs(out(v, 0) - 0.5), 0.35) << "vertex " << v << " at the seam blends the two charts: u " << out(v, 0);
+  }
+  EXPECT_GT(at_seam, 5);
 }
 
 TEST(TransferRig, ExaggerationScalesShapesAndAnimatedDeltas) {
