@@ -12,9 +12,9 @@
 #include "core/blendshapes.h"
 #include "core/mesh.h"
 #include "core/mesh_io.h"
-#include "core/tps.h"
 #include "core/rig_io.h"
 #include "core/skinning.h"
+#include "core/tps.h"
 #include "core/transfer.h"
 #include "tests/test_support.h"
 
@@ -137,7 +137,7 @@ INSTANTIATE_TEST_SUITE_P(Targets, IctTransfer,
                                            "id_s02_remesh", "id_s03_remesh", "stylized_s01_cartoon_remesh",
                                            "sparse10_s01"));
 
-// What limits E (printed for the notes; see docs/BENCHMARKS.md). On the
+// What limits E (printed; summarised in docs/ACCURACY.md). On the
 // same-topology targets the true correspondence is known (target vertex i is
 // source vertex i), so the error can be split: the true correspondence with
 // raw deltas reproduces the ordinary identity's ground truth exactly (ICT
