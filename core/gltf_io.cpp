@@ -2795,9 +2795,10 @@ Status addAnimations(tinygltf::Model& model, const Rig& rig, const MeshNodePlan&
   return Ok{};
 }
 
-// Bytes the rig's buffer can take at most (morph targets dense, every
-// attribute written): reserved once, so appending never re-copies the buffer
-// (untouched reserve costs address space, not memory).
+// Bytes the rig's buffer takes at most for usual rigs (morph targets dense,
+// every attribute written, fields of up to 4 components): reserved once so
+// appending does not re-copy the buffer. Only a capacity hint: a rig beyond
+// it costs one reallocation; untouched reserve costs address space, not memory.
 std::size_t rigBufferBound(const Rig& rig) {
   const auto nv = static_cast<std::size_t>(rig.mesh.vertexCount());
   std::size_t per_vertex = 3 * 12 + 2 * 8 + 2 * 16 * 4;  // position, normal, UVs, joints/weights (up to 2 sets)
