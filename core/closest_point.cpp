@@ -25,8 +25,8 @@
 // closestPointOnTriangle() (ties go to the lower face index).
 //
 // Behaviour worth knowing: without face_labels the label mask is ignored; a
-// non-finite query, a negative or NaN max_distance, or a mask allowing no
-// present label give face = -1; the query normal is used as given (unit
+// non-finite query, a negative or NaN max_distance, or a mask sharing no bit
+// with any face's label set give face = -1; the query normal is used as given (unit
 // expected); faces with non-finite corners are skipped like degenerate ones.
 // Vertex coordinates must stay within float range of the mesh centre (~1e18),
 // and squared sample distances within float's normal range: meshes from
@@ -355,8 +355,8 @@ struct ClosestPointIndex::Impl {
     bool well_shaped = false;
   };
   std::vector<Face> faces;
-  std::vector<std::uint8_t> labels;  // per slot; empty: no labels given; 64 = out-of-range label (never allowed)
-  std::uint64_t present_labels = 0;  // union of the indexed faces' label bits
+  std::vector<std::uint64_t> labels;  // label bit set per slot; empty: no labels given
+  std::uint64_t present_labels = 0;   // union of the indexed faces' label sets
   std::vector<std::unique_ptr<Level>> levels;  // finest first
   Vec3 origin = Vec3::Zero();                  // sample coordinates are relative to it
   double origin_max_abs = 0.0;
@@ -479,10 +479,7 @@ struct ClosestPointIndex::Impl::Search {
     }
     recent[recent_next] = s.face;
     recent_next = (recent_next + 1) % kRecent;
-    if (use_labels) {
-      const unsigned label = impl.labels[f];
-      if (label >= 64 || ((label_mask >> label) & 1u) == 0) return;
-    }
+    if (use_labels && (impl.labels[f] & label_mask) == 0) return;
     const Face& face = impl.faces[f];
     if (normal != nullptr && dot(face.n, *normal) < min_cos) return;
     // Distance to the face's plane: a lower bound that often rejects
@@ -545,7 +542,7 @@ SurfacePoint ClosestPointIndex::Impl::query(const Vec3& q, const Vec3* normal, s
 }
 
 ClosestPointIndex::ClosestPointIndex(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles,
-                                     std::vector<int> face_labels)
+                                     std::vector<std::uint64_t> face_labels)
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
   const Eigen::Index nf = triangles.rows();
@@ -660,11 +657,8 @@ ClosestPointIndex::ClosestPointIndex(const Eigen::MatrixX3d& positions, const Ei
   if (!face_labels.empty() && static_cast<Eigen::Index>(face_labels.size()) == nf) {
     m.labels.resize(m.faces.size());
     for (std::size_t i = 0; i < m.faces.size(); ++i) {
-      const int l = face_labels[m.faces[i].id];
-      assert(l >= 0 && l < 64);
-      const bool valid = l >= 0 && l < 64;
-      m.labels[i] = static_cast<std::uint8_t>(valid ? l : 64);
-      if (valid) m.present_labels |= std::uint64_t{1} << l;
+      m.labels[i] = face_labels[static_cast<std::size_t>(m.faces[i].id)];
+      m.present_labels |= m.labels[i];
     }
   }
 }
@@ -711,7 +705,7 @@ std::size_t ClosestPointIndex::memoryBytes() const {
   if (!impl_) return 0;
   const Impl& m = *impl_;
   std::size_t bytes = sizeof(Impl) + m.tree_bytes;
-  bytes += m.faces.capacity() * sizeof(Impl::Face) + m.labels.capacity();
+  bytes += m.faces.capacity() * sizeof(Impl::Face) + m.labels.capacity() * sizeof(std::uint64_t);
   for (const auto& level : m.levels) bytes += sizeof(Impl::Level) + level->samples.capacity() * sizeof(Sample);
   return bytes;
 }

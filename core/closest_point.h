@@ -33,15 +33,18 @@ struct ClosestPointOptions {
 // Per-query filters for batch queries; empty members mean "no filter".
 struct ClosestPointFilters {
   Eigen::MatrixX3d normals;                // #Q by 3 unit query normals (normal-compatibility filter)
-  std::vector<std::uint64_t> label_masks;  // #Q bit sets: face f is allowed iff bit face_labels[f] is set
+  std::vector<std::uint64_t> label_masks;  // #Q label bit sets: face f is allowed iff it shares a bit with face_labels[f]
 };
 
 class ClosestPointIndex {
  public:
-  // positions: #V by 3; triangles: #F by 3. face_labels: empty, or #F region
-  // labels in [0, 63] used by the label filter. Degenerate triangles are skipped.
+  // positions: #V by 3; triangles: #F by 3. face_labels: empty, or #F bit
+  // sets of region labels (bit l for label l in [0, 63]; a face may carry
+  // several, e.g. the labels of its corners) used by the label filter: a
+  // face with an empty set is never returned to a filtered query.
+  // Degenerate triangles are skipped.
   ClosestPointIndex(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles,
-                    std::vector<int> face_labels = {});
+                    std::vector<std::uint64_t> face_labels = {});
   ~ClosestPointIndex();
   ClosestPointIndex(ClosestPointIndex&&) noexcept;
   ClosestPointIndex& operator=(ClosestPointIndex&&) noexcept;
@@ -51,7 +54,8 @@ class ClosestPointIndex {
   // Unfiltered query (const, thread-safe).
   SurfacePoint closestPoint(const Eigen::Vector3d& query) const;
 
-  // Filtered query: `normal` (unit) may be nullptr; `label_mask` = ~0 allows all.
+  // Filtered query: `normal` (unit) may be nullptr; `label_mask` = ~0 allows
+  // every labelled face.
   SurfacePoint closestPoint(const Eigen::Vector3d& query, const Eigen::Vector3d* normal, std::uint64_t label_mask,
                             const ClosestPointOptions& options) const;
 

@@ -123,7 +123,7 @@ struct Filter {
 // the lower face index.
 class BruteForce {
  public:
-  explicit BruteForce(const TestMesh& m, std::vector<int> labels = {})
+  explicit BruteForce(const TestMesh& m, std::vector<std::uint64_t> labels = {})
       : m_(m), labels_(std::move(labels)), normals_(core::computeFaceNormals(m.positions, m.triangles)) {
     const double diagonal = core::boundingBoxDiagonal(m.positions);
     for (Eigen::Index f = 0; f < m.triangles.rows(); ++f) {
@@ -136,7 +136,7 @@ class BruteForce {
     const double min_cos = std::cos(filter.options.max_normal_angle_deg * std::numbers::pi / 180.0);
     SurfacePoint best;
     for (const int f : faces_) {
-      if (!labels_.empty() && ((filter.mask >> labels_[f]) & 1u) == 0) continue;
+      if (!labels_.empty() && (filter.mask & labels_[static_cast<std::size_t>(f)]) == 0) continue;
       if (use_normal && Vector3d(normals_.row(f)).dot(*filter.normal) < min_cos) continue;
       const Eigen::Vector3i t = m_.triangles.row(f);
       SurfacePoint r = core::closestPointOnTriangle(q, m_.positions.row(t(0)), m_.positions.row(t(1)),
@@ -152,7 +152,7 @@ class BruteForce {
 
  private:
   const TestMesh& m_;
-  std::vector<int> labels_;
+  std::vector<std::uint64_t> labels_;
   Eigen::MatrixX3d normals_;
   std::vector<int> faces_;
 };
@@ -365,11 +365,12 @@ TEST(ClosestPointIndex, MatchesBruteForceOnDenseSphere) {
 // ---------------------------------------------------------------------------
 // Filters
 
-std::vector<int> bandLabels(const TestMesh& m, int bands) {
-  std::vector<int> labels(m.triangles.rows());
+// One label per face: its band of height.
+std::vector<std::uint64_t> bandLabels(const TestMesh& m, int bands) {
+  std::vector<std::uint64_t> labels(static_cast<std::size_t>(m.triangles.rows()));
   for (Eigen::Index f = 0; f < m.triangles.rows(); ++f) {
     const double z = m.positions(m.triangles(f, 0), 2);  // in [-1.1, 1.1]
-    labels[f] = std::clamp(static_cast<int>((z + 1.1) / 2.2 * bands), 0, bands - 1);
+    labels[static_cast<std::size_t>(f)] = std::uint64_t{1} << std::clamp(static_cast<int>((z + 1.1) / 2.2 * bands), 0, bands - 1);
   }
   return labels;
 }
@@ -395,7 +396,7 @@ TEST(ClosestPointIndex, NormalFilterMatchesBruteForceOverCompatibleFaces) {
 
 TEST(ClosestPointIndex, LabelFilterMatchesBruteForceOverCompatibleFaces) {
   const TestMesh m = makeBumpySphere(3, 0.05, 15);
-  const std::vector<int> labels = bandLabels(m, 7);
+  const std::vector<std::uint64_t> labels = bandLabels(m, 7);
   const ClosestPointIndex index(m.positions, m.triangles, labels);
   const BruteForce brute(m, labels);
   const auto queries = makeQueries(m, 2000, 16);
@@ -410,8 +411,11 @@ TEST(ClosestPointIndex, LabelFilterMatchesBruteForceOverCompatibleFaces) {
 
 TEST(ClosestPointIndex, CombinedFiltersAndMaxDistanceMatchBruteForce) {
   const TestMesh m = makeSliverSoup(18);
-  std::vector<int> labels(m.triangles.rows());
-  for (std::size_t f = 0; f < labels.size(); ++f) labels[f] = static_cast<int>((f * 7) % 64);
+  // Label sets: one label per face, a second on every third face.
+  std::vector<std::uint64_t> labels(static_cast<std::size_t>(m.triangles.rows()));
+  for (std::size_t f = 0; f < labels.size(); ++f) {
+    labels[f] = (std::uint64_t{1} << ((f * 7) % 64)) | (f % 3 == 0 ? std::uint64_t{1} << ((f * 11) % 64) : 0);
+  }
   const ClosestPointIndex index(m.positions, m.triangles, labels);
   const BruteForce brute(m, labels);
   const auto queries = makeQueries(m, 3000, 19);
@@ -440,7 +444,7 @@ TEST(ClosestPointIndex, CombinedFiltersAndMaxDistanceMatchBruteForce) {
 
 TEST(ClosestPointIndex, NoCompatibleFaceGivesMinusOne) {
   const TestMesh m = makeHugeAndTiny();
-  std::vector<int> labels(m.triangles.rows(), 3);
+  std::vector<std::uint64_t> labels(static_cast<std::size_t>(m.triangles.rows()), std::uint64_t{1} << 3);
   const ClosestPointIndex index(m.positions, m.triangles, labels);
   const Vector3d q(0.5, 0.5, 0.1);
   ClosestPointOptions options;
@@ -485,7 +489,7 @@ TEST(ClosestPointIndex, MaxDistanceIsHonoured) {
 
 TEST(ClosestPointIndex, BatchIsIdenticalForOneAndTwoThreads) {
   const TestMesh m = makeBumpySphere(3, 0.05, 23);
-  const std::vector<int> labels = bandLabels(m, 5);
+  const std::vector<std::uint64_t> labels = bandLabels(m, 5);
   const ClosestPointIndex index(m.positions, m.triangles, labels);
   const auto list = makeQueries(m, 3000, 24);
   Eigen::MatrixX3d queries(list.size(), 3);
