@@ -1056,14 +1056,6 @@ Result<ParsedGltf> parseGltf(Bytes bytes, const std::string& label, bool binary,
   return ParsedGltf{std::move(*model), std::move(*choice)};
 }
 
-Result<LoadedMesh> readGltfImpl(Bytes bytes, const std::string& label, bool binary,
-                                const std::optional<std::filesystem::path>& base_dir) {
-  LoadedMesh loaded;
-  auto parsed = parseGltf(bytes, label, binary, base_dir, loaded.report);
-  if (!parsed) return parsed.error();
-  return buildMesh(parsed->model, parsed->choice, label, std::move(loaded));
-}
-
 // ---------------------------------------------------------------------------
 // Rig reading: nodes, skin and weights, morph targets, animations and vertex
 // attributes of the mesh chosen above (after buildMesh has read and checked
@@ -1763,6 +1755,37 @@ Result<VertexAttributes> readVertexAttributes(const tinygltf::Model& model, cons
   return out;
 }
 
+// Region labels for region-constrained matching: the _REGION custom attribute
+// when it is an integer SCALAR in 0..kMaxRegionLabel (anything else is warned
+// and left out of the matching; a rig still carries it as a label).
+Status readMeshRegions(const tinygltf::Model& model, const MeshChoice& choice, const std::string& label, Mesh& mesh,
+                       std::vector<std::string>& warnings) {
+  const tinygltf::Mesh& gmesh = model.meshes[static_cast<std::size_t>(choice.mesh)];
+  const std::string name = std::string("_") + kRegionAttribute;
+  if (!presentInAny(attributeAccessors(gmesh, name))) return Ok{};
+  const std::string mesh_name = "mesh " + std::to_string(choice.mesh);
+  VertexAttributes read;
+  std::vector<std::string> dropped;
+  if (auto ok = readCustomAttribute(model, gmesh, primitiveRanges(model, gmesh), name, mesh_name, label, read, dropped);
+      !ok) {
+    return ok.error();
+  }
+  const auto labels = read.labels.find(kRegionAttribute);
+  if (labels == read.labels.end()) {
+    warnings.push_back(name + " of " + mesh_name + " is not an integer SCALAR on every primitive; not used for region matching");
+    return Ok{};
+  }
+  for (Eigen::Index v = 0; v < labels->second.size(); ++v) {
+    if (labels->second(v) < 0 || labels->second(v) > kMaxRegionLabel) {
+      warnings.push_back(name + " of vertex " + std::to_string(v) + " is " + std::to_string(labels->second(v)) +
+                         " (region labels are 0.." + std::to_string(kMaxRegionLabel) + "); not used for region matching");
+      return Ok{};
+    }
+  }
+  mesh.regions = labels->second;
+  return Ok{};
+}
+
 // Skin and weights of a skinned mesh node (JOINTS/WEIGHTS of an unskinned
 // mesh are ignored with a warning).
 Status readSkinning(const tinygltf::Model& model, const MeshChoice& choice, const std::vector<PrimitiveRange>& ranges,
@@ -1857,6 +1880,19 @@ Status readRigParts(const tinygltf::Model& model, const MeshChoice& choice, cons
   return Ok{};
 }
 
+Result<LoadedMesh> readGltfImpl(Bytes bytes, const std::string& label, bool binary,
+                                const std::optional<std::filesystem::path>& base_dir) {
+  LoadedMesh loaded;
+  auto parsed = parseGltf(bytes, label, binary, base_dir, loaded.report);
+  if (!parsed) return parsed.error();
+  auto mesh = buildMesh(parsed->model, parsed->choice, label, std::move(loaded));
+  if (!mesh) return mesh.error();
+  if (auto ok = readMeshRegions(parsed->model, parsed->choice, label, mesh->mesh, mesh->report.warnings); !ok) {
+    return ok.error();
+  }
+  return mesh;
+}
+
 Result<LoadedRig> readRigImpl(Bytes bytes, const std::string& label, bool binary,
                               const std::optional<std::filesystem::path>& base_dir) {
   LoadedMesh loaded_mesh;
@@ -1868,6 +1904,9 @@ Result<LoadedRig> readRigImpl(Bytes bytes, const std::string& label, bool binary
   loaded.rig.mesh = std::move(mesh->mesh);
   loaded.report = std::move(mesh->report);
   if (auto ok = readRigParts(parsed->model, parsed->choice, label, loaded.rig, loaded.report.warnings); !ok) {
+    return ok.error();
+  }
+  if (auto ok = readMeshRegions(parsed->model, parsed->choice, label, loaded.rig.mesh, loaded.report.warnings); !ok) {
     return ok.error();
   }
   return loaded;
@@ -2861,6 +2900,9 @@ Result<std::vector<std::uint8_t>> encodeMeshGlb(const Mesh& mesh) {
   model.asset.generator = "rigport";
   auto primitive = addMeshPrimitive(model, mesh, label);
   if (!primitive) return primitive.error();
+  if (mesh.regions.size() > 0) {
+    primitive->attributes[std::string("_") + kRegionAttribute] = addPaddedScalarAccessor(model, mesh.regions, false);
+  }
   tinygltf::Mesh gmesh;
   gmesh.primitives.push_back(std::move(*primitive));
   model.meshes.push_back(std::move(gmesh));

@@ -85,6 +85,17 @@ Status validateMesh(const Mesh& mesh, const std::string& label) {
       return makeError(ErrorCode::kInvalidMesh, label + ": vertex " + std::to_string(v) + " has a non-finite UV");
     }
   }
+  if (mesh.regions.size() != 0 && mesh.regions.size() != nv) {
+    return makeError(ErrorCode::kInvalidMesh, label + ": region label count " + std::to_string(mesh.regions.size()) +
+                                                  " differs from vertex count " + std::to_string(nv));
+  }
+  for (Eigen::Index v = 0; v < mesh.regions.size(); ++v) {
+    if (mesh.regions(v) < 0 || mesh.regions(v) > kMaxRegionLabel) {
+      return makeError(ErrorCode::kInvalidMesh, label + ": vertex " + std::to_string(v) + " has region label " +
+                                                    std::to_string(mesh.regions(v)) + " (labels are 0.." +
+                                                    std::to_string(kMaxRegionLabel) + ")");
+    }
+  }
   for (Eigen::Index f = 0; f < mesh.triangles.rows(); ++f) {
     for (int k = 0; k < 3; ++k) {
       const int i = mesh.triangles(f, k);

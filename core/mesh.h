@@ -8,6 +8,11 @@
 
 namespace core {
 
+// The custom attribute (without its leading '_') that carries region labels.
+inline constexpr const char* kRegionAttribute = "REGION";
+// Region labels are bits of a 64-bit mask in the closest-point filter.
+inline constexpr int kMaxRegionLabel = 63;
+
 using RowMatrixX3d = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 
 // A triangle mesh (or a point cloud when `triangles` has no rows).
@@ -18,6 +23,10 @@ struct Mesh {
   Eigen::MatrixX3i triangles;  // #F by 3 vertex indices, counter-clockwise = front face
   Eigen::MatrixX3d normals;    // #V by 3 unit vertex normals, or 0 rows when absent
   Eigen::MatrixX2d uvs;        // #V by 2 texture coordinates (glTF convention, v down), or 0 rows
+  // #V region labels in [0, kMaxRegionLabel] (glTF custom attribute _REGION),
+  // or 0 rows. When source and target both carry them, matching is
+  // region-constrained (see core/correspondence.h).
+  Eigen::VectorXi regions;
 
   Eigen::Index vertexCount() const { return positions.rows(); }
   Eigen::Index triangleCount() const { return triangles.rows(); }
@@ -39,7 +48,8 @@ double boundingBoxDiagonal(const Eigen::MatrixX3d& positions);
 // to the mesh scale `diagonal`.
 bool isDegenerateTriangle(const Eigen::MatrixX3d& positions, const Eigen::Vector3i& triangle, double diagonal);
 
-// Checks finiteness of positions/normals/uvs, index ranges and array shapes.
+// Checks finiteness of positions/normals/uvs, index ranges, region label
+// range and array shapes.
 // `label` names the mesh in messages (usually its file name); the message names
 // the first offending vertex or triangle.
 Status validateMesh(const Mesh& mesh, const std::string& label);

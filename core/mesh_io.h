@@ -53,7 +53,8 @@ Result<LoadedMesh> readObj(std::span<const std::uint8_t> bytes, const std::strin
 Result<LoadedMesh> readPly(std::span<const std::uint8_t> bytes, const std::string& label);
 
 // A single-mesh GLB (POSITION, NORMAL when present, TEXCOORD_0 when present,
-// uint32 indices) that passes the Khronos validator. Deterministic bytes.
+// _REGION when the mesh has region labels, uint32 indices) that passes the
+// Khronos validator. Deterministic bytes.
 Result<std::vector<std::uint8_t>> encodeMeshGlb(const Mesh& mesh);
 Status writeMeshGlb(const Mesh& mesh, const std::filesystem::path& path);
 

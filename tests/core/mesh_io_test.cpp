@@ -182,6 +182,34 @@ TEST(GltfWrite, WrittenFilesPassTheKhronosValidator) {
   }
 }
 
+// Region labels (the _REGION custom attribute) are what region-constrained
+// matching reads from a target file.
+TEST(GltfWrite, RegionLabelsRoundTripAndPassTheValidator) {
+  core::Mesh mesh = makeGrid(7);
+  mesh.regions.resize(mesh.vertexCount());
+  for (Eigen::Index v = 0; v < mesh.vertexCount(); ++v) mesh.regions(v) = static_cast<int>((v * 7) % 64);
+  const auto path = rigport_test::makeTempDir("regions") / "regions.glb";
+  ASSERT_TRUE(core::writeMeshGlb(mesh, path).ok());
+  EXPECT_GLTF_VALID(path);
+  auto loaded = core::readMesh(path);
+  ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+  EXPECT_EQ(loaded->mesh.regions, mesh.regions);
+  EXPECT_TRUE(loaded->report.warnings.empty()) << loaded->report.warnings.front();
+}
+
+TEST(GltfRead, RegionLabelsBeyondTheMatchableRangeAreWarnedAndLeftOut) {
+  GltfBuilder b;
+  const int pos = b.positions({0, 0, 0, 1, 0, 0, 0, 1, 0});
+  const int region = b.accessor(b.view(std::vector<std::uint32_t>{0, 70, 1}), kUnsignedInt, 3, "SCALAR");
+  b.mesh(json::array({{{"attributes", {{"POSITION", pos}, {"_REGION", region}}}}}));
+  auto loaded = core::readGltf(b.glb(), "labels.glb", true);
+  ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+  EXPECT_EQ(loaded->mesh.regions.size(), 0);
+  ASSERT_EQ(loaded->report.warnings.size(), 1u);
+  EXPECT_EQ(loaded->report.warnings[0],
+            "_REGION of vertex 1 is 70 (region labels are 0..63); not used for region matching");
+}
+
 TEST(GltfWrite, PointCloudRoundTrip) {
   core::Mesh mesh = makeTetrahedron(false, false);
   mesh.triangles.resize(0, 3);
@@ -206,6 +234,16 @@ TEST(GltfWrite, RejectsInvalidMeshes) {
   bytes = core::encodeMeshGlb(mesh);
   ASSERT_FALSE(bytes.ok());
   EXPECT_EQ(bytes.error().message, "mesh to write: vertex 3 position exceeds the float32 range of glTF");
+  mesh = makeTetrahedron();
+  mesh.regions = Eigen::VectorXi::Zero(3);
+  bytes = core::encodeMeshGlb(mesh);
+  ASSERT_FALSE(bytes.ok());
+  EXPECT_EQ(bytes.error().message, "mesh to write: region label count 3 differs from vertex count 4");
+  mesh.regions = Eigen::VectorXi::Zero(4);
+  mesh.regions(2) = 64;
+  bytes = core::encodeMeshGlb(mesh);
+  ASSERT_FALSE(bytes.ok());
+  EXPECT_EQ(bytes.error().message, "mesh to write: vertex 2 has region label 64 (labels are 0..63)");
 }
 
 // ===========================================================================

@@ -332,7 +332,7 @@ Rig makeRig() {
   animation.channels = {rotate, move, blend};
   rig.animations = {animation};
 
-  rig.attributes.labels["REGION"] = Eigen::VectorXi::LinSpaced(kGrid * kGrid, 0, 300);  // > 255: unsigned short
+  rig.attributes.labels["PART"] = Eigen::VectorXi::LinSpaced(kGrid * kGrid, 0, 300);  // > 255: unsigned short
   rig.attributes.labels["SIDE"] = Eigen::VectorXi::LinSpaced(kGrid * kGrid, 0, 2);      // unsigned byte
   rig.attributes.fields["MASK"] = Eigen::VectorXd::LinSpaced(kGrid * kGrid, 0, 1);
   rig.attributes.fields["OFFSET"] = Eigen::MatrixXd::Random(kGrid * kGrid, 3);
@@ -676,7 +676,7 @@ TEST(RigWrite, LabelsAndFieldsRoundTrip) {
   const ByteVector bytes = mustEncode(rig);
   const auto [doc, bin] = splitGlb(bytes);
   const json& attributes = doc["meshes"][0]["primitives"][0]["attributes"];
-  EXPECT_EQ(doc["accessors"][attributes["_REGION"].get<int>()]["componentType"], kUnsignedShort);
+  EXPECT_EQ(doc["accessors"][attributes["_PART"].get<int>()]["componentType"], kUnsignedShort);
   EXPECT_EQ(doc["accessors"][attributes["_SIDE"].get<int>()]["componentType"], kUnsignedByte);
   EXPECT_EQ(doc["accessors"][attributes["_OFFSET"].get<int>()]["type"], "VEC3");
   const LoadedRig back = mustRead(bytes);
