@@ -96,6 +96,7 @@ int runWarp(const WarpArgs& args) {
   core::Mesh guide;
   guide.positions = result->guide.positions;
   guide.triangles = prepared->mesh.triangles;
+  guide.regions = prepared->mesh.regions;  // the source's labels, when it has them
   guide.normals = core::computeVertexNormals(guide.positions, guide.triangles);
   if (auto ok = core::writeMeshGlb(guide, args.output); !ok) return fail(ok.error());
   const double write_ms = msSince(t0);

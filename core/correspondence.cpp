@@ -8,15 +8,30 @@
 
 namespace core {
 
+std::vector<std::uint64_t> faceRegionSets(const Eigen::VectorXi& vertex_regions, const Eigen::MatrixX3i& triangles) {
+  std::vector<std::uint64_t> sets(static_cast<std::size_t>(triangles.rows()), 0);
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) sets[static_cast<std::size_t>(f)] |= std::uint64_t{1} << vertex_regions(triangles(f, k));
+  }
+  return sets;
+}
+
+std::vector<std::uint64_t> vertexRegionBits(const Eigen::VectorXi& vertex_regions) {
+  std::vector<std::uint64_t> bits(static_cast<std::size_t>(vertex_regions.size()));
+  for (Eigen::Index v = 0; v < vertex_regions.size(); ++v) bits[static_cast<std::size_t>(v)] = std::uint64_t{1} << vertex_regions(v);
+  return bits;
+}
+
 GuideModel projectToTarget(const Eigen::MatrixX3d& warped_positions, const Eigen::MatrixX3d& warped_normals,
                            const ClosestPointIndex& target_index, double target_diagonal,
-                           const ProjectionOptions& options) {
+                           const ProjectionOptions& options, std::vector<std::uint64_t> region_masks) {
   ClosestPointOptions cp;
   cp.max_normal_angle_deg = options.max_normal_angle_deg;
   cp.max_distance = options.max_distance * target_diagonal;
   cp.threads = options.threads;
   ClosestPointFilters filters;
   filters.normals = warped_normals;
+  filters.label_masks = std::move(region_masks);
   GuideModel guide;
   guide.on_target = target_index.closestPoints(warped_positions, cp, filters);
   guide.positions = warped_positions;
@@ -52,8 +67,10 @@ FoldReport countFolds(const Eigen::MatrixX3d& warped_positions, const Eigen::Mat
 }
 
 TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_positions,
-                              const Eigen::MatrixX3i& source_triangles, const LocateOptions& options) {
-  const ClosestPointIndex guide_index(guide_positions, source_triangles);
+                              const Eigen::MatrixX3i& source_triangles, const LocateOptions& options,
+                              std::vector<std::uint64_t> source_face_regions) {
+  const bool by_region = !source_face_regions.empty();
+  const ClosestPointIndex guide_index(guide_positions, source_triangles, std::move(source_face_regions));
   const Eigen::MatrixX3d normals =
       target.normals.rows() == target.positions.rows() ? target.normals
                                                         : computeVertexNormals(target.positions, target.triangles);
@@ -62,6 +79,7 @@ TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_
   cp.threads = options.threads;
   ClosestPointFilters filters;
   filters.normals = normals;
+  if (by_region) filters.label_masks = vertexRegionBits(target.regions);
 
   TargetLocations out;
   out.on_source = guide_index.closestPoints(target.positions, cp, filters);

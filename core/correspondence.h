@@ -4,6 +4,7 @@
 // target vertex is located on the guide, i.e. on the source surface.
 #pragma once
 
+#include <cstdint>
 #include <vector>
 
 #include <Eigen/Core>
@@ -34,10 +35,22 @@ struct GuideModel {
   int unmatched = 0;                   // source vertices with no compatible target face in range
 };
 
+// Region-constrained matching, when source and target both carry region
+// labels (Mesh::regions, the same label numbers on both): a vertex may only
+// match faces touching its region, i.e. with a corner of its label. Faces
+// across a region border belong to both sides, so borders stay reachable,
+// while a lower-lip vertex can never reach an upper-lip face however close.
+// Face label sets (bit l: a corner has label l) and vertex label bits, as the
+// ClosestPointIndex label filter takes them.
+std::vector<std::uint64_t> faceRegionSets(const Eigen::VectorXi& vertex_regions, const Eigen::MatrixX3i& triangles);
+std::vector<std::uint64_t> vertexRegionBits(const Eigen::VectorXi& vertex_regions);
+
 // warped_positions / warped_normals: #Vs by 3, the source after the warp.
+// region_masks: empty, or the vertexRegionBits of each row's source vertex
+// (the index must then carry the target's faceRegionSets).
 GuideModel projectToTarget(const Eigen::MatrixX3d& warped_positions, const Eigen::MatrixX3d& warped_normals,
                            const ClosestPointIndex& target_index, double target_diagonal,
-                           const ProjectionOptions& options);
+                           const ProjectionOptions& options, std::vector<std::uint64_t> region_masks = {});
 
 // Triangles of the guide whose orientation flips against the warped source
 // (folds of plain projection) and triangles that collapse to zero area.
@@ -78,8 +91,12 @@ struct TargetLocations {
   int low_confidence = 0;               // vertices beyond a threshold (confidence 0)
 };
 
+// source_face_regions: empty, or faceRegionSets of the source (then
+// target.regions must be set): each target vertex is located only on guide
+// faces touching its region.
 TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_positions,
-                              const Eigen::MatrixX3i& source_triangles, const LocateOptions& options);
+                              const Eigen::MatrixX3i& source_triangles, const LocateOptions& options,
+                              std::vector<std::uint64_t> source_face_regions = {});
 
 // Farthest-point sample of `count` vertices (deterministic, starting from the
 // vertex nearest the centroid). Used for the dense-map centres.

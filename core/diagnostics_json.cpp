@@ -52,6 +52,8 @@ Json warpJson(const WarpReport& r, const DiagnosticsContext& context) {
   c["unmatched_source_vertices"] = r.unmatched_source_vertices;
   c["low_confidence_vertices"] = r.low_confidence_vertices;
   c["refine_iterations"] = r.refine_iterations;
+  c["region_matching"] = r.region_matching;
+  c["warnings"] = r.warnings;
 
   Json& m = doc["mesh"];
   m["bbox_diagonal"] = r.target_diagonal;

@@ -46,6 +46,14 @@ Result<PreparedRig> prepareRig(Rig rig, LandmarkSet landmarks, const std::string
       }
     }
   }
+  // A rig's region labels are its REGION label attribute (the glTF reader
+  // fills both; a rig built in code may only have the attribute).
+  if (const auto regions = rig.attributes.labels.find(kRegionAttribute);
+      rig.mesh.regions.size() == 0 && regions != rig.attributes.labels.end() &&
+      regions->second.size() == rig.mesh.vertexCount() &&
+      (regions->second.size() == 0 || (regions->second.minCoeff() >= 0 && regions->second.maxCoeff() <= kMaxRegionLabel))) {
+    rig.mesh.regions = regions->second;
+  }
   auto surface = prepareSource(rig.mesh, std::move(landmarks), label, options);
   if (!surface) return surface.error();
   PreparedRig prepared;

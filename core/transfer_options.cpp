@@ -101,6 +101,10 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
       ok = gains(value, where, t.shape_exaggeration);
     } else if (key == "joint_exaggeration") {
       ok = gains(value, where, t.joint_exaggeration);
+    } else if (key == "region_matching") {
+      auto b = boolean(value, where);
+      if (!b) return b.error();
+      t.warp.region_matching = *b;
     } else if (key == "refine_iterations") {
       auto x = number(value, where, 0, 20);
       if (!x) return x.error();

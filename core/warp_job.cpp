@@ -28,6 +28,15 @@ Eigen::MatrixX3d selectRows(const Eigen::MatrixX3d& m, const std::vector<int>& r
   return out;
 }
 
+// The entries `rows` of per-vertex masks (empty stays empty: no constraint).
+std::vector<std::uint64_t> selectMasks(const std::vector<std::uint64_t>& masks, const std::vector<int>& rows) {
+  std::vector<std::uint64_t> out;
+  if (masks.empty()) return out;
+  out.reserve(rows.size());
+  for (const int r : rows) out.push_back(masks[static_cast<std::size_t>(r)]);
+  return out;
+}
+
 // Trusted projection displacements (projected - warped) of the sampled
 // vertices `rows` (guide row k belongs to vertex rows[k]), spread over the
 // source mesh by normalised convolution: smooth w*d and w with the same
@@ -79,6 +88,8 @@ std::size_t PreparedSource::memoryBytes() const {
   bytes += static_cast<std::size_t>(mesh.triangles.size()) * sizeof(int);
   bytes += static_cast<std::size_t>(dense_centres.size() + landmark_positions.size()) * sizeof(double);
   bytes += (neighbor_offsets.size() + neighbor_indices.size() + projection_sample.size()) * sizeof(int);
+  bytes += (face_regions.size() + region_bits.size()) * sizeof(std::uint64_t);
+  bytes += static_cast<std::size_t>(mesh.regions.size()) * sizeof(int);
   if (dense_factorization) bytes += dense_factorization->memoryBytes();
   return bytes;
 }
@@ -162,6 +173,10 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
       for (const int u : nbrs[static_cast<std::size_t>(v)]) covered[static_cast<std::size_t>(u)] = 1;
     }
   }
+  if (prepared.mesh.regions.size() > 0) {
+    prepared.face_regions = faceRegionSets(prepared.mesh.regions, prepared.mesh.triangles);
+    prepared.region_bits = vertexRegionBits(prepared.mesh.regions);
+  }
   prepared.prepare_ms = msSince(t0);
   return prepared;
 }
@@ -183,7 +198,19 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
 
   // --- warp: landmark TPS on the shared names
   auto t0 = Clock::now();
-  const ClosestPointIndex target_index(target.positions, target.triangles);
+  const bool source_regions = !source.face_regions.empty(), target_regions = target.regions.size() > 0;
+  report.region_matching = options.region_matching && source_regions && target_regions;
+  // Labelled rigs onto unlabelled scans are the usual case; labels painted on
+  // a target for nothing are worth a word.
+  if (options.region_matching && target_regions && !source_regions) {
+    report.warnings.push_back(target_label + " carries _" + std::string(kRegionAttribute) +
+                              " labels but the source does not: matching is not region-constrained");
+  }
+  const ClosestPointIndex target_index(
+      target.positions, target.triangles,
+      report.region_matching ? faceRegionSets(target.regions, target.triangles) : std::vector<std::uint64_t>());
+  const std::vector<std::uint64_t> no_masks;
+  const std::vector<std::uint64_t>& source_masks = report.region_matching ? source.region_bits : no_masks;
   auto target_positions = resolveLandmarks(target_landmarks, target, target_label, &target_index);
   if (!target_positions) return target_positions.error();
   auto pairs = pairLandmarks(source.landmarks, source.landmark_positions, target_landmarks, *target_positions,
@@ -247,7 +274,8 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
     for (int it = 0; it < options.refine_iterations; ++it) {
       const Eigen::MatrixX3d samples = centre_positions.bottomRows(nc - nl);
       const GuideModel projected = projectToTarget(samples, centre_normals.bottomRows(nc - nl), target_index,
-                                                   report.target_diagonal, projection);
+                                                   report.target_diagonal, projection,
+                                                   selectMasks(source_masks, source.dense_vertices));
       Eigen::MatrixX3d centre_targets(nc, 3);
       centre_targets.topRows(nl) = pinned;
       for (Eigen::Index k = 0; k < nc - nl; ++k) {
@@ -276,14 +304,14 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
     const std::vector<int>& rows = source.projection_sample;
     const GuideModel sampled =
         projectToTarget(selectRows(result.warped_positions, rows), selectRows(warped_normals, rows), target_index,
-                        report.target_diagonal, projection);
+                        report.target_diagonal, projection, selectMasks(source_masks, rows));
     result.warped_positions += smoothedDisplacement(source, result.warped_positions, rows, sampled,
                                                     options.refine_max_distance * report.target_diagonal,
                                                     options.smoothing_passes);
     warped_normals = computeVertexNormals(result.warped_positions, tris);
   }
   result.guide = projectToTarget(result.warped_positions, warped_normals, target_index, report.target_diagonal,
-                                 projection);
+                                 projection, source_masks);
   if (source.dense_factorization) {
     const Eigen::Index nl = source.landmark_positions.rows();
     Eigen::MatrixX3d centre_targets(source.dense_centres.rows(), 3);
@@ -295,7 +323,8 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   }
   LocateOptions locate = options.locate;
   locate.threads = options.threads;
-  result.locations = locateOnGuide(target, result.guide.positions, tris, locate);
+  result.locations = locateOnGuide(target, result.guide.positions, tris, locate,
+                                   report.region_matching ? source.face_regions : std::vector<std::uint64_t>());
   report.correspond_ms = msSince(t0);
 
   std::vector<double> d(result.guide.distance.data(), result.guide.distance.data() + result.guide.distance.size());

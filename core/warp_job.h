@@ -5,6 +5,7 @@
 // needs to trust (or not) the correspondence.
 #pragma once
 
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -44,6 +45,10 @@ struct PreparedSource {
   // of the adjacency, ~1/4 of the vertices): the rounds' smoothed steps need
   // only this density, and the guide itself is projected in full.
   std::vector<int> projection_sample;
+  // Region-constrained matching (empty when the source has no region
+  // labels): faceRegionSets and vertexRegionBits of the source.
+  std::vector<std::uint64_t> face_regions;
+  std::vector<std::uint64_t> region_bits;
   double prepare_ms = 0.0;
 
   std::size_t memoryBytes() const;
@@ -67,6 +72,10 @@ struct WarpOptions {
   // Corrects misfit finer than the dense centres' spacing.
   int local_rounds = 3;
   int smoothing_passes = 10;
+  // When source and target both carry region labels (Mesh::regions), every
+  // match (projection, refinement, location) stays within compatible regions;
+  // see faceRegionSets. false: labels are ignored.
+  bool region_matching = true;
   ProjectionOptions projection;
   LocateOptions locate;
   int threads = 0;                     // 0 = hardware threads (stages that run in parallel)
@@ -95,6 +104,8 @@ struct WarpReport {
   int unmatched_source_vertices = 0;
   int low_confidence_vertices = 0;
   int refine_iterations = 0;
+  bool region_matching = false;       // matches were region-constrained
+  std::vector<std::string> warnings;  // e.g. region labels on one side only
   // meshes
   int source_vertices = 0;
   int source_triangles = 0;

@@ -386,7 +386,8 @@ TEST(ApiOpenApi, TransferOptionsSchemaListsEveryOptionKey) {
   const json& props = doc["components"]["schemas"]["TransferOptions"]["properties"];
   for (const char* key : {"components", "uvs", "max_influences", "weight_encoding", "low_confidence_distance",
                           "low_confidence_angle_deg", "adaptation", "exaggeration", "shape_exaggeration",
-                          "joint_exaggeration", "diagnostic_attributes", "refine_iterations"}) {
+                          "joint_exaggeration", "diagnostic_attributes", "refine_iterations",
+                          "region_matching"}) {
     EXPECT_TRUE(props.contains(key)) << key;
   }
 }

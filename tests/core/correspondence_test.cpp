@@ -1,5 +1,6 @@
 #include "core/correspondence.h"
 
+#include <cstdint>
 #include <set>
 
 #include <gtest/gtest.h>
@@ -15,6 +16,88 @@ core::Mesh transformed(const core::Mesh& m, const Eigen::Matrix3d& a, const Eige
   out.positions = (m.positions * a.transpose()).rowwise() + t;
   out.normals = core::computeVertexNormals(out.positions, out.triangles);
   return out;
+}
+
+// A fan of four triangles around vertex 0: a face carries its corners'
+// labels, a vertex its own.
+TEST(Correspondence, RegionLabelSetsOfFacesAndVertices) {
+  Eigen::MatrixX3i triangles(4, 3);
+  triangles << 0, 1, 2,  //
+      0, 2, 3,           //
+      0, 3, 4,           //
+      0, 4, 5;
+  Eigen::VectorXi regions(7);
+  regions << 1, 1, 2, 2, 5, 7, 63;  // vertex 6 is on no triangle
+  auto bits = [](std::initializer_list<int> labels) {
+    std::uint64_t m = 0;
+    for (int l : labels) m |= std::uint64_t{1} << l;
+    return m;
+  };
+  EXPECT_EQ(core::faceRegionSets(regions, triangles),
+            (std::vector<std::uint64_t>{bits({1, 2}), bits({1, 2}), bits({1, 2, 5}), bits({1, 5, 7})}));
+  EXPECT_EQ(core::vertexRegionBits(regions), (std::vector<std::uint64_t>{bits({1}), bits({1}), bits({2}), bits({2}),
+                                                                          bits({5}), bits({7}), bits({63})}));
+}
+
+// Two coincident-looking sheets a hair apart (like pressed lips), labelled 1
+// (upper, z = 0.001) and 2 (lower, z = 0): a vertex of the lower sheet lying
+// nearer the upper one goes to the upper sheet without labels, and to its
+// own with them, in both directions of the matching.
+TEST(Correspondence, RegionLabelsKeepCloseSheetsApart) {
+  const int n = 6;
+  core::Mesh sheets;
+  sheets.positions.resize(2 * n * n, 3);
+  sheets.triangles.resize(2 * 2 * (n - 1) * (n - 1), 3);
+  sheets.regions.resize(2 * n * n);
+  Eigen::Index f = 0;
+  for (int s = 0; s < 2; ++s) {
+    for (int i = 0; i < n; ++i) {
+      for (int j = 0; j < n; ++j) {
+        const int v = s * n * n + i * n + j;
+        sheets.positions.row(v) << i, j, s == 0 ? 0.001 : 0.0;
+        sheets.regions(v) = s == 0 ? 1 : 2;
+        if (i + 1 < n && j + 1 < n) {
+          sheets.triangles.row(f++) << v, v + n, v + n + 1;
+          sheets.triangles.row(f++) << v, v + n + 1, v + 1;
+        }
+      }
+    }
+  }
+  sheets.normals = core::computeVertexNormals(sheets.positions, sheets.triangles);
+  // One query vertex: on the lower sheet's label, nearer the upper sheet.
+  core::Mesh probe;
+  probe.positions.resize(3, 3);
+  probe.positions << 2.3, 2.4, 0.0008,  //
+      2.6, 2.4, 0.0008,                 //
+      2.3, 2.7, 0.0008;
+  probe.triangles.resize(1, 3);
+  probe.triangles << 0, 1, 2;
+  probe.regions = Eigen::VectorXi::Constant(3, 2);
+  probe.normals = core::computeVertexNormals(probe.positions, probe.triangles);
+  auto sheet = [&](int face) { return face < 2 * (n - 1) * (n - 1) ? 1 : 2; };  // upper sheet first
+
+  // Location of the probe's vertices on the sheets (the guide).
+  core::LocateOptions locate;
+  const auto plain = core::locateOnGuide(probe, sheets.positions, sheets.triangles, locate);
+  const auto constrained = core::locateOnGuide(probe, sheets.positions, sheets.triangles, locate,
+                                               core::faceRegionSets(sheets.regions, sheets.triangles));
+  for (int v = 0; v < 3; ++v) {
+    EXPECT_EQ(sheet(plain.on_source[static_cast<std::size_t>(v)].face), 1) << "vertex " << v;
+    EXPECT_EQ(sheet(constrained.on_source[static_cast<std::size_t>(v)].face), 2) << "vertex " << v;
+  }
+  // Projection of the probe's vertices onto the sheets (the target).
+  const core::ClosestPointIndex plain_index(sheets.positions, sheets.triangles);
+  const core::ClosestPointIndex labelled_index(sheets.positions, sheets.triangles,
+                                               core::faceRegionSets(sheets.regions, sheets.triangles));
+  core::ProjectionOptions projection;
+  const auto projected = core::projectToTarget(probe.positions, probe.normals, plain_index, 10.0, projection);
+  const auto kept = core::projectToTarget(probe.positions, probe.normals, labelled_index, 10.0, projection,
+                                          core::vertexRegionBits(probe.regions));
+  for (int v = 0; v < 3; ++v) {
+    EXPECT_EQ(sheet(projected.on_target[static_cast<std::size_t>(v)].face), 1) << "vertex " << v;
+    EXPECT_EQ(sheet(kept.on_target[static_cast<std::size_t>(v)].face), 2) << "vertex " << v;
+    EXPECT_NEAR(kept.positions(v, 2), 0.0, 1e-12);
+  }
 }
 
 TEST(Correspondence, AffineCopyGivesAnExactGuideAndNoFolds) {

@@ -211,6 +211,84 @@ TEST(TransferRig, LowerLipNeverTakesTheUpperLip) {
   EXPECT_LT(upper / nu, 0.1 * lower_motion / nl);
 }
 
+// Region-constrained matching end to end: the target is another head with
+// its lips pressed shut (each lip moved half the slit towards the other, so
+// the rims meet), matched with the normal filters and the gap test off, so
+// that nothing but the labels keeps the lips apart. (The mechanism itself is
+// tested on coincident sheets in correspondence_test.)
+TEST(TransferRig, RegionLabelsKeepPressedLipsApart) {
+  const core::Rig& target = lipTarget().rig;
+  const Eigen::VectorXi& truth = target.attributes.labels.at("REGION");
+  double upper_bottom = std::numeric_limits<double>::infinity(), lower_top = -upper_bottom;
+  for (Eigen::Index v = 0; v < truth.size(); ++v) {
+    if (truth(v) == core::kRegionUpperLip) upper_bottom = std::min(upper_bottom, target.mesh.positions(v, 1));
+    if (truth(v) == core::kRegionLowerLip) lower_top = std::max(lower_top, target.mesh.positions(v, 1));
+  }
+  const double slit = upper_bottom - lower_top;
+  ASSERT_GT(slit, 0.0);
+  core::Mesh pressed = target.mesh;
+  for (Eigen::Index v = 0; v < truth.size(); ++v) {
+    if (truth(v) == core::kRegionUpperLip) pressed.positions(v, 1) -= 0.5 * slit;
+    if (truth(v) == core::kRegionLowerLip) pressed.positions(v, 1) += 0.5 * slit;
+  }
+  pressed.normals = core::computeVertexNormals(pressed.positions, pressed.triangles);
+  core::TransferOptions options;
+  options.warp.projection.max_normal_angle_deg = 180.0;
+  options.warp.locate.max_normal_angle_deg = 180.0;
+  options.warp.locate.max_relative_distance = 0.0;
+
+  auto unlabelled = core::transferRig(preparedSource(), pressed, lipTarget().landmarks, "unlabelled", options);
+  ASSERT_TRUE(unlabelled) << unlabelled.error().message;
+  EXPECT_FALSE(unlabelled->report.warp.region_matching);
+  EXPECT_TRUE(unlabelled->report.warp.warnings.empty());  // labelled rigs onto unlabelled scans: the usual case
+
+  core::Mesh labelled = pressed;
+  labelled.regions = truth;
+  auto constrained = core::transferRig(preparedSource(), labelled, lipTarget().landmarks, "labelled", options);
+  ASSERT_TRUE(constrained) << constrained.error().message;
+  EXPECT_TRUE(constrained->report.warp.region_matching);
+  EXPECT_TRUE(constrained->report.warp.warnings.empty());
+  // No lip vertex takes the other lip's label, and the upper lip stays still
+  // under jawOpen.
+  const Eigen::VectorXi& moved = constrained->rig.attributes.labels.at("REGION");
+  const Eigen::MatrixX3d& jaw = constrained->rig.morph_targets[0].position_deltas;
+  const double lower_motion = jaw.rowwise().norm().maxCoeff();
+  int upper = 0, lower = 0;
+  for (Eigen::Index v = 0; v < truth.size(); ++v) {
+    if (truth(v) == core::kRegionLowerLip) {
+      ++lower;
+      EXPECT_NE(moved(v), core::kRegionUpperLip) << "lower-lip vertex " << v;
+    }
+    if (truth(v) == core::kRegionUpperLip) {
+      ++upper;
+      EXPECT_NE(moved(v), core::kRegionLowerLip) << "upper-lip vertex " << v;
+      EXPECT_LT(jaw.row(v).norm(), 0.25 * lower_motion) << "upper-lip vertex " << v;
+    }
+  }
+  EXPECT_GT(upper, 20);
+  EXPECT_GT(lower, 20);
+
+  // Labels present but the option off: exactly the unlabelled result.
+  options.warp.region_matching = false;
+  auto switched_off = core::transferRig(preparedSource(), labelled, lipTarget().landmarks, "labelled", options);
+  ASSERT_TRUE(switched_off) << switched_off.error().message;
+  EXPECT_FALSE(switched_off->report.warp.region_matching);
+  EXPECT_EQ(switched_off->rig.morph_targets[0].position_deltas, unlabelled->rig.morph_targets[0].position_deltas);
+
+  // Labels on the target only: said, and ignored.
+  core::Rig unlabelled_rig = sourceRig().rig;
+  unlabelled_rig.attributes.labels.erase("REGION");
+  auto unlabelled_source = core::prepareRig(unlabelled_rig, sourceRig().landmarks, "source without regions");
+  ASSERT_TRUE(unlabelled_source) << unlabelled_source.error().message;
+  options.warp.region_matching = true;
+  auto one_sided = core::transferRig(*unlabelled_source, labelled, lipTarget().landmarks, "labelled", options);
+  ASSERT_TRUE(one_sided) << one_sided.error().message;
+  EXPECT_FALSE(one_sided->report.warp.region_matching);
+  ASSERT_EQ(one_sided->report.warp.warnings.size(), 1u);
+  EXPECT_EQ(one_sided->report.warp.warnings[0],
+            "labelled carries _REGION labels but the source does not: matching is not region-constrained");
+}
+
 // Fields and colours follow the same rule as labels: a vertex matched across
 // the lip gap never copies the other lip's value; inpainted values blend
 // their surroundings (harmonic: within the range of the field). The field is
