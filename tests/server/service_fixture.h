@@ -19,7 +19,8 @@
 namespace rigport_test {
 
 // A generated source rig and a target head of other proportions and
-// triangulation, small enough that a job takes tens of milliseconds.
+// triangulation (with the rig's _REGION labels), small enough that a job takes
+// tens of milliseconds.
 struct TransferFiles {
   std::filesystem::path rig, landmarks, target, target_landmarks;
 };

@@ -51,6 +51,8 @@ TEST(TransferJobs, UploadSubmitPollFetchGivesTheCliBytes) {
   Reply diagnostics = get(*client, "/v1/jobs/" + id + "/diagnostics");
   ASSERT_EQ(diagnostics.status, 200);
   EXPECT_FALSE(diagnostics.body["cache"]["hit"].get<bool>()) << diagnostics.raw.substr(0, 400);
+  // The target's region labels came through upload, store and job.
+  EXPECT_TRUE(diagnostics.body["correspondence"]["region_matching"].get<bool>()) << diagnostics.raw.substr(0, 400);
 
   // A second job on the same rig skips all source-only work.
   Reply second = submitTransfer(*client, rig_id, files);
