@@ -4,7 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <numbers>
+
+#include "core/vector_clones.h"
 
 namespace core {
 
@@ -131,6 +134,57 @@ TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_
   return out;
 }
 
+namespace {
+
+// One farthest-point step over all points: sq = min(sq, |x - p|^2), and the
+// first index of the largest sq afterwards, in one pass. Written with GCC
+// vector types (four lanes, each keeping its largest value and the first
+// index where it occurs; comparisons are exact, so the answer does not depend
+// on the lane layout): GCC does not vectorise this reduction on its own.
+RIGPORT_VECTOR_CLONES
+std::ptrdiff_t nearestSampleUpdate(const double* x, const double* y, const double* z, double* sq, std::ptrdiff_t n,
+                                   double px, double py, double pz) {
+  typedef double Lanes __attribute__((vector_size(32)));
+  typedef long long Indices __attribute__((vector_size(32)));
+  Lanes largest = {-1.0, -1.0, -1.0, -1.0};
+  Indices at = {0, 0, 0, 0};
+  Indices lane = {0, 1, 2, 3};
+  std::ptrdiff_t v = 0;
+  for (; v + 4 <= n; v += 4, lane += 4) {
+    Lanes a, b, c, old;
+    std::memcpy(&a, x + v, sizeof a);
+    std::memcpy(&b, y + v, sizeof b);
+    std::memcpy(&c, z + v, sizeof c);
+    std::memcpy(&old, sq + v, sizeof old);
+    const Lanes dx = a - px, dy = b - py, dz = c - pz;
+    const Lanes d = dx * dx + dy * dy + dz * dz;
+    const Lanes nearest = d < old ? d : old;
+    std::memcpy(sq + v, &nearest, sizeof nearest);
+    const Indices larger = nearest > largest;
+    largest = larger ? nearest : largest;
+    at = larger ? lane : at;
+  }
+  double best = -1.0;
+  std::ptrdiff_t best_at = 0;
+  for (int k = 0; k < 4; ++k) {
+    if (largest[k] > best || (largest[k] == best && at[k] < best_at)) {
+      best = largest[k];
+      best_at = at[k];
+    }
+  }
+  for (; v < n; ++v) {
+    const double dx = x[v] - px, dy = y[v] - py, dz = z[v] - pz;
+    sq[v] = std::min(sq[v], dx * dx + dy * dy + dz * dz);
+    if (sq[v] > best) {
+      best = sq[v];
+      best_at = v;
+    }
+  }
+  return best_at;
+}
+
+}  // namespace
+
 std::vector<int> farthestPointSample(const Eigen::MatrixX3d& positions, int count) {
   const Eigen::Index n = positions.rows();
   std::vector<int> chosen;
@@ -139,24 +193,14 @@ std::vector<int> farthestPointSample(const Eigen::MatrixX3d& positions, int coun
   const Eigen::RowVector3d centroid = positions.colwise().mean();
   Eigen::Index first = 0;
   (positions.rowwise() - centroid).rowwise().squaredNorm().minCoeff(&first);
-  Eigen::VectorXd sq = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::infinity());
+  std::vector<double> sq(static_cast<std::size_t>(n), std::numeric_limits<double>::infinity());
   const double* x = positions.col(0).data();
   const double* y = positions.col(1).data();
   const double* z = positions.col(2).data();
   Eigen::Index next = first;
   for (int k = 0; k < count; ++k) {
     chosen.push_back(static_cast<int>(next));
-    const double px = x[next], py = y[next], pz = z[next];
-    // Column by column so that the loop vectorises.
-    for (Eigen::Index v = 0; v < n; ++v) {
-      const double dx = x[v] - px, dy = y[v] - py, dz = z[v] - pz;
-      sq(v) = std::min(sq(v), dx * dx + dy * dy + dz * dz);
-    }
-    // Lowest index among ties (deterministic): the vectorised maximum, then
-    // its first occurrence (an indexed maxCoeff is a serial compare chain).
-    const double farthest = sq.maxCoeff();
-    next = 0;
-    while (sq(next) != farthest) ++next;
+    next = nearestSampleUpdate(x, y, z, sq.data(), n, x[next], y[next], z[next]);  // lowest index among ties
   }
   return chosen;
 }

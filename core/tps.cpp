@@ -22,6 +22,7 @@
 
 #include "core/mesh.h"
 #include "core/parallel.h"
+#include "core/vector_clones.h"
 
 namespace core {
 
@@ -58,16 +59,9 @@ namespace {
 // in [begin, end). Points in blocks, centres outside, points inside: the inner
 // loop has independent outputs and vectorises, while each point still sums
 // its centres in order 0..n-1 (results do not depend on blocking or threads).
-// Hot loops are compiled twice, for AVX2 and for baseline x86-64, and chosen
-// at load time (~1.9x on TPS apply). Neither clone may contract a*b+c into
-// FMA ("avx2" does not enable it, and -std=c++20 sets -ffp-contract=off), and
-// each lane is one point summing its centres in the same order, so both
-// clones give bit-identical results: outputs do not depend on the machine.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#define RIGPORT_VECTOR_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define RIGPORT_VECTOR_CLONES
-#endif
+// Hot loops are compiled for AVX2 and baseline x86-64 (core/vector_clones.h;
+// ~1.9x on TPS apply); each lane is one point summing its centres in the same
+// order, so both clones give bit-identical results.
 
 // Column pointers of a #n by 3 matrix (column-major: each column contiguous).
 struct Columns {
@@ -318,7 +312,7 @@ Result<TpsFactorization> TpsFactorization::create(const Eigen::MatrixX3d& centre
     if (data->llt.info() != Eigen::Success) {
       return makeError(ErrorCode::kIllConditioned, "thin-plate spline system is singular for these landmarks");
     }
-    const Eigen::VectorXd d = data->llt.matrixL().toDenseMatrix().diagonal();
+    const Eigen::VectorXd d = data->llt.matrixLLT().diagonal();  // L's diagonal
     const double rcond = (d.minCoeff() / d.maxCoeff());
     if (!(rcond * rcond > 1e-13)) {
       return makeError(ErrorCode::kIllConditioned,

@@ -148,29 +148,40 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
   // the projection sample is a maximal independent set of it (greedy in index
   // order: deterministic, every vertex sampled or next to a sampled one).
   {
+    // Two passes over the triangles into one flat array (each vertex's slots
+    // sized by its corner count), then sorted and de-duplicated in place.
     const Eigen::Index nv = prepared.mesh.vertexCount();
-    std::vector<std::vector<int>> nbrs(static_cast<std::size_t>(nv));
-    for (Eigen::Index f = 0; f < prepared.mesh.triangleCount(); ++f) {
+    const Eigen::MatrixX3i& tris = prepared.mesh.triangles;
+    std::vector<int> start(static_cast<std::size_t>(nv) + 1, 0);
+    for (Eigen::Index f = 0; f < tris.rows(); ++f) {
+      for (int k = 0; k < 3; ++k) start[static_cast<std::size_t>(tris(f, k)) + 1] += 2;
+    }
+    for (std::size_t v = 0; v < static_cast<std::size_t>(nv); ++v) start[v + 1] += start[v];
+    std::vector<int> slots(static_cast<std::size_t>(start.back()));
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (Eigen::Index f = 0; f < tris.rows(); ++f) {
       for (int k = 0; k < 3; ++k) {
-        const int a = prepared.mesh.triangles(f, k), b = prepared.mesh.triangles(f, (k + 1) % 3);
+        const int a = tris(f, k), b = tris(f, (k + 1) % 3);
         if (a == b) continue;
-        nbrs[static_cast<std::size_t>(a)].push_back(b);
-        nbrs[static_cast<std::size_t>(b)].push_back(a);
+        slots[static_cast<std::size_t>(fill[static_cast<std::size_t>(a)]++)] = b;
+        slots[static_cast<std::size_t>(fill[static_cast<std::size_t>(b)]++)] = a;
       }
     }
     prepared.neighbor_offsets.assign(static_cast<std::size_t>(nv) + 1, 0);
-    for (Eigen::Index v = 0; v < nv; ++v) {
-      auto& n = nbrs[static_cast<std::size_t>(v)];
-      std::sort(n.begin(), n.end());
-      n.erase(std::unique(n.begin(), n.end()), n.end());
-      prepared.neighbor_offsets[static_cast<std::size_t>(v) + 1] = prepared.neighbor_offsets[static_cast<std::size_t>(v)] + static_cast<int>(n.size());
-      prepared.neighbor_indices.insert(prepared.neighbor_indices.end(), n.begin(), n.end());
+    prepared.neighbor_indices.reserve(slots.size() / 2);
+    for (std::size_t v = 0; v < static_cast<std::size_t>(nv); ++v) {
+      const auto first = slots.begin() + start[v], last = slots.begin() + fill[v];
+      std::sort(first, last);
+      prepared.neighbor_indices.insert(prepared.neighbor_indices.end(), first, std::unique(first, last));
+      prepared.neighbor_offsets[v + 1] = static_cast<int>(prepared.neighbor_indices.size());
     }
     std::vector<char> covered(static_cast<std::size_t>(nv), 0);
     for (Eigen::Index v = 0; v < nv; ++v) {
       if (covered[static_cast<std::size_t>(v)]) continue;
       prepared.projection_sample.push_back(static_cast<int>(v));
-      for (const int u : nbrs[static_cast<std::size_t>(v)]) covered[static_cast<std::size_t>(u)] = 1;
+      for (int k = prepared.neighbor_offsets[static_cast<std::size_t>(v)]; k < prepared.neighbor_offsets[static_cast<std::size_t>(v) + 1]; ++k) {
+        covered[static_cast<std::size_t>(prepared.neighbor_indices[static_cast<std::size_t>(k)])] = 1;
+      }
     }
   }
   if (prepared.mesh.regions.size() > 0) {

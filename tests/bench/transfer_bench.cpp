@@ -1,4 +1,4 @@
-// Rig transfer end to end (prepared rig; per stage), ICT rig onto a remeshed
+// Rig transfer (prepared rig, per stage; and end to end), ICT rig onto a remeshed
 // ICT target when ../shared/data is present, else generated rigs.
 //   transfer_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <algorithm>
@@ -199,6 +199,41 @@ void BM_TransferLargeTargetAndWrite(benchmark::State& state) {
   state.SetLabel(c.name + ", 2 threads");
 }
 BENCHMARK(BM_TransferLargeTargetAndWrite)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// End to end on one thread, as a one-off CLI run does it after reading its
+// files: prepare the rig (moved in, as read), transfer, encode the GLB.
+void BM_TransferEndToEnd(benchmark::State& state) {
+  const Case& c = benchCase();
+  core::PrepareOptions prepare;
+  prepare.threads = 1;
+  core::TransferOptions options;
+  options.threads = 1;
+  std::size_t bytes = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    core::Rig rig = c.rig;
+    state.ResumeTiming();
+    auto prepared = core::prepareRig(std::move(rig), c.landmarks, "source", prepare);
+    if (!prepared) {
+      state.SkipWithError(prepared.error().message.c_str());
+      return;
+    }
+    auto r = core::transferRig(*prepared, c.target, c.target_landmarks, "target", options);
+    if (!r) {
+      state.SkipWithError(r.error().message.c_str());
+      return;
+    }
+    auto glb = core::encodeRigGlb(r->rig);
+    if (!glb) {
+      state.SkipWithError(glb.error().message.c_str());
+      return;
+    }
+    bytes = glb->size();
+  }
+  state.counters["glb_bytes"] = static_cast<double>(bytes);
+  state.SetLabel(c.name);
+}
+BENCHMARK(BM_TransferEndToEnd)->Unit(benchmark::kMillisecond);
 
 void BM_WriteRigGlb(benchmark::State& state) {
   const Case& c = benchCase();
