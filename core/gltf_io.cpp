@@ -1880,17 +1880,22 @@ Status readRigParts(const tinygltf::Model& model, const MeshChoice& choice, cons
   return Ok{};
 }
 
+// The chosen mesh of a parsed file (buildMesh) with its region labels.
+Result<LoadedMesh> chosenMesh(const ParsedGltf& parsed, const std::string& label, LoadedMesh loaded) {
+  auto mesh = buildMesh(parsed.model, parsed.choice, label, std::move(loaded));
+  if (!mesh) return mesh.error();
+  if (auto ok = readMeshRegions(parsed.model, parsed.choice, label, mesh->mesh, mesh->report.warnings); !ok) {
+    return ok.error();
+  }
+  return mesh;
+}
+
 Result<LoadedMesh> readGltfImpl(Bytes bytes, const std::string& label, bool binary,
                                 const std::optional<std::filesystem::path>& base_dir) {
   LoadedMesh loaded;
   auto parsed = parseGltf(bytes, label, binary, base_dir, loaded.report);
   if (!parsed) return parsed.error();
-  auto mesh = buildMesh(parsed->model, parsed->choice, label, std::move(loaded));
-  if (!mesh) return mesh.error();
-  if (auto ok = readMeshRegions(parsed->model, parsed->choice, label, mesh->mesh, mesh->report.warnings); !ok) {
-    return ok.error();
-  }
-  return mesh;
+  return chosenMesh(*parsed, label, std::move(loaded));
 }
 
 Result<LoadedRig> readRigImpl(Bytes bytes, const std::string& label, bool binary,
@@ -1898,15 +1903,12 @@ Result<LoadedRig> readRigImpl(Bytes bytes, const std::string& label, bool binary
   LoadedMesh loaded_mesh;
   auto parsed = parseGltf(bytes, label, binary, base_dir, loaded_mesh.report);
   if (!parsed) return parsed.error();
-  auto mesh = buildMesh(parsed->model, parsed->choice, label, std::move(loaded_mesh));
+  auto mesh = chosenMesh(*parsed, label, std::move(loaded_mesh));
   if (!mesh) return mesh.error();
   LoadedRig loaded;
   loaded.rig.mesh = std::move(mesh->mesh);
   loaded.report = std::move(mesh->report);
   if (auto ok = readRigParts(parsed->model, parsed->choice, label, loaded.rig, loaded.report.warnings); !ok) {
-    return ok.error();
-  }
-  if (auto ok = readMeshRegions(parsed->model, parsed->choice, label, loaded.rig.mesh, loaded.report.warnings); !ok) {
     return ok.error();
   }
   return loaded;
