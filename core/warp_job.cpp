@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <chrono>
 #include <cmath>
 
@@ -216,6 +217,31 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   if (options.region_matching && target_regions && !source_regions) {
     report.warnings.push_back(target_label + " carries _" + std::string(kRegionAttribute) +
                               " labels but the source does not: matching is not region-constrained");
+  }
+  if (report.region_matching) {
+    // A region on one side only cannot match: say which (numbering mix-ups).
+    auto present = [](const Eigen::VectorXi& regions) {
+      std::uint64_t bits = 0;
+      for (Eigen::Index v = 0; v < regions.size(); ++v) bits |= std::uint64_t{1} << regions(v);
+      return bits;
+    };
+    const std::uint64_t on_source = present(source.mesh.regions), on_target = present(target.regions);
+    // "region label 3 occurs" / "region labels 3, 4 occur"
+    auto listed = [](std::uint64_t bits) {
+      std::string labels;
+      for (int l = 0; l <= kMaxRegionLabel; ++l) {
+        if ((bits >> l) & 1u) labels += (labels.empty() ? "" : ", ") + std::to_string(l);
+      }
+      return std::popcount(bits) == 1 ? "region label " + labels + " occurs" : "region labels " + labels + " occur";
+    };
+    if (const std::uint64_t only = on_source & ~on_target; only != 0) {
+      report.warnings.push_back(listed(only) + " on the source but not on " + target_label +
+                                ": those source vertices cannot match (left unmatched)");
+    }
+    if (const std::uint64_t only = on_target & ~on_source; only != 0) {
+      report.warnings.push_back(listed(only) + " on " + target_label +
+                                " but not on the source: those target vertices cannot be located (inpainted)");
+    }
   }
   const ClosestPointIndex target_index(
       target.positions, target.triangles,

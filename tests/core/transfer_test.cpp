@@ -275,12 +275,27 @@ TEST(TransferRig, RegionLabelsKeepPressedLipsApart) {
   EXPECT_FALSE(switched_off->report.warp.region_matching);
   EXPECT_EQ(switched_off->rig.morph_targets[0].position_deltas, unlabelled->rig.morph_targets[0].position_deltas);
 
+  // A region the other side does not have is named.
+  options.warp.region_matching = true;
+  core::Mesh relabelled = labelled;
+  for (Eigen::Index v = 0; v < relabelled.regions.size(); ++v) {
+    if (relabelled.regions(v) == core::kRegionUpperLid) relabelled.regions(v) = 9;
+  }
+  auto renumbered = core::transferRig(preparedSource(), relabelled, lipTarget().landmarks, "relabelled", options);
+  ASSERT_TRUE(renumbered) << renumbered.error().message;
+  ASSERT_EQ(renumbered->report.warp.warnings.size(), 2u);
+  EXPECT_EQ(renumbered->report.warp.warnings[0],
+            "region label 3 occurs on the source but not on relabelled: those source vertices cannot match (left "
+            "unmatched)");
+  EXPECT_EQ(renumbered->report.warp.warnings[1],
+            "region label 9 occurs on relabelled but not on the source: those target vertices cannot be located "
+            "(inpainted)");
+
   // Labels on the target only: said, and ignored.
   core::Rig unlabelled_rig = sourceRig().rig;
   unlabelled_rig.attributes.labels.erase("REGION");
   auto unlabelled_source = core::prepareRig(unlabelled_rig, sourceRig().landmarks, "source without regions");
   ASSERT_TRUE(unlabelled_source) << unlabelled_source.error().message;
-  options.warp.region_matching = true;
   auto one_sided = core::transferRig(*unlabelled_source, labelled, lipTarget().landmarks, "labelled", options);
   ASSERT_TRUE(one_sided) << one_sided.error().message;
   EXPECT_FALSE(one_sided->report.warp.region_matching);
