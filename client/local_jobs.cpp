@@ -37,18 +37,20 @@ core::Status writeText(const std::filesystem::path& path, const std::string& tex
   return core::writeFileBytes(path, std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
 }
 
-// Writes the diagnostics file and/or prints them; warns about suspicious landmarks.
+// Writes the diagnostics file and/or prints them; warns about suspicious
+// landmarks and correspondence problems (e.g. region labels).
 core::Status emitDiagnostics(const std::string& diagnostics, const std::filesystem::path& file, bool print,
-                             const std::vector<std::string>& suspicious) {
+                             const core::WarpReport& warp) {
   if (!file.empty()) {
     if (auto ok = writeText(file, diagnostics); !ok) return ok;
   }
   if (print) std::fputs(diagnostics.c_str(), stdout);
-  if (!suspicious.empty()) {
+  if (!warp.suspicious_landmarks.empty()) {
     std::string names;
-    for (const auto& n : suspicious) names += (names.empty() ? "" : ", ") + n;
+    for (const auto& n : warp.suspicious_landmarks) names += (names.empty() ? "" : ", ") + n;
     spdlog::warn("suspicious landmarks (the others cannot explain them; swapped or misplaced?): {}", names);
   }
+  for (const std::string& warning : warp.warnings) spdlog::warn("{}", warning);
   return core::Ok{};
 }
 
@@ -103,8 +105,8 @@ int runWarp(const WarpArgs& args) {
 
   const core::DiagnosticsContext context = diagnosticsContext(source->report, target->report, read_ms, write_ms, t_start);
   const auto& r = result->report;
-  if (auto ok = emitDiagnostics(core::formatWarpDiagnostics(r, context), args.diagnostics, args.print_diagnostics,
-                                r.suspicious_landmarks); !ok) {
+  if (auto ok = emitDiagnostics(core::formatWarpDiagnostics(r, context), args.diagnostics, args.print_diagnostics, r);
+      !ok) {
     return fail(ok.error());
   }
   spdlog::info("warp: {} landmarks, rms residual {:.3g}, suspicious {}; correspondence p95 {:.4g} ({:.3f}% of diagonal), "
@@ -158,7 +160,8 @@ int runTransfer(const TransferArgs& args) {
   const core::DiagnosticsContext context = diagnosticsContext(source->report, target->report, read_ms, write_ms, t_start);
   const auto& r = result->report;
   if (auto ok = emitDiagnostics(core::formatTransferDiagnostics(r, context), args.diagnostics, args.print_diagnostics,
-                                r.warp.suspicious_landmarks); !ok) {
+                                r.warp);
+      !ok) {
     return fail(ok.error());
   }
   spdlog::info("transfer: {} joints, {} shapes, {} animations; {} vertices inpainted, {} pruned; "
