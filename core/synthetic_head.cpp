@@ -156,6 +156,42 @@ bool inMouthHole(const HeadShape& s, double t, double p) {
 
 }  // namespace
 
+namespace {
+
+// Lips by the mouth line (a band around it, split above / below), lids by
+// the eye holes, from the landmarks: what a TD would paint.
+Eigen::VectorXi lipAndLidRegions(const Mesh& mesh, const LandmarkSet& landmarks, const HeadShape& shape) {
+  auto at = [&](const std::string& name) {
+    const Landmark& l = landmarks.landmarks[static_cast<std::size_t>(landmarks.indexOf(name))];
+    Eigen::Vector3d x = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) x += l.barycentric(k) * mesh.positions.row(mesh.triangles(l.face, k)).transpose();
+    return x;
+  };
+  const Eigen::Vector3d mouth_left = at("mouth_outer_6"), mouth_right = at("mouth_outer_0");
+  const Eigen::Vector3d mouth_centre = 0.5 * (at("mouth_inner_2") + at("mouth_inner_6"));
+  const Eigen::Vector3d eye_l = 0.5 * (at("eye_left_0") + at("eye_left_3"));
+  const Eigen::Vector3d eye_r = 0.5 * (at("eye_right_0") + at("eye_right_3"));
+  const double lip_band = 0.25 * (mouth_left - mouth_right).norm();
+  const double mouth_half_width = 0.55 * (mouth_left - mouth_right).norm();
+  Eigen::VectorXi region = Eigen::VectorXi::Constant(mesh.vertexCount(), kRegionSkin);
+  for (Eigen::Index v = 0; v < mesh.vertexCount(); ++v) {
+    const Eigen::Vector3d x = mesh.positions.row(v).transpose();
+    const double dx = std::abs(x.x() - mouth_centre.x()), dy = x.y() - mouth_centre.y();
+    if (x.z() > mouth_centre.z() - 0.3 * lip_band && dx < mouth_half_width && std::abs(dy) < lip_band) {
+      region(v) = dy > 0 ? kRegionUpperLip : kRegionLowerLip;
+    }
+    for (const Eigen::Vector3d& e : {eye_l, eye_r}) {
+      const double ex = std::abs(x.x() - e.x()), ey = x.y() - e.y();
+      if (ex < 0.028 / 0.075 * shape.width && std::abs(ey) < 0.012 && x.z() > e.z() - 0.01) {
+        region(v) = ey > 0 ? kRegionUpperLid : kRegionLowerLid;
+      }
+    }
+  }
+  return region;
+}
+
+}  // namespace
+
 SyntheticHead generateHead(const HeadShape& shape, const HeadResolution& res) {
   const int nu = std::max(4, res.columns), nv = std::max(4, res.rows);
   std::mt19937 rng(res.seed);
@@ -252,6 +288,7 @@ SyntheticHead generateHead(const HeadShape& shape, const HeadResolution& res) {
     assert(lm.face >= 0);  // landmarkParams keeps every landmark near the surface
     head.landmarks.landmarks.push_back(lm);
   }
+  head.mesh.regions = lipAndLidRegions(head.mesh, head.landmarks, shape);
   return head;
 }
 

@@ -39,8 +39,11 @@ struct HeadResolution {
   unsigned seed = 0;           // for jitter
 };
 
+// Region labels of a generated head (Mesh::regions, written as _REGION).
+enum RegionLabel { kRegionSkin = 0, kRegionUpperLip = 1, kRegionLowerLip = 2, kRegionUpperLid = 3, kRegionLowerLid = 4 };
+
 struct SyntheticHead {
-  Mesh mesh;
+  Mesh mesh;                   // regions: lips and lids labelled (RegionLabel), as a TD would paint them
   LandmarkSet landmarks;       // 68 iBUG-named landmarks as face + barycentric
 };
 

@@ -69,24 +69,9 @@ SyntheticRig generateRig(const HeadShape& input_shape, const HeadResolution& res
   skin.skeleton = 0;
   rig.skin = skin;
 
-  // Regions: lips by the mouth slit, lids by the eye holes (rims).
   const double lip_band = 0.25 * (mouth_left - mouth_right).norm();
-  Eigen::VectorXi region = Eigen::VectorXi::Zero(nv);
-  const double mouth_half_width = 0.55 * (mouth_left - mouth_right).norm();
-  for (Eigen::Index v = 0; v < nv; ++v) {
-    const Eigen::Vector3d x = p.row(v).transpose();
-    const double dx = std::abs(x.x() - mouth_centre.x()), dy = x.y() - mouth_centre.y();
-    if (x.z() > mouth_centre.z() - 0.3 * lip_band && dx < mouth_half_width && std::abs(dy) < lip_band) {
-      region(v) = dy > 0 ? kRegionUpperLip : kRegionLowerLip;
-    }
-    for (const Eigen::Vector3d& e : {eye_l, eye_r}) {
-      const double ex = std::abs(x.x() - e.x()), ey = x.y() - e.y();
-      if (ex < 0.028 / 0.075 * shape.width && std::abs(ey) < 0.012 && x.z() > e.z() - 0.01) {
-        region(v) = ey > 0 ? kRegionUpperLid : kRegionLowerLid;
-      }
-    }
-  }
-  rig.attributes.labels["REGION"] = region;
+  const Eigen::VectorXi& region = rig.mesh.regions;  // lips and lids (generateHead)
+  rig.attributes.labels[kRegionAttribute] = region;
 
   // Weights: jaw below the mouth line (fading toward the ears), head above,
   // neck and root from height falloffs.

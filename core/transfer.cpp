@@ -47,13 +47,13 @@ Result<PreparedRig> prepareRig(Rig rig, LandmarkSet landmarks, const std::string
     }
   }
   // A rig's region labels are its REGION label attribute (the glTF reader
-  // fills both; a rig built in code may only have the attribute).
-  if (const auto regions = rig.attributes.labels.find(kRegionAttribute);
-      rig.mesh.regions.size() == 0 && regions != rig.attributes.labels.end() &&
-      regions->second.size() == rig.mesh.vertexCount() &&
-      (regions->second.size() == 0 || (regions->second.minCoeff() >= 0 && regions->second.maxCoeff() <= kMaxRegionLabel))) {
-    rig.mesh.regions = regions->second;
-  }
+  // reads _REGION into both); without a usable one (0..kMaxRegionLabel, one
+  // per vertex) the rig has none.
+  const auto regions = rig.attributes.labels.find(kRegionAttribute);
+  const bool usable_regions =
+      regions != rig.attributes.labels.end() && regions->second.size() == rig.mesh.vertexCount() &&
+      (regions->second.size() == 0 || (regions->second.minCoeff() >= 0 && regions->second.maxCoeff() <= kMaxRegionLabel));
+  rig.mesh.regions = usable_regions ? regions->second : Eigen::VectorXi();
   auto surface = prepareSource(rig.mesh, std::move(landmarks), label, options);
   if (!surface) return surface.error();
   PreparedRig prepared;

@@ -181,12 +181,17 @@ TEST(TransferRig, NormalDeltasEqualAFullRecomputeOfTheDisplacedTarget) {
   }
 }
 
+// Without region labels on the target (a scan): normal compatibility and the
+// thin-gap test alone keep the lips apart.
 TEST(TransferRig, LowerLipNeverTakesTheUpperLip) {
   const core::SyntheticRig& target = lipTarget();
+  core::Mesh scan = target.rig.mesh;
+  scan.regions.resize(0);
   core::TransferOptions lip_options;
   lip_options.diagnostic_attributes = true;
-  auto result = core::transferRig(preparedSource(), target.rig.mesh, target.landmarks, "other", lip_options);
+  auto result = core::transferRig(preparedSource(), scan, target.landmarks, "other", lip_options);
   ASSERT_TRUE(result) << result.error().message;
+  EXPECT_FALSE(result->report.warp.region_matching);
   const Eigen::VectorXi& truth = target.rig.attributes.labels.at("REGION");
   const Eigen::VectorXi& moved = result->rig.attributes.labels.at("REGION");
   int lower = 0, wrong = 0;
@@ -232,6 +237,7 @@ TEST(TransferRig, RegionLabelsKeepPressedLipsApart) {
     if (truth(v) == core::kRegionLowerLip) pressed.positions(v, 1) += 0.5 * slit;
   }
   pressed.normals = core::computeVertexNormals(pressed.positions, pressed.triangles);
+  pressed.regions.resize(0);  // a scan: no labels
   core::TransferOptions options;
   options.warp.projection.max_normal_angle_deg = 180.0;
   options.warp.locate.max_normal_angle_deg = 180.0;
@@ -319,7 +325,9 @@ TEST(TransferRig, FieldsAndColoursNeverCrossTheLips) {
   auto prepared = core::prepareRig(rig, sourceRig().landmarks, "source with a lip field");
   ASSERT_TRUE(prepared) << prepared.error().message;
   const core::SyntheticRig& target = lipTarget();
-  auto result = core::transferRig(*prepared, target.rig.mesh, target.landmarks, "other");
+  core::Mesh scan = target.rig.mesh;  // no region labels: normals and the gap test alone
+  scan.regions.resize(0);
+  auto result = core::transferRig(*prepared, scan, target.landmarks, "other");
   ASSERT_TRUE(result) << result.error().message;
   ASSERT_GT(result->report.warp.low_confidence_vertices, 0) << "the case must exercise untrusted vertices";
   const Eigen::VectorXi& truth = target.rig.attributes.labels.at("REGION");

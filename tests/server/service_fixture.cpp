@@ -55,12 +55,10 @@ TransferFiles writeTransferFiles(const std::filesystem::path& dir, int target_ce
   target_res.alternate_diagonals = true;
   target_res.jitter = 0.2;
   target_res.seed = 3;
-  // The target carries region labels like the rig's (lips, lids), so every
+  // Generated heads carry lip and lid labels like the rig's, so every
   // service job also runs region-constrained matching.
-  const core::SyntheticRig head = core::generateRig(core::randomHeadShape(3, 0.15), target_res);
-  core::Mesh target = head.rig.mesh;
-  target.regions = head.rig.attributes.labels.at(core::kRegionAttribute);
-  EXPECT_TRUE(core::writeMeshGlb(target, f.target).ok());
+  const core::SyntheticHead head = core::generateHead(core::randomHeadShape(3, 0.15), target_res);
+  EXPECT_TRUE(core::writeMeshGlb(head.mesh, f.target).ok());
   writeText(f.target_landmarks, core::formatLandmarks(head.landmarks));
   return f;
 }
