@@ -81,6 +81,44 @@ Eigen::MatrixX3d smoothedDisplacement(const PreparedSource& source, const Eigen:
   return out;
 }
 
+// Region labels on one side only cannot match: warns about them by number
+// (numbering mix-ups), and refuses label sets with nothing in common.
+Status checkRegionLabels(const Eigen::VectorXi& source, const Eigen::VectorXi& target, const std::string& target_label,
+                         std::vector<std::string>& warnings) {
+  auto present = [](const Eigen::VectorXi& regions) {
+    std::uint64_t bits = 0;
+    for (Eigen::Index v = 0; v < regions.size(); ++v) bits |= std::uint64_t{1} << regions(v);
+    return bits;
+  };
+  auto labels = [](std::uint64_t bits) {
+    std::string out;
+    for (int l = 0; l <= kMaxRegionLabel; ++l) {
+      if ((bits >> l) & 1u) out += (out.empty() ? "" : ", ") + std::to_string(l);
+    }
+    return out;
+  };
+  // "region label 3 occurs" / "region labels 3, 4 occur"
+  auto listed = [&](std::uint64_t bits) {
+    return std::popcount(bits) == 1 ? "region label " + labels(bits) + " occurs" : "region labels " + labels(bits) + " occur";
+  };
+  const std::uint64_t on_source = present(source), on_target = present(target);
+  if ((on_source & on_target) == 0) {
+    return makeError(ErrorCode::kInvalidArgument,
+                     target_label + ": its _" + std::string(kRegionAttribute) + " labels (" + labels(on_target) +
+                         ") share none with the source's (" + labels(on_source) +
+                         "): nothing could match; check the numbering, or set region_matching to false");
+  }
+  if (const std::uint64_t only = on_source & ~on_target; only != 0) {
+    warnings.push_back(listed(only) + " on the source but not on " + target_label +
+                       ": those source vertices cannot match (left unmatched)");
+  }
+  if (const std::uint64_t only = on_target & ~on_source; only != 0) {
+    warnings.push_back(listed(only) + " on " + target_label +
+                       " but not on the source: those target vertices cannot be located (inpainted)");
+  }
+  return Ok{};
+}
+
 }  // namespace
 
 std::size_t PreparedSource::memoryBytes() const {
@@ -219,28 +257,8 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
                               " labels but the source does not: matching is not region-constrained");
   }
   if (report.region_matching) {
-    // A region on one side only cannot match: say which (numbering mix-ups).
-    auto present = [](const Eigen::VectorXi& regions) {
-      std::uint64_t bits = 0;
-      for (Eigen::Index v = 0; v < regions.size(); ++v) bits |= std::uint64_t{1} << regions(v);
-      return bits;
-    };
-    const std::uint64_t on_source = present(source.mesh.regions), on_target = present(target.regions);
-    // "region label 3 occurs" / "region labels 3, 4 occur"
-    auto listed = [](std::uint64_t bits) {
-      std::string labels;
-      for (int l = 0; l <= kMaxRegionLabel; ++l) {
-        if ((bits >> l) & 1u) labels += (labels.empty() ? "" : ", ") + std::to_string(l);
-      }
-      return std::popcount(bits) == 1 ? "region label " + labels + " occurs" : "region labels " + labels + " occur";
-    };
-    if (const std::uint64_t only = on_source & ~on_target; only != 0) {
-      report.warnings.push_back(listed(only) + " on the source but not on " + target_label +
-                                ": those source vertices cannot match (left unmatched)");
-    }
-    if (const std::uint64_t only = on_target & ~on_source; only != 0) {
-      report.warnings.push_back(listed(only) + " on " + target_label +
-                                " but not on the source: those target vertices cannot be located (inpainted)");
+    if (auto ok = checkRegionLabels(source.mesh.regions, target.regions, target_label, report.warnings); !ok) {
+      return ok.error();
     }
   }
   const ClosestPointIndex target_index(

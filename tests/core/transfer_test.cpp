@@ -297,6 +297,15 @@ TEST(TransferRig, RegionLabelsKeepPressedLipsApart) {
             "region label 9 occurs on relabelled but not on the source: those target vertices cannot be located "
             "(inpainted)");
 
+  // No label in common: a clear error, not a rig of inpainted vertices.
+  core::Mesh disjoint = labelled;
+  disjoint.regions.array() += 10;
+  auto refused = core::transferRig(preparedSource(), disjoint, lipTarget().landmarks, "disjoint.glb", options);
+  ASSERT_FALSE(refused);
+  EXPECT_EQ(refused.error().message,
+            "disjoint.glb: its _REGION labels (10, 11, 12, 13, 14) share none with the source's (0, 1, 2, 3, 4): "
+            "nothing could match; check the numbering, or set region_matching to false");
+
   // Labels on the target only: said, and ignored.
   core::Rig unlabelled_rig = sourceRig().rig;
   unlabelled_rig.attributes.labels.erase("REGION");
