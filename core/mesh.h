@@ -23,8 +23,8 @@ struct Mesh {
   Eigen::MatrixX3i triangles;  // #F by 3 vertex indices, counter-clockwise = front face
   Eigen::MatrixX3d normals;    // #V by 3 unit vertex normals, or 0 rows when absent
   Eigen::MatrixX2d uvs;        // #V by 2 texture coordinates (glTF convention, v down), or 0 rows
-  // #V region labels in [0, kMaxRegionLabel] (glTF custom attribute _REGION),
-  // or 0 rows. When source and target both carry them, matching is
+  // #V region labels in [0, kMaxRegionLabel] (glTF custom attribute _REGION,
+  // PLY vertex property "region"), or 0 rows. When source and target both carry them, matching is
   // region-constrained (see core/correspondence.h).
   Eigen::VectorXi regions;
 

@@ -322,6 +322,7 @@ struct VertexLayout {
   int xyz[3] = {-1, -1, -1};
   int normal[3] = {-1, -1, -1};
   int uv[2] = {-1, -1};
+  int region = -1;  // "region": integer region labels (Mesh::regions)
 };
 
 VertexLayout vertexLayout(const PlyElement& element) {
@@ -340,6 +341,7 @@ VertexLayout vertexLayout(const PlyElement& element) {
       break;
     }
   }
+  layout.region = element.find("region");
   return layout;
 }
 
@@ -347,6 +349,7 @@ struct VertexData {
   Eigen::MatrixX3d positions;
   Eigen::MatrixX3d normals;
   Eigen::MatrixX2d uvs;
+  Eigen::VectorXi regions;
 };
 
 Result<VertexData> readVertices(PlyValueReader& reader, const PlyElement& element, const std::string& label,
@@ -366,7 +369,18 @@ Result<VertexData> readVertices(PlyValueReader& reader, const PlyElement& elemen
   if (!has_normals && std::any_of(std::begin(layout.normal), std::end(layout.normal), [](int p) { return p >= 0; })) {
     report.warnings.push_back("PLY vertex normals incomplete (need nx, ny and nz); ignored");
   }
-  // Which role each property fills: 0..2 position, 3..5 normal, 6..7 uv, -1 none.
+  // Region labels (as glTF _REGION): an integer scalar 0..kMaxRegionLabel,
+  // else warned and left out of the matching.
+  bool has_regions = layout.region >= 0;
+  if (has_regions) {
+    const PlyProperty& property = element.properties[static_cast<std::size_t>(layout.region)];
+    if (property.is_list || property.type == PlyType::kFloat32 || property.type == PlyType::kFloat64) {
+      report.warnings.push_back("PLY vertex property 'region' is not an integer scalar; not used for region matching");
+      has_regions = false;
+    }
+  }
+  // Which role each property fills: 0..2 position, 3..5 normal, 6..7 uv, 8
+  // region, -1 none.
   std::vector<int> role(element.properties.size(), -1);
   for (int c = 0; c < 3; ++c) {
     role[static_cast<std::size_t>(layout.xyz[c])] = c;
@@ -376,6 +390,7 @@ Result<VertexData> readVertices(PlyValueReader& reader, const PlyElement& elemen
     role[static_cast<std::size_t>(layout.uv[0])] = 6;
     role[static_cast<std::size_t>(layout.uv[1])] = 7;
   }
+  if (has_regions) role[static_cast<std::size_t>(layout.region)] = 8;
 
   if (auto ok = checkCountFits(element, reader, label); !ok) return ok.error();
   const auto nv = static_cast<Eigen::Index>(element.count);
@@ -383,6 +398,8 @@ Result<VertexData> readVertices(PlyValueReader& reader, const PlyElement& elemen
   out.positions.resize(nv, 3);
   if (has_normals) out.normals.resize(nv, 3);
   if (has_uvs) out.uvs.resize(nv, 2);
+  if (has_regions) out.regions.resize(nv);
+  std::string region_problem;
   ElementCursor cursor(reader, element, label);
   for (Eigen::Index v = 0; v < nv; ++v) {
     const auto index = static_cast<std::uint64_t>(v);
@@ -403,11 +420,22 @@ Result<VertexData> readVertices(PlyValueReader& reader, const PlyElement& elemen
         out.positions(v, role[p]) = value;
       } else if (role[p] < 6) {
         out.normals(v, role[p] - 3) = value;
+      } else if (role[p] == 8) {
+        const bool in_range = value >= 0 && value <= kMaxRegionLabel;
+        if (!in_range && region_problem.empty()) {
+          region_problem = "PLY vertex property 'region' of vertex " + std::to_string(v) + " is " + formatValue(value) +
+                           " (region labels are 0.." + std::to_string(kMaxRegionLabel) + "); not used for region matching";
+        }
+        out.regions(v) = in_range ? static_cast<int>(value) : 0;
       } else {
         // PLY texture coordinates follow OpenGL (v up); glTF's v points down.
         out.uvs(v, role[p] - 6) = role[p] == 7 ? 1.0 - value : value;
       }
     }
+  }
+  if (!region_problem.empty()) {
+    report.warnings.push_back(region_problem);
+    out.regions.resize(0);
   }
   for (Eigen::Index v = 0; v < out.normals.rows(); ++v) {
     const double len = out.normals.row(v).norm();
@@ -494,6 +522,7 @@ Result<LoadedMesh> readPly(std::span<const std::uint8_t> bytes, const std::strin
       loaded.mesh.positions = std::move(vertices->positions);
       loaded.mesh.normals = std::move(vertices->normals);
       loaded.mesh.uvs = std::move(vertices->uvs);
+      loaded.mesh.regions = std::move(vertices->regions);
     } else if (element.name == "face") {
       auto faces = readFaces(reader, element, vertex_element->count, label, report);
       if (!faces) return faces.error();

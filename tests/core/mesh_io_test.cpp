@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -860,6 +861,41 @@ TEST(PlyRead, AsciiWithPolygonsUvsAndSkippedProperties) {
   ASSERT_EQ(loaded->mesh.uvs.rows(), 5);
   EXPECT_EQ(loaded->mesh.uvs.row(4), Eigen::RowVector2d(0.5, 0.75));
   EXPECT_EQ(loaded->mesh.positions.row(4), Eigen::RowVector3d(2, 2, 2));
+}
+
+// A scan's region labels (the glTF _REGION of PLY): an integer vertex
+// property 'region'; values outside 0..63 or a float property are warned and
+// left out.
+TEST(PlyRead, RegionPropertyGivesRegionLabels) {
+  auto ply = [](const std::string& type, const std::string& values) {
+    std::string text = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                       "property " + type + " region\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+    std::istringstream in(values);
+    const double xyz[3][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    for (const auto& p : xyz) {
+      std::string value;
+      in >> value;
+      text += std::to_string(p[0]) + " " + std::to_string(p[1]) + " " + std::to_string(p[2]) + " " + value + "\n";
+    }
+    return toBytes(text + "3 0 1 2\n");
+  };
+  auto labelled = core::readPly(ply("uchar", "0 2 63"), "labelled.ply");
+  ASSERT_TRUE(labelled.ok()) << labelled.error().message;
+  EXPECT_EQ(labelled->mesh.regions, (Eigen::VectorXi(3) << 0, 2, 63).finished());
+  EXPECT_TRUE(labelled->report.warnings.empty());
+
+  auto beyond = core::readPly(ply("int", "1 70 2"), "beyond.ply");
+  ASSERT_TRUE(beyond.ok()) << beyond.error().message;
+  EXPECT_EQ(beyond->mesh.regions.size(), 0);
+  ASSERT_EQ(beyond->report.warnings.size(), 1u);
+  EXPECT_EQ(beyond->report.warnings[0],
+            "PLY vertex property 'region' of vertex 1 is 70 (region labels are 0..63); not used for region matching");
+
+  auto floats = core::readPly(ply("float", "1 2 3"), "floats.ply");
+  ASSERT_TRUE(floats.ok()) << floats.error().message;
+  EXPECT_EQ(floats->mesh.regions.size(), 0);
+  ASSERT_EQ(floats->report.warnings.size(), 1u);
+  EXPECT_EQ(floats->report.warnings[0], "PLY vertex property 'region' is not an integer scalar; not used for region matching");
 }
 
 // Little-endian PLY body writer.
