@@ -1775,12 +1775,10 @@ Status readMeshRegions(const tinygltf::Model& model, const MeshChoice& choice, c
     warnings.push_back(name + " of " + mesh_name + " is not an integer SCALAR on every primitive; not used for region matching");
     return Ok{};
   }
-  for (Eigen::Index v = 0; v < labels->second.size(); ++v) {
-    if (labels->second(v) < 0 || labels->second(v) > kMaxRegionLabel) {
-      warnings.push_back(name + " of vertex " + std::to_string(v) + " is " + std::to_string(labels->second(v)) +
-                         " (region labels are 0.." + std::to_string(kMaxRegionLabel) + "); not used for region matching");
-      return Ok{};
-    }
+  if (const Eigen::Index v = firstInvalidRegionLabel(labels->second); v >= 0) {
+    warnings.push_back(name + " of vertex " + std::to_string(v) + " is " + std::to_string(labels->second(v)) +
+                       " (region labels are 0.." + std::to_string(kMaxRegionLabel) + "); not used for region matching");
+    return Ok{};
   }
   mesh.regions = labels->second;
   return Ok{};

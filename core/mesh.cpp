@@ -60,6 +60,13 @@ bool isDegenerateTriangle(const Eigen::MatrixX3d& positions, const Eigen::Vector
   return (b - a).cross(c - a).norm() <= eps * eps;
 }
 
+Eigen::Index firstInvalidRegionLabel(const Eigen::VectorXi& labels) {
+  for (Eigen::Index v = 0; v < labels.size(); ++v) {
+    if (labels(v) < 0 || labels(v) > kMaxRegionLabel) return v;
+  }
+  return -1;
+}
+
 Status validateMesh(const Mesh& mesh, const std::string& label) {
   const Eigen::Index nv = mesh.positions.rows();
   for (Eigen::Index v = 0; v < nv; ++v) {
@@ -89,12 +96,10 @@ Status validateMesh(const Mesh& mesh, const std::string& label) {
     return makeError(ErrorCode::kInvalidMesh, label + ": region label count " + std::to_string(mesh.regions.size()) +
                                                   " differs from vertex count " + std::to_string(nv));
   }
-  for (Eigen::Index v = 0; v < mesh.regions.size(); ++v) {
-    if (mesh.regions(v) < 0 || mesh.regions(v) > kMaxRegionLabel) {
-      return makeError(ErrorCode::kInvalidMesh, label + ": vertex " + std::to_string(v) + " has region label " +
-                                                    std::to_string(mesh.regions(v)) + " (labels are 0.." +
-                                                    std::to_string(kMaxRegionLabel) + ")");
-    }
+  if (const Eigen::Index v = firstInvalidRegionLabel(mesh.regions); v >= 0) {
+    return makeError(ErrorCode::kInvalidMesh, label + ": vertex " + std::to_string(v) + " has region label " +
+                                                  std::to_string(mesh.regions(v)) + " (labels are 0.." +
+                                                  std::to_string(kMaxRegionLabel) + ")");
   }
   for (Eigen::Index f = 0; f < mesh.triangles.rows(); ++f) {
     for (int k = 0; k < 3; ++k) {

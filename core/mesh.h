@@ -48,6 +48,9 @@ double boundingBoxDiagonal(const Eigen::MatrixX3d& positions);
 // to the mesh scale `diagonal`.
 bool isDegenerateTriangle(const Eigen::MatrixX3d& positions, const Eigen::Vector3i& triangle, double diagonal);
 
+// Index of the first label outside [0, kMaxRegionLabel], or -1 when all are usable.
+Eigen::Index firstInvalidRegionLabel(const Eigen::VectorXi& labels);
+
 // Checks finiteness of positions/normals/uvs, index ranges, region label
 // range and array shapes.
 // `label` names the mesh in messages (usually its file name); the message names

@@ -50,9 +50,9 @@ Result<PreparedRig> prepareRig(Rig rig, LandmarkSet landmarks, const std::string
   // reads _REGION into both); without a usable one (0..kMaxRegionLabel, one
   // per vertex) the rig has none.
   const auto regions = rig.attributes.labels.find(kRegionAttribute);
-  const bool usable_regions =
-      regions != rig.attributes.labels.end() && regions->second.size() == rig.mesh.vertexCount() &&
-      (regions->second.size() == 0 || (regions->second.minCoeff() >= 0 && regions->second.maxCoeff() <= kMaxRegionLabel));
+  const bool usable_regions = regions != rig.attributes.labels.end() &&
+                              regions->second.size() == rig.mesh.vertexCount() &&
+                              firstInvalidRegionLabel(regions->second) < 0;
   rig.mesh.regions = usable_regions ? regions->second : Eigen::VectorXi();
   auto surface = prepareSource(rig.mesh, std::move(landmarks), label, options);
   if (!surface) return surface.error();
