@@ -33,12 +33,7 @@ const core::PreparedRig& preparedSource() {
 // alternating diagonals (its lips are close: closest point can cross them).
 const core::SyntheticRig& lipTarget() {
   static const core::SyntheticRig target = [] {
-    core::HeadResolution res;
-    res.columns = 84;
-    res.rows = 80;
-    res.alternate_diagonals = true;
-    res.jitter = 0.2;
-    res.seed = 4;
+    const core::HeadResolution res{.columns = 84, .rows = 80, .alternate_diagonals = true, .jitter = 0.2, .seed = 4};
     return core::generateRig(core::randomHeadShape(4, 0.15), res);
   }();
   return target;
@@ -115,12 +110,7 @@ TEST(TransferRig, IsEquivariantUnderRotationTranslationAndUniformScale) {
 }
 
 TEST(TransferRig, WeightsAreNormalisedPrunedAndShapesSparseOnAnotherFace) {
-  core::HeadResolution res;
-  res.columns = 70;
-  res.rows = 66;
-  res.alternate_diagonals = true;
-  res.jitter = 0.25;
-  res.seed = 9;
+  const core::HeadResolution res{.columns = 70, .rows = 66, .alternate_diagonals = true, .jitter = 0.25, .seed = 9};
   const core::SyntheticRig target = core::generateRig(core::randomHeadShape(9, 0.2), res);
   core::TransferOptions options;
   options.weight_options.max_influences = 2;
@@ -158,11 +148,7 @@ TEST(TransferRig, NormalDeltasEqualAFullRecomputeOfTheDisplacedTarget) {
   }
   auto prepared = core::prepareRig(rig, sourceRig().landmarks, "source with normal deltas");
   ASSERT_TRUE(prepared) << prepared.error().message;
-  core::HeadResolution res;
-  res.columns = 70;
-  res.rows = 66;
-  res.alternate_diagonals = true;
-  res.seed = 5;
+  const core::HeadResolution res{.columns = 70, .rows = 66, .alternate_diagonals = true, .seed = 5};
   const core::SyntheticRig target = core::generateRig(core::randomHeadShape(5, 0.2), res);
   auto result = core::transferRig(*prepared, target.rig.mesh, target.landmarks, "other");
   ASSERT_TRUE(result) << result.error().message;
