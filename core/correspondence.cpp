@@ -51,6 +51,26 @@ GuideModel projectToTarget(const Eigen::MatrixX3d& warped_positions, const Eigen
   return guide;
 }
 
+double faceOrientationAgreement(const Eigen::MatrixX3d& warped_positions, const Eigen::MatrixX3d& warped_normals,
+                                const ClosestPointIndex& target_index, const Mesh& target, int samples) {
+  const Eigen::Index nv = warped_positions.rows();
+  if (nv == 0 || samples <= 0) return 0.0;
+  const Eigen::Index stride = std::max<Eigen::Index>(1, nv / samples);
+  double sum = 0.0;
+  int votes = 0;
+  for (Eigen::Index v = 0; v < nv; v += stride) {
+    const SurfacePoint sp = target_index.closestPoint(warped_positions.row(v).transpose());
+    if (!sp.found()) continue;
+    const Eigen::Vector3i t = target.triangles.row(sp.face);
+    const Eigen::Vector3d a = target.positions.row(t(0)), b = target.positions.row(t(1)), c = target.positions.row(t(2));
+    const double d = (b - a).cross(c - a).dot(warped_normals.row(v).transpose());
+    if (d == 0.0 || !std::isfinite(d)) continue;  // no usable source normal (isolated vertex)
+    sum += d > 0.0 ? 1.0 : -1.0;
+    ++votes;
+  }
+  return votes > 0 ? sum / votes : 0.0;
+}
+
 FoldReport countFolds(const Eigen::MatrixX3d& warped_positions, const Eigen::MatrixX3d& guide_positions,
                       const Eigen::MatrixX3i& triangles) {
   FoldReport report;

@@ -53,6 +53,8 @@ Json warpJson(const WarpReport& r, const DiagnosticsContext& context) {
   c["low_confidence_vertices"] = r.low_confidence_vertices;
   c["refine_iterations"] = r.refine_iterations;
   c["region_matching"] = r.region_matching;
+  c["orientation_agreement"] = r.orientation_agreement;
+  c["target_turned"] = r.target_turned;
   c["warnings"] = r.warnings;
 
   Json& m = doc["mesh"];

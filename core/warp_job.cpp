@@ -261,7 +261,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
       return ok.error();
     }
   }
-  const ClosestPointIndex target_index(
+  ClosestPointIndex target_index(
       target.positions, target.triangles,
       report.region_matching ? faceRegionSets(target.regions, target.triangles) : std::vector<std::uint64_t>());
   const std::vector<std::uint64_t> no_masks;
@@ -294,6 +294,13 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   report.landmark_rms_residual = std::sqrt(sum_sq / static_cast<double>(pairs->names.size()));
   for (int i : loo.suspicious) report.suspicious_landmarks.push_back(pairs->names[static_cast<std::size_t>(i)]);
   report.bending_energy = result.landmark_warp.bendingEnergy();
+  // Swapped left/right landmark names make the warp a mirror image: every
+  // residual stays small, so only the sign of the linear part tells.
+  if (result.landmark_warp.affine().topRows<3>().determinant() < 0.0) {
+    report.warnings.push_back("the landmark warp mirrors the source onto " + target_label +
+                              ": check that its left/right landmark names are not swapped (fine only if the "
+                              "target is a mirror-image character)");
+  }
   result.warped_positions = result.landmark_warp.apply(source.mesh.positions);
   report.warp_ms = msSince(t0);
 
@@ -303,6 +310,32 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   projection.threads = options.threads;
   const Eigen::MatrixX3i& tris = source.mesh.triangles;
   Eigen::MatrixX3d warped_normals = computeVertexNormals(result.warped_positions, tris);
+  // A target whose faces face the other way (winding reversed on export, or
+  // a mirroring warp) would fail every normal test below and be matched
+  // across the surface; it is matched as a copy turned the source's way
+  // (same faces, corners 1 and 2 swapped, normals negated).
+  report.orientation_agreement =
+      faceOrientationAgreement(result.warped_positions, warped_normals, target_index, target);
+  const std::string facing_against =
+      std::to_string(std::lround(50.0 * (1.0 - report.orientation_agreement))) + "% of sampled matches face against it";
+  Mesh turned;
+  const Mesh* matched = &target;
+  if (report.orientation_agreement < 0.0) {
+    turned = target;
+    turned.triangles.col(1).swap(turned.triangles.col(2));
+    turned.normals = -turned.normals;
+    target_index = ClosestPointIndex(
+        turned.positions, turned.triangles,
+        report.region_matching ? faceRegionSets(turned.regions, turned.triangles) : std::vector<std::uint64_t>());
+    matched = &turned;
+    report.target_turned = true;
+    report.warnings.push_back(target_label + ": its faces face the opposite way to the source (" +
+                              facing_against + "): matched with its faces turned; the output keeps its own winding");
+  }
+  if (std::abs(report.orientation_agreement) < 0.5) {
+    report.warnings.push_back(target_label + ": its face orientation is inconsistent (" + facing_against +
+                              "): normal-based matching is unreliable; unify its winding");
+  }
   // Targets of the dense map's landmark centres: the job's target landmarks,
   // and the warp's image for source landmarks the target does not use.
   Eigen::MatrixX3d pinned = result.landmark_warp.apply(source.landmark_positions);
@@ -378,7 +411,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   }
   LocateOptions locate = options.locate;
   locate.threads = options.threads;
-  result.locations = locateOnGuide(target, result.guide.positions, tris, locate,
+  result.locations = locateOnGuide(*matched, result.guide.positions, tris, locate,
                                    report.region_matching ? source.face_regions : std::vector<std::uint64_t>());
   report.correspond_ms = msSince(t0);
 

@@ -105,7 +105,12 @@ struct WarpReport {
   int low_confidence_vertices = 0;
   int refine_iterations = 0;
   bool region_matching = false;       // matches were region-constrained
-  std::vector<std::string> warnings;  // e.g. region labels on one side only
+  // faceOrientationAgreement of the target after the landmark warp (+1: its
+  // faces face as the source's); below 0 the target was matched with its
+  // faces turned (target_turned) and a warning says so.
+  double orientation_agreement = 0.0;
+  bool target_turned = false;
+  std::vector<std::string> warnings;  // e.g. region labels on one side only, a turned target, a mirroring warp
   // meshes
   int source_vertices = 0;
   int source_triangles = 0;

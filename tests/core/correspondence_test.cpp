@@ -147,6 +147,71 @@ TEST(Correspondence, OtherIdentityAndTopologyLandsOnTheTarget) {
   for (Eigen::Index v = 0; v < result->guide.positions.rows(); ++v) ASSERT_TRUE(result->guide.positions.row(v).allFinite());
 }
 
+// The same head with every face's corners 1 and 2 swapped (faces inside
+// out, as some exporters write them), its normals turned to match and its
+// face landmarks' barycentrics following their corners.
+core::SyntheticHead reversedWinding(core::SyntheticHead head) {
+  head.mesh.triangles.col(1).swap(head.mesh.triangles.col(2));
+  head.mesh.normals = -head.mesh.normals;
+  for (core::Landmark& l : head.landmarks.landmarks) std::swap(l.barycentric(1), l.barycentric(2));
+  return head;
+}
+
+TEST(Correspondence, TargetWithReversedWindingIsMatchedAsIfTurned) {
+  const auto source = core::generateHead();
+  const auto target =
+      core::generateHead(core::randomHeadShape(5, 0.2), core::HeadResolution{.columns = 80, .rows = 76, .alternate_diagonals = true, .jitter = 0.3, .seed = 5});
+  auto prepared = core::prepareSource(source.mesh, source.landmarks, "source");
+  ASSERT_TRUE(prepared);
+  auto plain = core::runWarp(*prepared, target.mesh, target.landmarks, "target.glb");
+  const auto inside_out = reversedWinding(target);
+  auto reversed = core::runWarp(*prepared, inside_out.mesh, inside_out.landmarks, "inside_out.glb");
+  ASSERT_TRUE(plain && reversed);
+  EXPECT_GT(plain->report.orientation_agreement, 0.8);
+  EXPECT_FALSE(plain->report.target_turned);
+  EXPECT_TRUE(plain->report.warnings.empty());
+  // Closest faces do not depend on the winding; their normals' signs do.
+  EXPECT_EQ(reversed->report.orientation_agreement, -plain->report.orientation_agreement);
+  EXPECT_TRUE(reversed->report.target_turned);
+  ASSERT_EQ(reversed->report.warnings.size(), 1u);
+  EXPECT_NE(reversed->report.warnings[0].find("inside_out.glb: its faces face the opposite way"), std::string::npos)
+      << reversed->report.warnings[0];
+  // Matched as if the faces were turned: the same guide and locations (up to
+  // the rounding of swapped corners), where unturned matching would reject
+  // nearly every face by its normal.
+  const double diag = plain->report.target_diagonal;
+  EXPECT_TRUE(rigport_test::matricesNear(reversed->guide.positions, plain->guide.positions, 1e-9 * diag));
+  EXPECT_EQ(reversed->report.low_confidence_vertices, plain->report.low_confidence_vertices);
+  EXPECT_LT(plain->report.low_confidence_vertices, target.mesh.vertexCount() / 20);
+  EXPECT_TRUE(rigport_test::matricesNear(reversed->locations.confidence, plain->locations.confidence, 1e-9));
+}
+
+TEST(Correspondence, MirroringWarpAndInconsistentWindingAreWarned) {
+  const auto source = core::generateHead();
+  auto prepared = core::prepareSource(source.mesh, source.landmarks, "source");
+  ASSERT_TRUE(prepared);
+  auto contains = [](const std::vector<std::string>& warnings, const std::string& text) {
+    for (const auto& w : warnings) {
+      if (w.find(text) != std::string::npos) return true;
+    }
+    return false;
+  };
+  // A mirror image with the landmarks on the same vertices: left and right
+  // names swapped, as far as the warp can tell.
+  const core::Mesh mirrored = transformed(source.mesh, Eigen::Vector3d(-1, 1, 1).asDiagonal(), Eigen::RowVector3d::Zero());
+  auto m = core::runWarp(*prepared, mirrored, source.landmarks, "mirror.glb");
+  ASSERT_TRUE(m) << m.error().message;
+  EXPECT_TRUE(contains(m->report.warnings, "the landmark warp mirrors the source onto mirror.glb"));
+  // Every other face inside out: no orientation to turn to.
+  core::Mesh mixed = source.mesh;
+  for (Eigen::Index f = 0; f < mixed.triangleCount(); f += 2) mixed.triangles.row(f) = mixed.triangles.row(f).reverse().eval();
+  auto x = core::runWarp(*prepared, mixed, source.landmarks, "mixed.glb");
+  ASSERT_TRUE(x) << x.error().message;
+  EXPECT_LT(std::abs(x->report.orientation_agreement), 0.5);
+  EXPECT_TRUE(contains(x->report.warnings, "mixed.glb: its face orientation is inconsistent"));
+  EXPECT_FALSE(contains(x->report.warnings, "mirrors"));
+}
+
 TEST(Correspondence, RefinementBringsTheSurfaceCloserThanThePlainWarp) {
   const auto source = core::generateHead();
   const auto target = core::generateHead(core::randomHeadShape(11, 0.25), core::HeadResolution{90, 80, true, 0.2, 11});

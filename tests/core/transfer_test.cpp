@@ -138,6 +138,33 @@ TEST(TransferRig, WeightsAreNormalisedPrunedAndShapesSparseOnAnotherFace) {
   EXPECT_LT((blink.position_deltas.rowwise().norm().array() > 0).count(), out.mesh.vertexCount() / 10);
 }
 
+// Some exporters write faces inside out (corners in clockwise order). The
+// transfer must see the same surface: the same weights and shapes as onto the
+// correctly wound mesh, which the output keeps as it came.
+TEST(TransferRig, TargetWithReversedWindingGetsTheSameRig) {
+  const core::SyntheticRig& target = lipTarget();
+  core::Mesh inside_out = target.rig.mesh;
+  inside_out.triangles.col(1).swap(inside_out.triangles.col(2));
+  inside_out.normals = -inside_out.normals;
+  core::LandmarkSet landmarks = target.landmarks;
+  for (core::Landmark& l : landmarks.landmarks) std::swap(l.barycentric(1), l.barycentric(2));
+  auto plain = core::transferRig(preparedSource(), target.rig.mesh, target.landmarks, "target");
+  auto turned = core::transferRig(preparedSource(), inside_out, landmarks, "inside_out");
+  ASSERT_TRUE(plain && turned);
+  EXPECT_TRUE(turned->report.warp.target_turned);
+  EXPECT_FALSE(plain->report.warp.target_turned);
+  const double diag = core::boundingBoxDiagonal(target.rig.mesh.positions);
+  EXPECT_TRUE(matricesNear(Eigen::MatrixXd(turned->rig.weights), Eigen::MatrixXd(plain->rig.weights), 1e-9));
+  EXPECT_EQ(turned->report.inpainted_vertices, plain->report.inpainted_vertices);
+  ASSERT_EQ(turned->rig.morph_targets.size(), plain->rig.morph_targets.size());
+  for (std::size_t k = 0; k < plain->rig.morph_targets.size(); ++k) {
+    EXPECT_TRUE(matricesNear(turned->rig.morph_targets[k].position_deltas, plain->rig.morph_targets[k].position_deltas,
+                             1e-9 * diag))
+        << plain->rig.morph_targets[k].name;
+  }
+  EXPECT_EQ(turned->rig.mesh.triangles, inside_out.triangles);
+}
+
 // Normal deltas are recomputed on the target only around moving vertices;
 // the result must equal recomputing every vertex normal, bit for bit.
 TEST(TransferRig, NormalDeltasEqualAFullRecomputeOfTheDisplacedTarget) {
