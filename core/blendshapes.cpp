@@ -1,6 +1,6 @@
 #include "core/blendshapes.h"
 
-#include <cassert>
+#include <algorithm>
 
 #include "core/parallel.h"
 
@@ -136,7 +136,6 @@ std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& so
                                               const std::vector<Eigen::Matrix3d>& adaptation, const Mesh& target,
                                               const HarmonicInpainting* mismatched,
                                               const ShapeTransferOptions& options) {
-  assert(target.normals.rows() == target.vertexCount());
   const Eigen::Index nt = target.vertexCount();
   std::vector<MorphTarget> out(source.size());
   const std::vector<Corners> corners = cornerTable(source_triangles, locations);
@@ -154,11 +153,15 @@ std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& so
 
   // Normal deltas from the final position deltas (the source's are not
   // transferable: they belong to the source's surface).
+  const bool any_normal_deltas =
+      std::any_of(source.begin(), source.end(), [](const MorphTarget& s) { return s.normal_deltas.rows() > 0; });
+  const Eigen::MatrixX3d rest_normals =
+      any_normal_deltas ? computeVertexNormals(target.positions, target.triangles) : Eigen::MatrixX3d();
   parallelFor(static_cast<std::ptrdiff_t>(source.size()), options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     for (std::ptrdiff_t k = begin; k < end; ++k) {
       if (source[static_cast<std::size_t>(k)].normal_deltas.rows() == 0) continue;
       MorphTarget& t = out[static_cast<std::size_t>(k)];
-      t.normal_deltas = normalDeltas(target, target.normals, t.position_deltas);
+      t.normal_deltas = normalDeltas(target, rest_normals, t.position_deltas);
       // Exact zeros where the shape does not move, so sparse output stays sparse.
       for (Eigen::Index v = 0; v < nt; ++v) {
         if (t.normal_deltas.row(v).cwiseAbs().maxCoeff() < 1e-12) t.normal_deltas.row(v).setZero();

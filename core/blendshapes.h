@@ -23,8 +23,10 @@ struct ShapeTransferOptions {
 
 // adaptation: #Vt matrices (one per target vertex) or a single one for all.
 // Normal deltas, when the source has them, are recomputed on the target from
-// the transferred position deltas, relative to target.normals (which must be
-// computeVertexNormals of the target: the rest normals written with it).
+// the transferred position deltas: computeVertexNormals of the displaced
+// target minus that of the rest target (not minus target.normals, which may be
+// authored: a delta is the change of shading the shape makes, added to
+// whatever normals the mesh carries).
 // mismatched: the inpainting of the target's mismatched vertices (see
 // TargetLocations::mismatched; built once by transferRig), or null when there
 // are none.

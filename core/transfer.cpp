@@ -147,8 +147,10 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
 
   // --- assemble the target rig as we go: the target keeps its topology
   Rig& out = result.rig;
-  out.mesh = target;
-  out.mesh.normals = computeVertexNormals(target.positions, target.triangles);
+  out.mesh = target;  // its own normals too: authored hard edges and seams stay as they came
+  if (out.mesh.normals.rows() != target.vertexCount()) {
+    out.mesh.normals = computeVertexNormals(target.positions, target.triangles);
+  }
   out.mesh_name = src.mesh_name;
   out.nodes = src.nodes;
   out.mesh_node = src.mesh_node;
