@@ -2,10 +2,49 @@
 
 #include <Eigen/SparseCholesky>
 #include <algorithm>
+#include <numeric>
+#include <tuple>
+#include <vector>
 
 namespace core {
 
-Eigen::SparseMatrix<double> uniformLaplacian(Eigen::Index vertex_count, const Eigen::MatrixX3i& triangles) {
+namespace {
+
+// For each vertex, the lowest-indexed vertex at exactly its position (itself
+// when unique); empty when every position is unique.
+std::vector<int> coincidentRepresentatives(const Eigen::MatrixX3d& positions) {
+  const Eigen::Index nv = positions.rows();
+  std::vector<int> order(static_cast<std::size_t>(nv));
+  std::iota(order.begin(), order.end(), 0);
+  auto key = [&](int v) { return std::make_tuple(positions(v, 0), positions(v, 1), positions(v, 2), v); };
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return key(a) < key(b); });
+  std::vector<int> representative;
+  for (std::size_t i = 1; i < order.size(); ++i) {
+    const int a = order[i - 1], b = order[i];
+    if (positions.row(a) != positions.row(b)) continue;
+    if (representative.empty()) {
+      representative.resize(static_cast<std::size_t>(nv));
+      std::iota(representative.begin(), representative.end(), 0);
+    }
+    representative[static_cast<std::size_t>(b)] = representative[static_cast<std::size_t>(a)];  // ascending within a run
+  }
+  return representative;
+}
+
+}  // namespace
+
+Eigen::SparseMatrix<double> uniformLaplacian(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles) {
+  const Eigen::Index vertex_count = positions.rows();
+  // Vertices split at one position (UV seams, hard edges) are one point of
+  // the surface: faces use the lowest-indexed copy, and every other copy
+  // hangs on it by a single edge, so an unknown copy takes its value and a
+  // known one joins its neighbourhood. Without this, the two sides of a
+  // seam were solved apart and could part when the mesh moves.
+  const std::vector<int> representative = coincidentRepresentatives(positions);
+  auto corner = [&](Eigen::Index f, int k) {
+    const int v = triangles(f, k);
+    return representative.empty() ? v : representative[static_cast<std::size_t>(v)];
+  };
   // Unique undirected edges first (an interior edge appears in two faces):
   // bucketed by their lower vertex, each short bucket sorted on its own (a
   // global sort of all half-edges cost more than the rest of the function).
@@ -13,9 +52,12 @@ Eigen::SparseMatrix<double> uniformLaplacian(Eigen::Index vertex_count, const Ei
   auto forEachEdge = [&](auto&& fn) {
     for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
       for (int k = 0; k < 3; ++k) {
-        const int a = triangles(f, k), b = triangles(f, (k + 1) % 3);
+        const int a = corner(f, k), b = corner(f, (k + 1) % 3);
         if (a != b) fn(std::min(a, b), std::max(a, b));
       }
+    }
+    for (std::size_t v = 0; v < representative.size(); ++v) {
+      if (representative[v] != static_cast<int>(v)) fn(representative[v], static_cast<int>(v));
     }
   };
   forEachEdge([&](int a, int) { ++offsets[static_cast<std::size_t>(a) + 1]; });

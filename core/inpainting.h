@@ -15,8 +15,11 @@
 namespace core {
 
 // Vertex-vertex uniform Laplacian of a triangle mesh (#V by #V, symmetric,
-// off-diagonal -1 per edge, diagonal = degree).
-Eigen::SparseMatrix<double> uniformLaplacian(Eigen::Index vertex_count, const Eigen::MatrixX3i& triangles);
+// off-diagonal -1 per edge, diagonal = degree). Vertices at identical
+// positions (split at UV seams or hard edges) are joined: faces connect
+// through the lowest-indexed copy, each other copy by one edge to it, so
+// inpainted values agree across a seam.
+Eigen::SparseMatrix<double> uniformLaplacian(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles);
 
 // The factorised system of one known/unknown split. Only the known vertices
 // next to unknown ones (the boundary) enter the right-hand side, so callers

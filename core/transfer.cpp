@@ -159,7 +159,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   // untrusted vertices (mismatched vertices are also low-confidence), and one
   // factorisation of the mismatched split for shapes and attributes.
   const Eigen::SparseMatrix<double> target_laplacian =
-      locations.low_confidence > 0 ? uniformLaplacian(target.vertexCount(), target.triangles)
+      locations.low_confidence > 0 ? uniformLaplacian(target.positions, target.triangles)
                                    : Eigen::SparseMatrix<double>();
   const bool attributes_inpainted =
       (options.attributes || options.uvs) &&
