@@ -261,9 +261,11 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
       return ok.error();
     }
   }
-  ClosestPointIndex target_index(
-      target.positions, target.triangles,
-      report.region_matching ? faceRegionSets(target.regions, target.triangles) : std::vector<std::uint64_t>());
+  // Label sets per target face (corner order does not matter: also those of
+  // the turned copy below).
+  const std::vector<std::uint64_t> target_face_regions =
+      report.region_matching ? faceRegionSets(target.regions, target.triangles) : std::vector<std::uint64_t>();
+  ClosestPointIndex target_index(target.positions, target.triangles, target_face_regions);
   const std::vector<std::uint64_t> no_masks;
   const std::vector<std::uint64_t>& source_masks = report.region_matching ? source.region_bits : no_masks;
   auto target_positions = resolveLandmarks(target_landmarks, target, target_label, &target_index);
@@ -324,9 +326,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
     turned = target;
     turned.triangles.col(1).swap(turned.triangles.col(2));
     turned.normals = -turned.normals;
-    target_index = ClosestPointIndex(
-        turned.positions, turned.triangles,
-        report.region_matching ? faceRegionSets(turned.regions, turned.triangles) : std::vector<std::uint64_t>());
+    target_index = ClosestPointIndex(turned.positions, turned.triangles, target_face_regions);
     matched = &turned;
     report.target_turned = true;
     report.warnings.push_back(target_label + ": its faces face the opposite way to the source (" +
