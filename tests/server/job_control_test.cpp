@@ -24,6 +24,7 @@ void waitForStatus(httplib::Client& client, const std::string& id, const std::st
 TEST(JobControl, FullQueueAnswers429AndCancelStopsQueuedAndRunningJobs) {
   const auto dir = makeTempDir("queue");
   const TransferFiles slow = writeTransferFiles(dir, 200);  // a target large enough to keep the worker busy
+  const TransferFiles fast = writeTransferFiles(dir / "fast");
   server::ServerConfig config = testConfig(dir / "data");
   config.workers = 1;
   config.queue_capacity = 1;
@@ -31,15 +32,19 @@ TEST(JobControl, FullQueueAnswers429AndCancelStopsQueuedAndRunningJobs) {
   InProcessService service(config);
   auto client = service.client();
   const std::string rig_id = uploadRig(*client, slow).body["id"];
+  const std::string fast_rig = uploadRig(*client, fast).body["id"];
 
+  // Everything up to the second cancel must happen while the slow job holds
+  // the worker: the jobs that only queue or bounce carry the small target,
+  // so their uploads keep that window short even on a loaded machine.
   Reply running = submitTransfer(*client, rig_id, slow);
   ASSERT_EQ(running.status, 202) << running.raw;
   waitForStatus(*client, running.body["id"], "running");
-  Reply queued = submitTransfer(*client, rig_id, slow);
+  Reply queued = submitTransfer(*client, fast_rig, fast);
   ASSERT_EQ(queued.status, 202) << queued.raw;
   EXPECT_EQ(queued.body["status"], "queued");
 
-  Reply rejected = submitTransfer(*client, rig_id, slow);
+  Reply rejected = submitTransfer(*client, fast_rig, fast);
   EXPECT_EQ(rejected.status, 429) << rejected.raw;
   EXPECT_EQ(rejected.retry_after, "3");
   EXPECT_EQ(rejected.body["type"], "urn:rigport:problem:queue-full");
@@ -56,8 +61,6 @@ TEST(JobControl, FullQueueAnswers429AndCancelStopsQueuedAndRunningJobs) {
   EXPECT_EQ(get(*client, "/v1/jobs/" + running.body["id"].get<std::string>() + "/result").status, 409);
 
   // The queue has room again and the worker is free.
-  const TransferFiles fast = writeTransferFiles(dir / "fast");
-  const std::string fast_rig = uploadRig(*client, fast).body["id"];
   Reply next = submitTransfer(*client, fast_rig, fast);
   ASSERT_EQ(next.status, 202) << next.raw;
   EXPECT_EQ(waitForJob(*client, next.body["id"])["status"], "succeeded");
