@@ -55,6 +55,8 @@ Json warpJson(const WarpReport& r, const DiagnosticsContext& context) {
   c["region_matching"] = r.region_matching;
   c["orientation_agreement"] = r.orientation_agreement;
   c["target_turned"] = r.target_turned;
+  c["source_normals_against_winding"] = r.source_normals_against_winding;
+  c["target_normals_against_winding"] = r.target_normals_against_winding;
   c["warnings"] = r.warnings;
 
   Json& m = doc["mesh"];

@@ -1,5 +1,6 @@
 #include "core/mesh.h"
 
+#include <cassert>
 #include <cmath>
 #include <string>
 
@@ -32,6 +33,21 @@ Eigen::MatrixX3d computeVertexNormals(const Eigen::MatrixX3d& positions, const E
     if (len > 0.0) normals.row(v) /= len;
   }
   return normals;
+}
+
+WindingNormals normalsAgreeingWithWinding(const Eigen::MatrixX3d& normals, const Eigen::MatrixX3d& positions,
+                                          const Eigen::MatrixX3i& triangles) {
+  assert(normals.rows() == positions.rows());
+  WindingNormals out{normals, 0};
+  const Eigen::MatrixX3d faces = computeVertexNormals(positions, triangles);
+  for (Eigen::Index v = 0; v < normals.rows(); ++v) {
+    if (faces.row(v).isZero()) continue;  // on no valid face: nothing to compare with
+    if (!(normals.row(v).dot(faces.row(v)) > 0.0)) {
+      out.normals.row(v) = faces.row(v);
+      ++out.replaced;
+    }
+  }
+  return out;
 }
 
 Eigen::VectorXd computeDoubleAreas(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles) {

@@ -38,6 +38,18 @@ Eigen::MatrixX3d computeFaceNormals(const Eigen::MatrixX3d& positions, const Eig
 // #V by 3 area-weighted unit vertex normals; vertices on no valid triangle get (0,0,0).
 Eigen::MatrixX3d computeVertexNormals(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles);
 
+// Vertex normals fit for matching: `normals` (#V by 3 unit) where they point
+// to the side the faces' winding makes the front (positive dot with the
+// area-weighted face normal of computeVertexNormals), that face normal where
+// they do not (normals flipped or zeroed by a broken export). Vertices on no
+// valid face keep theirs.
+struct WindingNormals {
+  Eigen::MatrixX3d normals;
+  int replaced = 0;  // vertices whose normal pointed against (or across) their faces
+};
+WindingNormals normalsAgreeingWithWinding(const Eigen::MatrixX3d& normals, const Eigen::MatrixX3d& positions,
+                                          const Eigen::MatrixX3i& triangles);
+
 // #F twice-areas (|cross product|); 0 for degenerate triangles.
 Eigen::VectorXd computeDoubleAreas(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles);
 

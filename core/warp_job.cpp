@@ -143,7 +143,13 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
   if (options.dense_centres < 0) return makeError(ErrorCode::kInvalidArgument, "dense_centres must be >= 0");
   PreparedSource prepared;
   prepared.label = label;
-  if (mesh.normals.rows() != mesh.positions.rows()) mesh.normals = computeVertexNormals(mesh.positions, mesh.triangles);
+  if (mesh.normals.rows() != mesh.positions.rows()) {
+    mesh.normals = computeVertexNormals(mesh.positions, mesh.triangles);
+  } else {
+    WindingNormals checked = normalsAgreeingWithWinding(mesh.normals, mesh.positions, mesh.triangles);
+    prepared.normals_against_winding = checked.replaced;
+    mesh.normals = std::move(checked.normals);
+  }
   prepared.mesh = std::move(mesh);
   prepared.diagonal = boundingBoxDiagonal(prepared.mesh.positions);
 
@@ -320,14 +326,14 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
       faceOrientationAgreement(result.warped_positions, warped_normals, target_index, target);
   const std::string facing_against =
       std::to_string(std::lround(50.0 * (1.0 - report.orientation_agreement))) + "% of sampled matches face against it";
-  Mesh turned;
+  Mesh adjusted;  // the target as matched, when that differs from the file
   const Mesh* matched = &target;
   if (report.orientation_agreement < 0.0) {
-    turned = target;
-    turned.triangles.col(1).swap(turned.triangles.col(2));
-    turned.normals = -turned.normals;
-    target_index = ClosestPointIndex(turned.positions, turned.triangles, target_face_regions);
-    matched = &turned;
+    adjusted = target;
+    adjusted.triangles.col(1).swap(adjusted.triangles.col(2));
+    adjusted.normals = -adjusted.normals;
+    target_index = ClosestPointIndex(adjusted.positions, adjusted.triangles, target_face_regions);
+    matched = &adjusted;
     report.target_turned = true;
     report.warnings.push_back(target_label + ": its faces face the opposite way to the source (" +
                               facing_against + "): matched with its faces turned; the output keeps its own winding");
@@ -335,6 +341,34 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   if (std::abs(report.orientation_agreement) < 0.5) {
     report.warnings.push_back(target_label + ": its face orientation is inconsistent (" + facing_against +
                               "): normal-based matching is unreliable; unify its winding");
+  }
+  // Vertex normals pointing against their faces (flipped on export, or the
+  // winding reversed alone) would fail the location's normal test at every
+  // such vertex, which would then be inpainted: those are matched by their
+  // face normal instead. Checked after the turn, so only the normals that
+  // disagree with the faces count.
+  auto against = [](int count, Eigen::Index vertices) {
+    return std::to_string(count) + " of its " + std::to_string(vertices) + " vertex normals (" +
+           std::to_string(std::lround(100.0 * count / static_cast<double>(std::max<Eigen::Index>(1, vertices)))) +
+           "%) point against its faces' winding";
+  };
+  if (matched->normals.rows() == matched->vertexCount()) {
+    WindingNormals checked = normalsAgreeingWithWinding(matched->normals, matched->positions, matched->triangles);
+    report.target_normals_against_winding = checked.replaced;
+    if (checked.replaced > 0) {
+      if (matched != &adjusted) {
+        adjusted = target;
+        matched = &adjusted;
+      }
+      adjusted.normals = std::move(checked.normals);
+      report.warnings.push_back(target_label + ": " + against(checked.replaced, target.vertexCount()) +
+                                ": matched by their face normals there; the output keeps its normals as they are");
+    }
+  }
+  report.source_normals_against_winding = source.normals_against_winding;
+  if (source.normals_against_winding > 0) {
+    report.warnings.push_back(source.label + ": " + against(source.normals_against_winding, source.mesh.vertexCount()) +
+                              ": matched by their face normals there");
   }
   // Targets of the dense map's landmark centres: the job's target landmarks,
   // and the warp's image for source landmarks the target does not use.

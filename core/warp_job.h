@@ -49,6 +49,9 @@ struct PreparedSource {
   // labels): faceRegionSets and vertexRegionBits of the source.
   std::vector<std::uint64_t> face_regions;
   std::vector<std::uint64_t> region_bits;
+  // Source vertex normals that pointed against the faces' winding and were
+  // replaced by the face normal in `mesh` (normalsAgreeingWithWinding).
+  int normals_against_winding = 0;
   double prepare_ms = 0.0;
 
   std::size_t memoryBytes() const;
@@ -110,7 +113,12 @@ struct WarpReport {
   // faces turned (target_turned) and a warning says so.
   double orientation_agreement = 0.0;
   bool target_turned = false;
-  std::vector<std::string> warnings;  // e.g. region labels on one side only, a turned target, a mirroring warp
+  // Vertex normals pointing against their faces' winding (a flipped-normals
+  // export), on the source and on the target as matched: those vertices are
+  // matched by their face normal, and a warning says so.
+  int source_normals_against_winding = 0;
+  int target_normals_against_winding = 0;
+  std::vector<std::string> warnings;  // e.g. region labels on one side only, a turned target, a mirroring warp, flipped normals
   // meshes
   int source_vertices = 0;
   int source_triangles = 0;

@@ -3,6 +3,9 @@
 
 #include <cmath>
 #include <limits>
+#include <numbers>
+
+#include <Eigen/Geometry>
 
 #include <gtest/gtest.h>
 
@@ -55,6 +58,34 @@ TEST(Mesh, VertexOnNoTriangleGetsZeroNormal) {
   const Eigen::MatrixX3d normals = core::computeVertexNormals(mesh.positions, mesh.triangles);
   EXPECT_EQ(normals.row(4).norm(), 0.0);
   EXPECT_NEAR(normals.row(0).norm(), 1.0, 1e-12);
+}
+
+// Authored normals may lean off the face normal (hard edges, smoothing
+// groups): only those pointing to the back of their faces, or zero, are
+// replaced; a vertex on no face keeps its normal.
+TEST(Mesh, NormalsPointingAgainstTheirFacesAreReplacedByTheFaceNormal) {
+  core::Mesh mesh = makeTetrahedron();
+  mesh.positions.conservativeResize(5, 3);
+  mesh.positions.row(4) << 5, 5, 5;
+  const Eigen::MatrixX3d faces = core::computeVertexNormals(mesh.positions, mesh.triangles);
+  Eigen::MatrixX3d authored = faces;
+  // Vertex 0 leans 80 degrees off its face normal: kept.
+  const Eigen::Vector3d axis = faces.row(0).transpose().unitOrthogonal();
+  authored.row(0) = (Eigen::AngleAxisd(80.0 * std::numbers::pi / 180.0, axis) * faces.row(0).transpose()).transpose();
+  authored.row(1) = -faces.row(1);                      // flipped
+  authored.row(2) = Eigen::RowVector3d::Zero();          // zeroed
+  authored.row(4) << 0, 0, -1;                           // on no face
+  const core::WindingNormals checked = core::normalsAgreeingWithWinding(authored, mesh.positions, mesh.triangles);
+  EXPECT_EQ(checked.replaced, 2);
+  EXPECT_TRUE(checked.normals.row(0) == authored.row(0));
+  EXPECT_TRUE(checked.normals.row(1) == faces.row(1));
+  EXPECT_TRUE(checked.normals.row(2) == faces.row(2));
+  EXPECT_TRUE(checked.normals.row(3) == authored.row(3));
+  EXPECT_TRUE(checked.normals.row(4) == authored.row(4));
+  // With the winding reversed, every outward normal points against it.
+  core::Mesh reversed = mesh;
+  reversed.triangles.col(1).swap(reversed.triangles.col(2));
+  EXPECT_EQ(core::normalsAgreeingWithWinding(faces, reversed.positions, reversed.triangles).replaced, 4);
 }
 
 TEST(Mesh, DoubleAreasAndBoundingBoxDiagonal) {

@@ -165,6 +165,74 @@ TEST(TransferRig, TargetWithReversedWindingGetsTheSameRig) {
   EXPECT_EQ(turned->rig.mesh.triangles, inside_out.triangles);
 }
 
+// Normals that point against the faces (flipped on export, or the winding
+// reversed without them) would fail the location's normal test at every
+// vertex: those vertices are matched by their face normals, the output keeps
+// the normals as they came, and a warning counts them.
+TEST(TransferRig, TargetWithNormalsAgainstItsWindingGetsTheSameRig) {
+  const core::SyntheticRig& target = lipTarget();
+  const Eigen::Index nv = target.rig.mesh.vertexCount();
+  core::Mesh flipped_normals = target.rig.mesh;
+  flipped_normals.normals = -flipped_normals.normals;
+  core::Mesh reversed_winding = target.rig.mesh;  // its normals still point outward
+  reversed_winding.triangles.col(1).swap(reversed_winding.triangles.col(2));
+  core::LandmarkSet reversed_landmarks = target.landmarks;
+  for (core::Landmark& l : reversed_landmarks.landmarks) std::swap(l.barycentric(1), l.barycentric(2));
+  auto plain = core::transferRig(preparedSource(), target.rig.mesh, target.landmarks, "target");
+  auto by_normals = core::transferRig(preparedSource(), flipped_normals, target.landmarks, "flipped_normals");
+  auto by_winding = core::transferRig(preparedSource(), reversed_winding, reversed_landmarks, "reversed_winding");
+  ASSERT_TRUE(plain && by_normals && by_winding);
+  EXPECT_EQ(plain->report.warp.target_normals_against_winding, 0);
+  EXPECT_EQ(by_normals->report.warp.target_normals_against_winding, nv);
+  EXPECT_EQ(by_winding->report.warp.target_normals_against_winding, nv);
+  EXPECT_TRUE(by_winding->report.warp.target_turned);
+  const double diag = core::boundingBoxDiagonal(target.rig.mesh.positions);
+  for (const auto* result : {&by_normals, &by_winding}) {
+    const core::TransferResult& r = **result;
+    bool warned = false;
+    for (const std::string& w : r.report.warp.warnings) {
+      warned = warned || w.find("vertex normals (100%) point against its faces' winding") != std::string::npos;
+    }
+    EXPECT_TRUE(warned);
+    EXPECT_TRUE(matricesNear(Eigen::MatrixXd(r.rig.weights), Eigen::MatrixXd(plain->rig.weights), 1e-9));
+    EXPECT_EQ(r.report.inpainted_vertices, plain->report.inpainted_vertices);
+    ASSERT_EQ(r.rig.morph_targets.size(), plain->rig.morph_targets.size());
+    for (std::size_t k = 0; k < plain->rig.morph_targets.size(); ++k) {
+      EXPECT_TRUE(matricesNear(r.rig.morph_targets[k].position_deltas, plain->rig.morph_targets[k].position_deltas,
+                               1e-9 * diag))
+          << plain->rig.morph_targets[k].name;
+    }
+  }
+  EXPECT_TRUE(by_normals->rig.mesh.normals == flipped_normals.normals);
+  EXPECT_TRUE(by_winding->rig.mesh.triangles == reversed_winding.triangles);
+}
+
+// The same on the source: its normals steer the refinement's projections.
+TEST(TransferRig, SourceWithNormalsAgainstItsWindingGetsTheSameRig) {
+  core::Rig flipped = sourceRig().rig;
+  flipped.mesh.normals = -flipped.mesh.normals;
+  auto prepared = core::prepareRig(flipped, sourceRig().landmarks, "flipped_source");
+  ASSERT_TRUE(prepared) << prepared.error().message;
+  EXPECT_EQ(prepared->surface.normals_against_winding, flipped.mesh.vertexCount());
+  EXPECT_EQ(preparedSource().surface.normals_against_winding, 0);
+  const core::SyntheticRig& target = lipTarget();
+  auto plain = core::transferRig(preparedSource(), target.rig.mesh, target.landmarks, "target");
+  auto result = core::transferRig(*prepared, target.rig.mesh, target.landmarks, "target");
+  ASSERT_TRUE(plain && result);
+  EXPECT_EQ(result->report.warp.source_normals_against_winding, flipped.mesh.vertexCount());
+  bool warned = false;
+  for (const std::string& w : result->report.warp.warnings) warned = warned || w.rfind("flipped_source: ", 0) == 0;
+  EXPECT_TRUE(warned);
+  EXPECT_TRUE(matricesNear(Eigen::MatrixXd(result->rig.weights), Eigen::MatrixXd(plain->rig.weights), 1e-9));
+  ASSERT_EQ(result->rig.morph_targets.size(), plain->rig.morph_targets.size());
+  const double diag = core::boundingBoxDiagonal(target.rig.mesh.positions);
+  for (std::size_t k = 0; k < plain->rig.morph_targets.size(); ++k) {
+    EXPECT_TRUE(matricesNear(result->rig.morph_targets[k].position_deltas,
+                             plain->rig.morph_targets[k].position_deltas, 1e-9 * diag))
+        << plain->rig.morph_targets[k].name;
+  }
+}
+
 // Normal deltas are recomputed on the target only around moving vertices;
 // the result must equal recomputing every vertex normal, bit for bit. The
 // target's own normals are written as they came.
