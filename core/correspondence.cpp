@@ -96,7 +96,7 @@ TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_
   const ClosestPointIndex guide_index(guide_positions, source_triangles, std::move(source_face_regions));
   const Eigen::MatrixX3d normals =
       target.normals.rows() == target.positions.rows() ? target.normals
-                                                        : computeVertexNormals(target.positions, target.triangles);
+                                                        : computeSeamlessVertexNormals(target.positions, target.triangles);
   ClosestPointOptions cp;
   cp.max_normal_angle_deg = options.max_normal_angle_deg;
   cp.threads = options.threads;

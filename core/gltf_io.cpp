@@ -981,7 +981,7 @@ void finishNormals(const std::vector<PrimitiveData>& parts, const std::string& m
     if (len > 0.0) mesh.normals.row(v) /= len;
   }
   if (report.point_cloud || std::all_of(parts.begin(), parts.end(), hasNormals)) return;
-  const Eigen::MatrixX3d computed = computeVertexNormals(mesh.positions, mesh.triangles);
+  const Eigen::MatrixX3d computed = computeSeamlessVertexNormals(mesh.positions, mesh.triangles);
   report.normals_computed = true;
   if (mesh.normals.rows() == 0) {
     mesh.normals = computed;

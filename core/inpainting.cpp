@@ -2,36 +2,11 @@
 
 #include <Eigen/SparseCholesky>
 #include <algorithm>
-#include <numeric>
-#include <tuple>
 #include <vector>
 
+#include "core/mesh.h"
+
 namespace core {
-
-namespace {
-
-// For each vertex, the lowest-indexed vertex at exactly its position (itself
-// when unique); empty when every position is unique.
-std::vector<int> coincidentRepresentatives(const Eigen::MatrixX3d& positions) {
-  const Eigen::Index nv = positions.rows();
-  std::vector<int> order(static_cast<std::size_t>(nv));
-  std::iota(order.begin(), order.end(), 0);
-  auto key = [&](int v) { return std::make_tuple(positions(v, 0), positions(v, 1), positions(v, 2), v); };
-  std::sort(order.begin(), order.end(), [&](int a, int b) { return key(a) < key(b); });
-  std::vector<int> representative;
-  for (std::size_t i = 1; i < order.size(); ++i) {
-    const int a = order[i - 1], b = order[i];
-    if (positions.row(a) != positions.row(b)) continue;
-    if (representative.empty()) {
-      representative.resize(static_cast<std::size_t>(nv));
-      std::iota(representative.begin(), representative.end(), 0);
-    }
-    representative[static_cast<std::size_t>(b)] = representative[static_cast<std::size_t>(a)];  // ascending within a run
-  }
-  return representative;
-}
-
-}  // namespace
 
 Eigen::SparseMatrix<double> uniformLaplacian(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles) {
   const Eigen::Index vertex_count = positions.rows();
@@ -40,7 +15,7 @@ Eigen::SparseMatrix<double> uniformLaplacian(const Eigen::MatrixX3d& positions, 
   // hangs on it by a single edge, so an unknown copy takes its value and a
   // known one joins its neighbourhood. Without this, the two sides of a
   // seam were solved apart and could part when the mesh moves.
-  const std::vector<int> representative = coincidentRepresentatives(positions);
+  const std::vector<int> representative = coincidentVertexRepresentatives(positions);
   auto corner = [&](Eigen::Index f, int k) {
     const int v = triangles(f, k);
     return representative.empty() ? v : representative[static_cast<std::size_t>(v)];

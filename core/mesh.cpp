@@ -1,8 +1,12 @@
 #include "core/mesh.h"
 
+#include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <numeric>
 #include <string>
+#include <tuple>
+#include <vector>
 
 namespace core {
 
@@ -31,6 +35,47 @@ Eigen::MatrixX3d computeVertexNormals(const Eigen::MatrixX3d& positions, const E
   for (Eigen::Index v = 0; v < normals.rows(); ++v) {
     const double len = normals.row(v).norm();
     if (len > 0.0) normals.row(v) /= len;
+  }
+  return normals;
+}
+
+std::vector<int> coincidentVertexRepresentatives(const Eigen::MatrixX3d& positions) {
+  const Eigen::Index nv = positions.rows();
+  std::vector<int> order(static_cast<std::size_t>(nv));
+  std::iota(order.begin(), order.end(), 0);
+  auto key = [&](int v) { return std::make_tuple(positions(v, 0), positions(v, 1), positions(v, 2), v); };
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return key(a) < key(b); });
+  std::vector<int> representative;
+  for (std::size_t i = 1; i < order.size(); ++i) {
+    const int a = order[i - 1], b = order[i];
+    if (positions.row(a) != positions.row(b)) continue;
+    if (representative.empty()) {
+      representative.resize(static_cast<std::size_t>(nv));
+      std::iota(representative.begin(), representative.end(), 0);
+    }
+    representative[static_cast<std::size_t>(b)] = representative[static_cast<std::size_t>(a)];  // ascending within a run
+  }
+  return representative;
+}
+
+Eigen::MatrixX3d computeSeamlessVertexNormals(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles) {
+  const std::vector<int> representative = coincidentVertexRepresentatives(positions);
+  if (representative.empty()) return computeVertexNormals(positions, triangles);
+  // The faces' normals summed at each point's representative, as
+  // computeVertexNormals sums them at a vertex, then shared by the copies.
+  Eigen::MatrixX3d sums = Eigen::MatrixX3d::Zero(positions.rows(), 3);
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
+    const Eigen::Vector3d a = positions.row(triangles(f, 0));
+    const Eigen::Vector3d b = positions.row(triangles(f, 1));
+    const Eigen::Vector3d c = positions.row(triangles(f, 2));
+    const Eigen::RowVector3d n = (b - a).cross(c - a).transpose();
+    for (int k = 0; k < 3; ++k) sums.row(representative[static_cast<std::size_t>(triangles(f, k))]) += n;
+  }
+  Eigen::MatrixX3d normals(positions.rows(), 3);
+  for (Eigen::Index v = 0; v < normals.rows(); ++v) {
+    const Eigen::RowVector3d n = sums.row(representative[static_cast<std::size_t>(v)]);
+    const double len = n.norm();
+    normals.row(v) = len > 0.0 ? Eigen::RowVector3d(n / len) : n;
   }
   return normals;
 }

@@ -38,6 +38,17 @@ Eigen::MatrixX3d computeFaceNormals(const Eigen::MatrixX3d& positions, const Eig
 // #V by 3 area-weighted unit vertex normals; vertices on no valid triangle get (0,0,0).
 Eigen::MatrixX3d computeVertexNormals(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles);
 
+// For each vertex, the lowest-indexed vertex at exactly its position (itself
+// when unique): copies split at one point (UV seams, hard edges) share one.
+// Empty when every position is unique.
+std::vector<int> coincidentVertexRepresentatives(const Eigen::MatrixX3d& positions);
+
+// computeVertexNormals with the copies of a split point (see
+// coincidentVertexRepresentatives) sharing one normal, that of all faces
+// around the point: the two sides of a UV seam shade and match as one
+// surface. For meshes whose file gives no normals.
+Eigen::MatrixX3d computeSeamlessVertexNormals(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles);
+
 // Vertex normals fit for matching: `normals` (#V by 3 unit) where they point
 // to the side the faces' winding makes the front (positive dot with the
 // area-weighted face normal of computeVertexNormals), that face normal where

@@ -307,7 +307,7 @@ Result<LoadedMesh> readObj(std::span<const std::uint8_t> bytes, const std::strin
         report.warnings.push_back("vn normals are not one per vertex (" + faces->normals.problem() +
                                   "); normals were recomputed");
       }
-      mesh.normals = computeVertexNormals(mesh.positions, mesh.triangles);
+      mesh.normals = computeSeamlessVertexNormals(mesh.positions, mesh.triangles);
       report.normals_computed = true;
     }
     // UVs: only when one per vertex (a UV seam would need split vertices,

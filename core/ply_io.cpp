@@ -545,7 +545,7 @@ Result<LoadedMesh> readPly(std::span<const std::uint8_t> bytes, const std::strin
   for (std::size_t t = 0; t < triangles.size(); ++t) mesh.triangles.row(static_cast<Eigen::Index>(t)) = triangles[t].transpose();
   report.point_cloud = triangles.empty();
   if (mesh.normals.rows() == 0 && !report.point_cloud) {
-    mesh.normals = computeVertexNormals(mesh.positions, mesh.triangles);
+    mesh.normals = computeSeamlessVertexNormals(mesh.positions, mesh.triangles);
     report.normals_computed = true;
   }
   if (auto ok = validateMesh(mesh, label); !ok) return ok.error();

@@ -621,7 +621,7 @@ Result<RetargetOutput> retargetMocap(const Mesh& mesh, const MarkerDistances& di
 
   Rig rig;
   rig.mesh = mesh;
-  if (rig.mesh.normals.rows() != nv) rig.mesh.normals = computeVertexNormals(mesh.positions, mesh.triangles);
+  if (rig.mesh.normals.rows() != nv) rig.mesh.normals = computeSeamlessVertexNormals(mesh.positions, mesh.triangles);
   rig.mesh_name = options.mesh_name;
   Node node;
   node.name = options.mesh_name;

@@ -149,7 +149,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   Rig& out = result.rig;
   out.mesh = target;  // its own normals too: authored hard edges and seams stay as they came
   if (out.mesh.normals.rows() != target.vertexCount()) {
-    out.mesh.normals = computeVertexNormals(target.positions, target.triangles);
+    out.mesh.normals = computeSeamlessVertexNormals(target.positions, target.triangles);
   }
   out.mesh_name = src.mesh_name;
   out.nodes = src.nodes;

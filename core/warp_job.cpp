@@ -144,7 +144,7 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
   PreparedSource prepared;
   prepared.label = label;
   if (mesh.normals.rows() != mesh.positions.rows()) {
-    mesh.normals = computeVertexNormals(mesh.positions, mesh.triangles);
+    mesh.normals = computeSeamlessVertexNormals(mesh.positions, mesh.triangles);
   } else {
     WindingNormals checked = normalsAgreeingWithWinding(mesh.normals, mesh.positions, mesh.triangles);
     prepared.normals_against_winding = checked.replaced;

@@ -154,6 +154,28 @@ TEST(GltfWrite, RoundTripKeepsPositionsNormalsUvsAndTriangles) {
   EXPECT_TRUE(loaded->report.warnings.empty()) << loaded->report.warnings.front();
 }
 
+// Without NORMAL, the reader computes normals; copies of a vertex split at a
+// UV seam must get one normal (else the seam shows in shading and matching).
+TEST(GltfRead, ComputedNormalsAreSharedAcrossASplitSeam) {
+  core::Mesh mesh = makeTetrahedron(false, false);
+  mesh.positions.conservativeResize(5, 3);
+  mesh.positions.row(4) = mesh.positions.row(0);
+  for (int k = 0; k < 3; ++k) {
+    if (mesh.triangles(2, k) == 0) mesh.triangles(2, k) = 4;
+  }
+  auto bytes = core::encodeMeshGlb(mesh);
+  ASSERT_TRUE(bytes.ok()) << bytes.error().message;
+  auto loaded = core::readGltf(*bytes, "split.glb", true);
+  ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+  EXPECT_TRUE(loaded->report.normals_computed);
+  const core::Mesh& read = loaded->mesh;
+  ASSERT_EQ(read.normals.rows(), 5);
+  EXPECT_TRUE(read.normals.row(0) == read.normals.row(4));
+  const core::Mesh whole = makeTetrahedron(false, false);
+  const Eigen::MatrixX3d expected = core::computeVertexNormals(read.positions.topRows(4), whole.triangles);
+  EXPECT_TRUE(rigport_test::matricesNear(read.normals.topRows(4), expected, 1e-12));
+}
+
 TEST(GltfWrite, EncodingIsDeterministic) {
   const core::Mesh mesh = makeGrid(5);
   auto a = core::encodeMeshGlb(mesh);

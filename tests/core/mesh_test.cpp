@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <vector>
 
 #include <Eigen/Geometry>
 
@@ -58,6 +59,33 @@ TEST(Mesh, VertexOnNoTriangleGetsZeroNormal) {
   const Eigen::MatrixX3d normals = core::computeVertexNormals(mesh.positions, mesh.triangles);
   EXPECT_EQ(normals.row(4).norm(), 0.0);
   EXPECT_NEAR(normals.row(0).norm(), 1.0, 1e-12);
+}
+
+// Vertex 0 of the tetrahedron split in two at one position, as a UV seam
+// splits it: face 2 uses the copy (vertex 4).
+core::Mesh makeSplitTetrahedron() {
+  core::Mesh mesh = makeTetrahedron();
+  mesh.positions.conservativeResize(5, 3);
+  mesh.positions.row(4) = mesh.positions.row(0);
+  for (int k = 0; k < 3; ++k) {
+    if (mesh.triangles(2, k) == 0) mesh.triangles(2, k) = 4;
+  }
+  return mesh;
+}
+
+TEST(Mesh, CopiesOfASplitPointShareTheNormalOfAllItsFaces) {
+  const core::Mesh whole = makeTetrahedron();
+  const core::Mesh split = makeSplitTetrahedron();
+  const std::vector<int> representative = core::coincidentVertexRepresentatives(split.positions);
+  EXPECT_EQ(representative, (std::vector<int>{0, 1, 2, 3, 0}));
+  EXPECT_TRUE(core::coincidentVertexRepresentatives(whole.positions).empty());
+  const Eigen::MatrixX3d expected = core::computeVertexNormals(whole.positions, whole.triangles);
+  const Eigen::MatrixX3d seamless = core::computeSeamlessVertexNormals(split.positions, split.triangles);
+  EXPECT_TRUE(seamless.topRows(4) == expected);
+  EXPECT_TRUE(seamless.row(4) == expected.row(0));
+  // Per vertex, each copy only sees its own faces.
+  const Eigen::MatrixX3d per_vertex = core::computeVertexNormals(split.positions, split.triangles);
+  EXPECT_GT((per_vertex.row(0) - per_vertex.row(4)).norm(), 0.5);
 }
 
 // Authored normals may lean off the face normal (hard edges, smoothing
