@@ -96,6 +96,7 @@ std::string formatTransferDiagnostics(const TransferReport& r, const Diagnostics
   doc["transfer"] = {{"unlocated_vertices", r.unlocated_vertices},
                      {"global_scale", r.global_scale},
                      {"global_rotation_deg", r.global_rotation_deg},
+                     {"rotation_threshold_deg", r.rotation_threshold_deg},
                      {"rotation_applied", r.rotation_applied},
                      {"warnings", r.warnings}};
   Json& t = doc["timings_ms"];

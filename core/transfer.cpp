@@ -108,7 +108,20 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   report.global_scale = similarity.scale;
   report.global_rotation_deg =
       std::acos(std::clamp((similarity.rotation.trace() - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / std::numbers::pi;
-  report.rotation_applied = report.global_rotation_deg >= options.min_rotation_deg;
+  {
+    // Residual angle: atan of the landmarks' rms misfit after the similarity
+    // (in source units) over their rms spread about their centroid.
+    double misfit = 0.0, spread = 0.0;
+    const Eigen::RowVector3d centre = src_landmarks.colwise().mean();
+    for (Eigen::Index i = 0; i < src_landmarks.rows(); ++i) {
+      misfit += (similarity.apply(src_landmarks.row(i).transpose()) - tgt_landmarks.row(i).transpose()).squaredNorm();
+      spread += (src_landmarks.row(i) - centre).squaredNorm();
+    }
+    const double ratio = spread > 0.0 && similarity.scale > 0.0 ? std::sqrt(misfit / spread) / similarity.scale : 0.0;
+    const double residual_deg = std::atan(ratio) * 180.0 / std::numbers::pi;
+    report.rotation_threshold_deg = std::max(options.min_rotation_deg, options.shape_rotation_factor * residual_deg);
+  }
+  report.rotation_applied = report.global_rotation_deg >= report.rotation_threshold_deg;
   if (!report.rotation_applied) similarity.rotation.setIdentity();
   const TpsWarp& dense_map = warp->dense_map ? *warp->dense_map : warp->landmark_warp;
   std::optional<TpsWarp> smooth_map;

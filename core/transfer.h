@@ -41,6 +41,12 @@ struct TransferOptions {
   // applied to deltas. Measured: ICT identities tilt up to ~4 degrees while
   // their expressions stay unrotated.
   double min_rotation_deg = 6.0;
+  // A face shaped differently can feign a rotation about as large as the
+  // angle whose tangent is the landmarks' non-rigid residual (relative to
+  // their spread): ICT identities exaggerated 3x "tilt" 2-11 degrees with a
+  // residual angle of 10-11. A rotation below this factor times that angle
+  // is read as shape too (0: only min_rotation_deg counts).
+  double shape_rotation_factor = 1.5;
   // kLocal: regularisation of the smoothed map, fraction of the source diagonal.
   double local_smoothing = 0.5;
   double exaggeration = 1.0;                      // shapes and animated deltas
@@ -75,7 +81,10 @@ struct TransferReport {
   int unlocated_vertices = 0;     // target vertices with no location on the source
   double global_scale = 1.0;      // similarity scale source -> target landmarks
   double global_rotation_deg = 0.0;  // similarity rotation source -> target landmarks
-  bool rotation_applied = false;     // deltas turned (above min_rotation_deg)
+  // The angle a rotation must reach to be applied: min_rotation_deg, or
+  // shape_rotation_factor times the landmarks' residual angle when larger.
+  double rotation_threshold_deg = 0.0;
+  bool rotation_applied = false;     // deltas turned (global_rotation_deg >= rotation_threshold_deg)
   std::vector<std::string> warnings;
   // milliseconds
   double prepare_ms = 0.0;

@@ -1,5 +1,6 @@
 #include "core/transfer.h"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <numbers>
@@ -141,6 +142,45 @@ TEST(TransferRig, WeightsAreNormalisedPrunedAndShapesSparseOnAnotherFace) {
 // Some exporters write faces inside out (corners in clockwise order). The
 // transfer must see the same surface: the same weights and shapes as onto the
 // correctly wound mesh, which the output keeps as it came.
+// A face shaped differently can feign a rotation (a face leaning forward
+// "tilts" in a least-squares fit) as large as the angle of its non-rigid
+// residual; only a rotation clearly beyond that is read as a pose and turns
+// the deltas.
+TEST(TransferRig, RotationFeignedByShapeIsNotAppliedButAPoseIs) {
+  const core::Rig& src = sourceRig().rig;
+  // Leaning forward with height (z grows with y) and a lower face 1.6x as
+  // wide: the lean alone fits as a ~10 degree tilt.
+  core::Mesh leaning = src.mesh;
+  for (Eigen::Index v = 0; v < leaning.vertexCount(); ++v) {
+    const double y = src.mesh.positions(v, 1);
+    leaning.positions(v, 2) += 0.25 * y;
+    if (y < 0.0) leaning.positions(v, 0) *= 1.0 + 0.6 * std::min(1.0, -y / 0.05);
+  }
+  leaning.normals = core::computeVertexNormals(leaning.positions, leaning.triangles);
+  auto shape = core::transferRig(preparedSource(), leaning, sourceRig().landmarks, "leaning");
+  ASSERT_TRUE(shape) << shape.error().message;
+  EXPECT_GT(shape->report.global_rotation_deg, 8.0);  // beyond min_rotation_deg alone
+  EXPECT_GT(shape->report.rotation_threshold_deg, shape->report.global_rotation_deg);
+  EXPECT_FALSE(shape->report.rotation_applied);
+  core::TransferOptions unadapted;
+  unadapted.adaptation = core::ShapeAdaptation::kNone;
+  auto raw = core::transferRig(preparedSource(), leaning, sourceRig().landmarks, "leaning", unadapted);
+  ASSERT_TRUE(raw);
+  for (std::size_t k = 0; k < raw->rig.morph_targets.size(); ++k) {
+    EXPECT_TRUE(shape->rig.morph_targets[k].position_deltas == raw->rig.morph_targets[k].position_deltas)
+        << raw->rig.morph_targets[k].name;
+  }
+  // The same face turned by 30 degrees: a pose.
+  const Eigen::Matrix3d turn = Eigen::AngleAxisd(30.0 * std::numbers::pi / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  core::Mesh posed = leaning;
+  posed.positions = (leaning.positions * turn.transpose()).eval();
+  posed.normals = (leaning.normals * turn.transpose()).eval();
+  auto pose = core::transferRig(preparedSource(), posed, sourceRig().landmarks, "posed");
+  ASSERT_TRUE(pose) << pose.error().message;
+  EXPECT_TRUE(pose->report.rotation_applied);
+  EXPECT_NEAR(pose->report.rotation_threshold_deg, shape->report.rotation_threshold_deg, 1e-6);
+}
+
 TEST(TransferRig, TargetWithReversedWindingGetsTheSameRig) {
   const core::SyntheticRig& target = lipTarget();
   core::Mesh inside_out = target.rig.mesh;
