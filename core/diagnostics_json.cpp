@@ -98,6 +98,7 @@ std::string formatTransferDiagnostics(const TransferReport& r, const Diagnostics
                      {"global_rotation_deg", r.global_rotation_deg},
                      {"rotation_threshold_deg", r.rotation_threshold_deg},
                      {"rotation_applied", r.rotation_applied},
+                     {"scale_applied", r.scale_applied},
                      {"warnings", r.warnings}};
   Json& t = doc["timings_ms"];
   t["prepare"] = r.prepare_ms;

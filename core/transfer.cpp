@@ -123,6 +123,11 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   }
   report.rotation_applied = report.global_rotation_deg >= report.rotation_threshold_deg;
   if (!report.rotation_applied) similarity.rotation.setIdentity();
+  report.scale_applied =
+      options.adaptation == ShapeAdaptation::kSimilarity ||
+      (options.adaptation == ShapeAdaptation::kRotation && similarity.scale > 0.0 && options.min_scale_ratio > 0.0 &&
+       std::abs(std::log(similarity.scale)) >= std::log(options.min_scale_ratio));
+  const double delta_scale = report.scale_applied ? similarity.scale : 1.0;
   const TpsWarp& dense_map = warp->dense_map ? *warp->dense_map : warp->landmark_warp;
   std::optional<TpsWarp> smooth_map;
   if (options.adaptation == ShapeAdaptation::kLocal) {
@@ -137,8 +142,8 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   auto adaptationAt = [&](const Eigen::Vector3d& p) -> Eigen::Matrix3d {
     switch (options.adaptation) {
       case ShapeAdaptation::kNone: return Eigen::Matrix3d::Identity();
-      case ShapeAdaptation::kRotation: return similarity.rotation;
-      case ShapeAdaptation::kSimilarity: return similarity.scale * similarity.rotation;
+      case ShapeAdaptation::kRotation:
+      case ShapeAdaptation::kSimilarity: return delta_scale * similarity.rotation;
       case ShapeAdaptation::kLocal: return smooth_map->jacobian(p);
     }
     return Eigen::Matrix3d::Identity();

@@ -76,10 +76,11 @@ TEST(TransferRig, IsEquivariantUnderRotationTranslationAndUniformScale) {
   core::Mesh target = src.mesh;
   target.positions = ((scale * src.mesh.positions * rotation.transpose()).rowwise() + shift.transpose()).eval();
   target.normals = core::computeVertexNormals(target.positions, target.triangles);
-  core::TransferOptions options;
-  options.adaptation = core::ShapeAdaptation::kSimilarity;
-  auto result = core::transferRig(preparedSource(), target, sourceRig().landmarks, "moved", options);
+  // Default options: a 23-degree turn is a pose and 1.7x a change of size.
+  auto result = core::transferRig(preparedSource(), target, sourceRig().landmarks, "moved");
   ASSERT_TRUE(result) << result.error().message;
+  EXPECT_TRUE(result->report.rotation_applied);
+  EXPECT_TRUE(result->report.scale_applied);
   const core::Rig& out = result->rig;
   const double diag = core::boundingBoxDiagonal(target.positions);
   EXPECT_NEAR(result->report.global_scale, scale, 1e-9);
@@ -142,6 +143,29 @@ TEST(TransferRig, WeightsAreNormalisedPrunedAndShapesSparseOnAnotherFace) {
 // Some exporters write faces inside out (corners in clockwise order). The
 // transfer must see the same surface: the same weights and shapes as onto the
 // correctly wound mesh, which the output keeps as it came.
+// A target in other units (metres against a centimetre rig) gets its deltas
+// in its own units; a face 15% larger is another face size, which the
+// deltas do not follow (identities' expressions are size independent).
+TEST(TransferRig, GlobalScaleIsAppliedForUnitsButNotForFaceSize) {
+  const core::Rig& src = sourceRig().rig;
+  for (const double scale : {0.01, 1.15}) {
+    core::Mesh target = src.mesh;
+    target.positions = scale * src.mesh.positions;
+    auto result = core::transferRig(preparedSource(), target, sourceRig().landmarks, "scaled");
+    ASSERT_TRUE(result) << result.error().message;
+    const bool units = scale < 1.0;
+    EXPECT_NEAR(result->report.global_scale, scale, 1e-9 * scale);
+    EXPECT_EQ(result->report.scale_applied, units) << "scale " << scale;
+    const double expected_scale = units ? scale : 1.0;
+    const double diag = core::boundingBoxDiagonal(target.positions);
+    for (std::size_t k = 0; k < src.morph_targets.size(); ++k) {
+      EXPECT_TRUE(matricesNear(result->rig.morph_targets[k].position_deltas,
+                               expected_scale * src.morph_targets[k].position_deltas, 1e-4 * diag))
+          << "scale " << scale << ": " << src.morph_targets[k].name;
+    }
+  }
+}
+
 // A face shaped differently can feign a rotation (a face leaning forward
 // "tilts" in a least-squares fit) as large as the angle of its non-rigid
 // residual; only a rotation clearly beyond that is read as a pose and turns
