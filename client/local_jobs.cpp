@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cstdio>
 #include <string>
+#include <vector>
 
 #include <spdlog/spdlog.h>
 
@@ -40,7 +41,7 @@ core::Status writeText(const std::filesystem::path& path, const std::string& tex
 // Writes the diagnostics file and/or prints them; warns about suspicious
 // landmarks and correspondence problems (e.g. region labels).
 core::Status emitDiagnostics(const std::string& diagnostics, const std::filesystem::path& file, bool print,
-                             const core::WarpReport& warp) {
+                             const core::WarpReport& warp, const std::vector<std::string>& more_warnings = {}) {
   if (!file.empty()) {
     if (auto ok = writeText(file, diagnostics); !ok) return ok;
   }
@@ -51,6 +52,7 @@ core::Status emitDiagnostics(const std::string& diagnostics, const std::filesyst
     spdlog::warn("suspicious landmarks (the others cannot explain them; swapped or misplaced?): {}", names);
   }
   for (const std::string& warning : warp.warnings) spdlog::warn("{}", warning);
+  for (const std::string& warning : more_warnings) spdlog::warn("{}", warning);
   return core::Ok{};
 }
 
@@ -160,7 +162,7 @@ int runTransfer(const TransferArgs& args) {
   const core::DiagnosticsContext context = diagnosticsContext(source->report, target->report, read_ms, write_ms, t_start);
   const auto& r = result->report;
   if (auto ok = emitDiagnostics(core::formatTransferDiagnostics(r, context), args.diagnostics, args.print_diagnostics,
-                                r.warp);
+                                r.warp, r.warnings);
       !ok) {
     return fail(ok.error());
   }

@@ -190,10 +190,12 @@ int runRemoteTransfer(const TransferArgs& args, const Connection& connection) {
                                 ? d["landmarks"]["suspicious"]
                                 : json::array();
     if (!suspicious.empty()) spdlog::warn("suspicious landmarks (swapped or misplaced?): {}", suspicious.dump());
-    if (const auto c = d.find("correspondence"); c != d.end() && c->is_object() && c->contains("warnings") &&
-                                                  (*c)["warnings"].is_array()) {
-      for (const json& warning : (*c)["warnings"]) {
-        if (warning.is_string()) spdlog::warn("{}", warning.get<std::string>());
+    for (const char* section : {"correspondence", "transfer"}) {
+      if (const auto c = d.find(section); c != d.end() && c->is_object() && c->contains("warnings") &&
+                                          (*c)["warnings"].is_array()) {
+        for (const json& warning : (*c)["warnings"]) {
+          if (warning.is_string()) spdlog::warn("{}", warning.get<std::string>());
+        }
       }
     }
     spdlog::info("transfer (job {}{}): {} joints, {} shapes, {} animations; {} vertices inpainted, {} pruned; "

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <optional>
 
@@ -128,6 +129,12 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
       (options.adaptation == ShapeAdaptation::kRotation && similarity.scale > 0.0 && options.min_scale_ratio > 0.0 &&
        std::abs(std::log(similarity.scale)) >= std::log(options.min_scale_ratio));
   const double delta_scale = report.scale_applied ? similarity.scale : 1.0;
+  if (report.scale_applied && options.adaptation == ShapeAdaptation::kRotation) {
+    char factor[32];
+    std::snprintf(factor, sizeof factor, "%.4g", similarity.scale);
+    report.warnings.push_back(target_label + " is " + factor + " times the size of the source (other units, or a "
+                              "scaled copy): its deltas and animated joint translations were scaled by " + factor);
+  }
   const TpsWarp& dense_map = warp->dense_map ? *warp->dense_map : warp->landmark_warp;
   std::optional<TpsWarp> smooth_map;
   if (options.adaptation == ShapeAdaptation::kLocal) {

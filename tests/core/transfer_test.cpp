@@ -156,6 +156,10 @@ TEST(TransferRig, GlobalScaleIsAppliedForUnitsButNotForFaceSize) {
     const bool units = scale < 1.0;
     EXPECT_NEAR(result->report.global_scale, scale, 1e-9 * scale);
     EXPECT_EQ(result->report.scale_applied, units) << "scale " << scale;
+    EXPECT_EQ(result->report.warnings.size(), units ? 1u : 0u);
+    if (units) {
+      EXPECT_EQ(result->report.warnings[0].rfind("scaled is 0.01 times the size of the source", 0), 0u);
+    }
     const double expected_scale = units ? scale : 1.0;
     const double diag = core::boundingBoxDiagonal(target.positions);
     for (std::size_t k = 0; k < src.morph_targets.size(); ++k) {
