@@ -99,6 +99,7 @@ std::string formatTransferDiagnostics(const TransferReport& r, const Diagnostics
                      {"rotation_threshold_deg", r.rotation_threshold_deg},
                      {"rotation_applied", r.rotation_applied},
                      {"scale_applied", r.scale_applied},
+                     {"delta_scale", r.delta_scale},
                      {"warnings", r.warnings}};
   Json& t = doc["timings_ms"];
   t["prepare"] = r.prepare_ms;

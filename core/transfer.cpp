@@ -16,6 +16,15 @@ namespace core {
 
 namespace {
 
+// The power of ten (metres, centimetres, millimetres...) within 10% of
+// `scale`, else 0. Inches and feet are left out on purpose: their ratios
+// (2.54, 0.254, 0.3048) sit next to scales a copy is plausibly made with.
+double unitRatioNear(double scale) {
+  if (!(scale > 0.0)) return 0.0;
+  const double unit = std::pow(10.0, std::round(std::log10(scale)));
+  return std::abs(std::log(scale / unit)) <= std::log(1.1) ? unit : 0.0;
+}
+
 using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
@@ -128,13 +137,20 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
       options.adaptation == ShapeAdaptation::kSimilarity ||
       (options.adaptation == ShapeAdaptation::kRotation && similarity.scale > 0.0 && options.min_scale_ratio > 0.0 &&
        std::abs(std::log(similarity.scale)) >= std::log(options.min_scale_ratio));
-  const double delta_scale = report.scale_applied ? similarity.scale : 1.0;
+  double delta_scale = report.scale_applied ? similarity.scale : 1.0;
   if (report.scale_applied && options.adaptation == ShapeAdaptation::kRotation) {
-    char factor[32];
-    std::snprintf(factor, sizeof factor, "%.4g", similarity.scale);
-    report.warnings.push_back(target_label + " is " + factor + " times the size of the source (other units, or a "
-                              "scaled copy): its deltas and animated joint translations were scaled by " + factor);
+    // A scale within 10% of a power of ten is that change of units; the rest
+    // is face size, which the deltas do not follow.
+    const double unit = unitRatioNear(similarity.scale);
+    if (unit > 0.0) delta_scale = unit;
+    char measured[32], applied[32];
+    std::snprintf(measured, sizeof measured, "%.4g", similarity.scale);
+    std::snprintf(applied, sizeof applied, "%.4g", delta_scale);
+    report.warnings.push_back(target_label + " is " + measured + " times the size of the source (" +
+                              (unit > 0.0 ? "other units" : "a scaled copy") +
+                              "): its deltas and animated joint translations were scaled by " + applied);
   }
+  report.delta_scale = delta_scale;
   const TpsWarp& dense_map = warp->dense_map ? *warp->dense_map : warp->landmark_warp;
   std::optional<TpsWarp> smooth_map;
   if (options.adaptation == ShapeAdaptation::kLocal) {

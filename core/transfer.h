@@ -91,7 +91,11 @@ struct TransferReport {
   // shape_rotation_factor times the landmarks' residual angle when larger.
   double rotation_threshold_deg = 0.0;
   bool rotation_applied = false;     // deltas turned (global_rotation_deg >= rotation_threshold_deg)
-  bool scale_applied = false;        // deltas scaled by global_scale (kSimilarity, or kRotation beyond min_scale_ratio)
+  bool scale_applied = false;        // deltas scaled (kSimilarity, or kRotation beyond min_scale_ratio)
+  // The factor applied to deltas: global_scale, or (kRotation) the power of
+  // ten within 10% of it (a change of units; the rest is face size); 1 when
+  // not applied.
+  double delta_scale = 1.0;
   std::vector<std::string> warnings;
   // milliseconds
   double prepare_ms = 0.0;

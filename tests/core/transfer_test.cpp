@@ -81,6 +81,7 @@ TEST(TransferRig, IsEquivariantUnderRotationTranslationAndUniformScale) {
   ASSERT_TRUE(result) << result.error().message;
   EXPECT_TRUE(result->report.rotation_applied);
   EXPECT_TRUE(result->report.scale_applied);
+  EXPECT_NEAR(result->report.delta_scale, scale, 1e-9);  // not a change of units
   const core::Rig& out = result->rig;
   const double diag = core::boundingBoxDiagonal(target.positions);
   EXPECT_NEAR(result->report.global_scale, scale, 1e-9);
@@ -145,10 +146,11 @@ TEST(TransferRig, WeightsAreNormalisedPrunedAndShapesSparseOnAnotherFace) {
 // correctly wound mesh, which the output keeps as it came.
 // A target in other units (metres against a centimetre rig) gets its deltas
 // in its own units; a face 15% larger is another face size, which the
-// deltas do not follow (identities' expressions are size independent).
+// deltas do not follow (identities' expressions are size independent), also
+// when it comes in other units (0.0108 = 1.08 x 0.01: scaled by 0.01).
 TEST(TransferRig, GlobalScaleIsAppliedForUnitsButNotForFaceSize) {
   const core::Rig& src = sourceRig().rig;
-  for (const double scale : {0.01, 1.15}) {
+  for (const double scale : {0.01, 0.0108, 1.15}) {
     core::Mesh target = src.mesh;
     target.positions = scale * src.mesh.positions;
     auto result = core::transferRig(preparedSource(), target, sourceRig().landmarks, "scaled");
@@ -158,9 +160,10 @@ TEST(TransferRig, GlobalScaleIsAppliedForUnitsButNotForFaceSize) {
     EXPECT_EQ(result->report.scale_applied, units) << "scale " << scale;
     EXPECT_EQ(result->report.warnings.size(), units ? 1u : 0u);
     if (units) {
-      EXPECT_EQ(result->report.warnings[0].rfind("scaled is 0.01 times the size of the source", 0), 0u);
+      EXPECT_NE(result->report.warnings[0].find("times the size of the source (other units)"), std::string::npos);
     }
-    const double expected_scale = units ? scale : 1.0;
+    const double expected_scale = units ? 0.01 : 1.0;
+    EXPECT_EQ(result->report.delta_scale, expected_scale);
     const double diag = core::boundingBoxDiagonal(target.positions);
     for (std::size_t k = 0; k < src.morph_targets.size(); ++k) {
       EXPECT_TRUE(matricesNear(result->rig.morph_targets[k].position_deltas,
