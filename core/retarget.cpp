@@ -312,7 +312,7 @@ Result<Calibration> calibrate(const Eigen::MatrixX3d& rest, const Eigen::MatrixX
   c.similarity = fitSimilarity(rest, placed);
   const Eigen::MatrixX3d aligned =
       ((c.similarity.scale * rest * c.similarity.rotation.transpose()).rowwise() + c.similarity.translation.transpose()).eval();
-  c.similarity_rms = std::sqrt((aligned - placed).rowwise().squaredNorm().mean());
+  c.similarity_rms = c.similarity.rms_residual;
   const Eigen::Matrix3d linear = c.similarity.scale * c.similarity.rotation;
   std::vector<Eigen::Matrix3d> jacobians(static_cast<std::size_t>(rest.rows()), Eigen::Matrix3d::Identity());
   if (options.calibration_jacobian) {

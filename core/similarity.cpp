@@ -2,6 +2,8 @@
 // point patterns", PAMI 1991.
 #include "core/similarity.h"
 
+#include <cmath>
+
 #include <Eigen/LU>
 #include <Eigen/SVD>
 
@@ -21,6 +23,9 @@ Similarity fitSimilarity(const Eigen::MatrixX3d& source, const Eigen::MatrixX3d&
   const double var = a.rowwise().squaredNorm().mean();
   s.scale = var > 0 ? (svd.singularValues().asDiagonal() * d).trace() / var : 1.0;
   s.translation = mt.transpose() - s.scale * s.rotation * ms.transpose();
+  const Eigen::MatrixX3d aligned =
+      ((s.scale * source * s.rotation.transpose()).rowwise() + s.translation.transpose()).eval();
+  s.rms_residual = std::sqrt((aligned - target).rowwise().squaredNorm().mean());
   return s;
 }
 

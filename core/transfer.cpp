@@ -121,13 +121,10 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   {
     // Residual angle: atan of the landmarks' rms misfit after the similarity
     // (in source units) over their rms spread about their centroid.
-    double misfit = 0.0, spread = 0.0;
-    const Eigen::RowVector3d centre = src_landmarks.colwise().mean();
-    for (Eigen::Index i = 0; i < src_landmarks.rows(); ++i) {
-      misfit += (similarity.apply(src_landmarks.row(i).transpose()) - tgt_landmarks.row(i).transpose()).squaredNorm();
-      spread += (src_landmarks.row(i) - centre).squaredNorm();
-    }
-    const double ratio = spread > 0.0 && similarity.scale > 0.0 ? std::sqrt(misfit / spread) / similarity.scale : 0.0;
+    const double spread =
+        std::sqrt((src_landmarks.rowwise() - src_landmarks.colwise().mean()).rowwise().squaredNorm().mean());
+    const double ratio =
+        spread > 0.0 && similarity.scale > 0.0 ? similarity.rms_residual / (similarity.scale * spread) : 0.0;
     const double residual_deg = std::atan(ratio) * 180.0 / std::numbers::pi;
     report.rotation_threshold_deg = std::max(options.min_rotation_deg, options.shape_rotation_factor * residual_deg);
   }
