@@ -61,22 +61,13 @@ std::vector<int> coincidentVertexRepresentatives(const Eigen::MatrixX3d& positio
 Eigen::MatrixX3d computeSeamlessVertexNormals(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles) {
   const std::vector<int> representative = coincidentVertexRepresentatives(positions);
   if (representative.empty()) return computeVertexNormals(positions, triangles);
-  // The faces' normals summed at each point's representative, as
-  // computeVertexNormals sums them at a vertex, then shared by the copies.
-  Eigen::MatrixX3d sums = Eigen::MatrixX3d::Zero(positions.rows(), 3);
-  for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
-    const Eigen::Vector3d a = positions.row(triangles(f, 0));
-    const Eigen::Vector3d b = positions.row(triangles(f, 1));
-    const Eigen::Vector3d c = positions.row(triangles(f, 2));
-    const Eigen::RowVector3d n = (b - a).cross(c - a).transpose();
-    for (int k = 0; k < 3; ++k) sums.row(representative[static_cast<std::size_t>(triangles(f, k))]) += n;
-  }
-  Eigen::MatrixX3d normals(positions.rows(), 3);
-  for (Eigen::Index v = 0; v < normals.rows(); ++v) {
-    const Eigen::RowVector3d n = sums.row(representative[static_cast<std::size_t>(v)]);
-    const double len = n.norm();
-    normals.row(v) = len > 0.0 ? Eigen::RowVector3d(n / len) : n;
-  }
+  // Faces through each point's representative (at the same position, so the
+  // face normals are the same): its normal sums every face around the point,
+  // and the other copies take it.
+  Eigen::MatrixX3i welded = triangles;
+  for (Eigen::Index i = 0; i < welded.size(); ++i) welded.data()[i] = representative[static_cast<std::size_t>(welded.data()[i])];
+  Eigen::MatrixX3d normals = computeVertexNormals(positions, welded);
+  for (Eigen::Index v = 0; v < normals.rows(); ++v) normals.row(v) = normals.row(representative[static_cast<std::size_t>(v)]);
   return normals;
 }
 
