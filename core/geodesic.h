@@ -71,13 +71,4 @@ class GeodesicSolver {
   std::unique_ptr<Data> data_;
 };
 
-// Boundary loops of the mesh (edges used by one triangle with three distinct
-// vertices), each as the ordered vertex indices of the loop in the direction
-// of its triangles' winding, starting at the loop's smallest vertex index;
-// longest first by geometric length (ties: more vertices first). A chain that
-// cannot be closed (inconsistent orientation, non-manifold) is returned open. On a face: the mouth, the eyes,
-// and the outer rim (neck cut). Used to find the hybrid method's geodesic
-// regions automatically.
-std::vector<std::vector<int>> boundaryLoops(const Mesh& mesh);
-
 }  // namespace core

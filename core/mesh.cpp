@@ -166,4 +166,112 @@ Status validateMesh(const Mesh& mesh, const std::string& label) {
   return Ok{};
 }
 
+std::vector<BoundaryLoop> boundaryLoops(const Mesh& mesh) {
+  const Eigen::MatrixX3i& tris = mesh.triangles;
+  const auto nv = static_cast<std::size_t>(mesh.vertexCount());
+  const auto nf = static_cast<std::size_t>(tris.rows());
+  auto distinct = [&](std::size_t f) {
+    const auto t = tris.row(static_cast<Eigen::Index>(f));
+    return t(0) != t(1) && t(1) != t(2) && t(0) != t(2);
+  };
+  auto corner = [&](std::size_t h) { return tris(static_cast<Eigen::Index>(h / 3), static_cast<Eigen::Index>(h % 3)); };
+  auto next = [&](std::size_t h) { return tris(static_cast<Eigen::Index>(h / 3), static_cast<Eigen::Index>((h + 1) % 3)); };
+  // Half-edges h = 3f + c (corner c -> c + 1) bucketed by their smaller end
+  // (counting sort, face order within a bucket): an edge's uses share a
+  // bucket of a few entries, so counting them needs no hashing.
+  std::vector<int> start(nv + 1, 0);
+  for (std::size_t f = 0; f < nf; ++f) {
+    if (!distinct(f)) continue;
+    for (std::size_t c = 0; c < 3; ++c) ++start[static_cast<std::size_t>(std::min(corner(3 * f + c), next(3 * f + c))) + 1];
+  }
+  for (std::size_t v = 0; v < nv; ++v) start[v + 1] += start[v];
+  std::vector<int> bucket(static_cast<std::size_t>(start.back()));  // half-edge
+  std::vector<int> other(bucket.size());                             // its larger end
+  {
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (std::size_t f = 0; f < nf; ++f) {
+      if (!distinct(f)) continue;
+      for (std::size_t c = 0; c < 3; ++c) {
+        const int a = corner(3 * f + c), b = next(3 * f + c);
+        const auto slot = static_cast<std::size_t>(fill[static_cast<std::size_t>(std::min(a, b))]++);
+        bucket[slot] = static_cast<int>(3 * f + c);
+        other[slot] = std::max(a, b);
+      }
+    }
+  }
+  std::vector<char> is_boundary(3 * nf, 0);
+  for (std::size_t v = 0; v < nv; ++v) {
+    for (int i = start[v]; i < start[v + 1]; ++i) {
+      int uses = 0;
+      for (int j = start[v]; j < start[v + 1]; ++j) uses += other[static_cast<std::size_t>(j)] == other[static_cast<std::size_t>(i)] ? 1 : 0;
+      is_boundary[static_cast<std::size_t>(bucket[static_cast<std::size_t>(i)])] = uses == 1 ? 1 : 0;
+    }
+  }
+  // Boundary half-edges in face order, and grouped by start vertex.
+  std::vector<std::size_t> half_edges;
+  std::vector<int> out_start(nv + 1, 0);
+  for (std::size_t h = 0; h < 3 * nf; ++h) {
+    if (!is_boundary[h]) continue;
+    half_edges.push_back(h);
+    ++out_start[static_cast<std::size_t>(corner(h)) + 1];
+  }
+  for (std::size_t v = 0; v < nv; ++v) out_start[v + 1] += out_start[v];
+  std::vector<std::size_t> outgoing(half_edges.size());
+  {
+    std::vector<int> fill(out_start.begin(), out_start.end() - 1);
+    for (std::size_t h : half_edges) outgoing[static_cast<std::size_t>(fill[static_cast<std::size_t>(corner(h))]++)] = h;
+  }
+  std::vector<char> used(3 * nf, 0);
+  std::vector<BoundaryLoop> loops;
+  for (const std::size_t h0 : half_edges) {
+    if (used[h0]) continue;
+    BoundaryLoop loop;
+    const int a0 = corner(h0);
+    std::size_t h = h0;
+    // Follow unused boundary half-edges until the loop closes (or, on an
+    // inconsistently oriented mesh, the chain ends).
+    for (;;) {
+      used[h] = 1;
+      loop.vertices.push_back(corner(h));
+      loop.faces.push_back(static_cast<int>(h / 3));
+      loop.corners.push_back({static_cast<int>(h % 3), static_cast<int>((h + 1) % 3)});
+      const int current = next(h);
+      if (current == a0) break;
+      std::size_t taken = 3 * nf;
+      for (int k = out_start[static_cast<std::size_t>(current)]; k < out_start[static_cast<std::size_t>(current) + 1]; ++k) {
+        if (!used[outgoing[static_cast<std::size_t>(k)]]) {
+          taken = outgoing[static_cast<std::size_t>(k)];
+          break;
+        }
+      }
+      if (taken == 3 * nf) {
+        loop.vertices.push_back(current);
+        loop.closed = false;
+        break;
+      }
+      h = taken;
+    }
+    if (loop.closed) {
+      // Start each closed loop at its smallest vertex index (stable output).
+      const auto first = std::min_element(loop.vertices.begin(), loop.vertices.end()) - loop.vertices.begin();
+      std::rotate(loop.vertices.begin(), loop.vertices.begin() + first, loop.vertices.end());
+      std::rotate(loop.faces.begin(), loop.faces.begin() + first, loop.faces.end());
+      std::rotate(loop.corners.begin(), loop.corners.begin() + first, loop.corners.end());
+    }
+    const std::size_t n = loop.vertices.size();
+    for (std::size_t i = 0; i + (loop.closed ? 0 : 1) < n; ++i) {
+      loop.length += (mesh.positions.row(loop.vertices[i]) - mesh.positions.row(loop.vertices[(i + 1) % n])).norm();
+    }
+    loops.push_back(std::move(loop));
+  }
+  // Longest first by geometric length (the rim before the mouth before the
+  // eyes, whatever the resolution); ties by vertex count, then first vertex.
+  std::stable_sort(loops.begin(), loops.end(), [](const BoundaryLoop& x, const BoundaryLoop& y) {
+    if (x.length != y.length) return x.length > y.length;
+    if (x.vertices.size() != y.vertices.size()) return x.vertices.size() > y.vertices.size();
+    return x.vertices.front() < y.vertices.front();
+  });
+  return loops;
+}
+
 }  // namespace core

@@ -1,6 +1,9 @@
 // core::Mesh: the triangle mesh value type every stage passes around.
 #pragma once
 
+#include <array>
+#include <vector>
+
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
@@ -42,6 +45,21 @@ Eigen::MatrixX3d computeVertexNormals(const Eigen::MatrixX3d& positions, const E
 // when unique): copies split at one point (UV seams, hard edges) share one.
 // Empty when every position is unique.
 std::vector<int> coincidentVertexRepresentatives(const Eigen::MatrixX3d& positions);
+
+// An open boundary of the mesh: edges used by one triangle with three
+// distinct vertices (a zero-area sliver still connects its neighbours).
+struct BoundaryLoop {
+  std::vector<int> vertices;  // in the direction of its triangles' winding; a closed loop starts at its smallest index
+  std::vector<int> faces;     // faces[i] owns the edge vertices[i] -> vertices[i + 1] (cyclic when closed)
+  std::vector<std::array<int, 2>> corners;  // that edge's two ends as corner slots (0-2) of faces[i]
+  bool closed = true;         // false: a chain that cannot be closed (inconsistent winding, non-manifold)
+  double length = 0.0;        // geometric length (with the closing edge when closed)
+};
+
+// Boundary loops of the mesh, longest first by geometric length (ties: more
+// vertices first, then smaller first vertex). On a face: the outer rim (neck
+// cut), the mouth, the eyes.
+std::vector<BoundaryLoop> boundaryLoops(const Mesh& mesh);
 
 // computeVertexNormals with the copies of a split point (see
 // coincidentVertexRepresentatives) sharing one normal, that of all faces

@@ -153,12 +153,12 @@ Result<HybridWeights> hybridWeights(const Mesh& mesh, const Eigen::MatrixX3d& ma
       out.regions.push_back(info);
     }
   } else {
-    const std::vector<std::vector<int>> loops = boundaryLoops(mesh);
+    const std::vector<BoundaryLoop> loops = boundaryLoops(mesh);
     out.loops = static_cast<int>(loops.size());
     const Eigen::Vector3d lo = markers.colwise().minCoeff().transpose(), hi = markers.colwise().maxCoeff().transpose();
     const double grow = 0.1 * (hi - lo).norm();
     for (std::size_t l = 1; l < loops.size(); ++l) {  // loops[0], the longest, is the outer rim
-      const auto& loop = loops[l];
+      const std::vector<int>& loop = loops[l].vertices;
       if (loop.size() < 3) continue;
       GeodesicRegion info;
       info.loop = static_cast<int>(l);

@@ -247,7 +247,7 @@ Asymmetry measureAsymmetry(const core::Mesh& mesh, const core::GeodesicOptions& 
   if (!solver) return result;
   const double h = meanEdgeLength(mesh);
   std::set<int> excluded;
-  for (const auto& loop : core::boundaryLoops(mesh)) excluded.insert(loop.begin(), loop.end());
+  for (const auto& loop : core::boundaryLoops(mesh)) excluded.insert(loop.vertices.begin(), loop.vertices.end());
   std::vector<char> used(static_cast<std::size_t>(mesh.vertexCount()), 0);
   for (Eigen::Index f = 0; f < mesh.triangleCount(); ++f) {
     for (int c = 0; c < 3; ++c) used[static_cast<std::size_t>(mesh.triangles(f, c))] = 1;
@@ -429,7 +429,7 @@ TEST(Geodesic, SkipsDegenerateTrianglesAndRejectsUnusableMeshes) {
 }
 
 // Consecutive loop vertices must share a boundary edge, and each loop closes.
-void expectLoopsFollowBoundaryEdges(const core::Mesh& mesh, const std::vector<std::vector<int>>& loops) {
+void expectLoopsFollowBoundaryEdges(const core::Mesh& mesh, const std::vector<core::BoundaryLoop>& boundary) {
   std::map<std::pair<int, int>, int> use;
   for (Eigen::Index f = 0; f < mesh.triangleCount(); ++f) {
     for (int c = 0; c < 3; ++c) ++use[std::minmax(mesh.triangles(f, c), mesh.triangles(f, (c + 1) % 3))];
@@ -437,10 +437,16 @@ void expectLoopsFollowBoundaryEdges(const core::Mesh& mesh, const std::vector<st
   std::size_t boundary_edges = 0;
   for (const auto& [edge, count] : use) boundary_edges += count == 1;
   std::size_t loop_edges = 0;
-  for (const auto& loop : loops) {
+  for (const core::BoundaryLoop& b : boundary) {
+    const std::vector<int>& loop = b.vertices;
+    EXPECT_TRUE(b.closed);
+    ASSERT_EQ(b.faces.size(), loop.size());
     for (std::size_t i = 0; i < loop.size(); ++i) {
       const auto key = std::minmax(loop[i], loop[(i + 1) % loop.size()]);
       EXPECT_EQ(use[key], 1) << "loop step " << key.first << "-" << key.second << " is not a boundary edge";
+      // The edge is its face's, in the face's winding.
+      EXPECT_EQ(mesh.triangles(b.faces[i], b.corners[i][0]), loop[i]);
+      EXPECT_EQ(mesh.triangles(b.faces[i], b.corners[i][1]), loop[(i + 1) % loop.size()]);
     }
     loop_edges += loop.size();
   }
@@ -452,9 +458,9 @@ TEST(Geodesic, BoundaryLoopsOfAnAnnulusAreOrderedOuterFirst) {
       jitteredGrid(20, 0.2, 5, [](double x, double y) { return std::abs(x - 0.5) < 0.2 && std::abs(y - 0.5) < 0.2; });
   const auto loops = core::boundaryLoops(annulus);
   ASSERT_EQ(loops.size(), 2u);
-  EXPECT_EQ(loops[0].size(), 80u);  // the square's 4 x 20 edges
-  EXPECT_EQ(loops[1].size(), 32u);  // the hole: 4 x 8 cells
-  EXPECT_EQ(loops[0].front(), 0);   // starts at its smallest vertex
+  EXPECT_EQ(loops[0].vertices.size(), 80u);  // the square's 4 x 20 edges
+  EXPECT_EQ(loops[1].vertices.size(), 32u);  // the hole: 4 x 8 cells
+  EXPECT_EQ(loops[0].vertices.front(), 0);   // starts at its smallest vertex
   expectLoopsFollowBoundaryEdges(annulus, loops);
   EXPECT_TRUE(core::boundaryLoops(icosphere(2)).empty());
 }
@@ -474,14 +480,19 @@ TEST(Geodesic, BoundaryLoopsOfAnOpenHeadIncludeMouthAndEyes) {
     }
     return s;
   };
-  for (std::size_t i = 1; i < loops.size(); ++i) EXPECT_GE(lengthOf(loops[i - 1]), lengthOf(loops[i]));
+  for (std::size_t i = 0; i < loops.size(); ++i) {
+    EXPECT_NEAR(loops[i].length, lengthOf(loops[i].vertices), 1e-12);
+    if (i > 0) {
+      EXPECT_GE(loops[i - 1].length, loops[i].length);
+    }
+  }
   const int upper = head.landmarks.indexOf("mouth_inner_2");
   const auto& lu = head.landmarks.landmarks[static_cast<std::size_t>(upper)];
   const Eigen::Vector3d lip = pointOf(head.mesh, {lu.face, lu.barycentric});
   int nearest_loop = -1;
   double nearest = std::numeric_limits<double>::infinity();
   for (std::size_t l = 0; l < loops.size(); ++l) {
-    for (int v : loops[l]) {
+    for (int v : loops[l].vertices) {
       const double dist = (head.mesh.positions.row(v).transpose() - lip).norm();
       if (dist < nearest) {
         nearest = dist;

@@ -114,12 +114,12 @@ std::vector<int> upperLipVertices() {
   double best_d = 1e9;
   for (std::size_t l = 0; l < loops.size(); ++l) {
     Eigen::RowVector3d c = Eigen::RowVector3d::Zero();
-    for (int v : loops[l]) c += mesh.positions.row(v);
-    c /= static_cast<double>(loops[l].size());
+    for (int v : loops[l].vertices) c += mesh.positions.row(v);
+    c /= static_cast<double>(loops[l].vertices.size());
     if ((c - mouth).norm() < best_d) best_d = (c - mouth).norm(), best = l;
   }
   double top = -1e9, front = -1e9;
-  for (int v : loops[best]) {
+  for (int v : loops[best].vertices) {
     if (std::abs(mesh.positions(v, 0)) < 0.01) top = std::max(top, mesh.positions(v, 1));
     front = std::max(front, mesh.positions(v, 2));
   }
