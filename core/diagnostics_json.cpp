@@ -53,6 +53,7 @@ Json warpJson(const WarpReport& r, const DiagnosticsContext& context) {
   c["low_confidence_vertices"] = r.low_confidence_vertices;
   c["refine_iterations"] = r.refine_iterations;
   c["region_matching"] = r.region_matching;
+  c["matched_rims"] = r.matched_rims;
   c["orientation_agreement"] = r.orientation_agreement;
   c["target_turned"] = r.target_turned;
   c["source_normals_against_winding"] = r.source_normals_against_winding;

@@ -81,6 +81,29 @@ Eigen::MatrixX3d smoothedDisplacement(const PreparedSource& source, const Eigen:
   return out;
 }
 
+// Dense centres on a matched source rim (rim_match: per source rim, its
+// target rim or -1) go to the closest point of that target rim instead of the
+// surface. Row k of `projected` is source vertex rows[k] at queries.row(k);
+// rim tangents are carried by the landmark warp's linear part `frame`.
+void projectRimCentres(GuideModel& projected, const Eigen::MatrixX3d& queries, const std::vector<int>& rows,
+                       const PreparedSource& source, const Eigen::Matrix3d& frame, const std::vector<int>& rim_match,
+                       const std::vector<Rim>& target_rims, const Mesh& target) {
+  if (source.rim_vertices.rim.empty()) return;
+  for (Eigen::Index k = 0; k < queries.rows(); ++k) {
+    const int v = rows[static_cast<std::size_t>(k)];
+    const int r = source.rim_vertices.rim[static_cast<std::size_t>(v)];
+    if (r < 0 || rim_match[static_cast<std::size_t>(r)] < 0) continue;
+    const Eigen::Vector3d tangent = (source.rim_vertices.tangent.row(v) * frame).transpose();
+    const Rim& rim = target_rims[static_cast<std::size_t>(rim_match[static_cast<std::size_t>(r)])];
+    const SurfacePoint sp = closestPointOnRim(queries.row(k).transpose(), tangent, rim, target);
+    if (!sp.found()) continue;
+    if (!projected.on_target[static_cast<std::size_t>(k)].found()) --projected.unmatched;
+    projected.on_target[static_cast<std::size_t>(k)] = sp;
+    projected.positions.row(k) = sp.point.transpose();
+    projected.distance(k) = std::sqrt(sp.sq_distance);
+  }
+}
+
 // Region labels on one side only cannot match: warns about them by number
 // (numbering mix-ups), and refuses label sets with nothing in common.
 Status checkRegionLabels(const Eigen::VectorXi& source, const Eigen::VectorXi& target, const std::string& target_label,
@@ -128,6 +151,8 @@ std::size_t PreparedSource::memoryBytes() const {
   bytes += static_cast<std::size_t>(dense_centres.size() + landmark_positions.size()) * sizeof(double);
   bytes += (neighbor_offsets.size() + neighbor_indices.size() + projection_sample.size()) * sizeof(int);
   bytes += (face_regions.size() + region_bits.size()) * sizeof(std::uint64_t);
+  bytes += rim_vertices.rim.size() * sizeof(int) + static_cast<std::size_t>(rim_vertices.tangent.size()) * sizeof(double);
+  for (const Rim& rim : rims) bytes += rim.vertices.size() * 4 * sizeof(int);
   bytes += static_cast<std::size_t>(mesh.regions.size()) * sizeof(int);
   if (dense_factorization) bytes += dense_factorization->memoryBytes();
   return bytes;
@@ -229,6 +254,8 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
       }
     }
   }
+  prepared.rims = meshRims(prepared.mesh);
+  if (!prepared.rims.empty()) prepared.rim_vertices = rimVertices(prepared.rims, prepared.mesh);
   if (prepared.mesh.regions.size() > 0) {
     prepared.face_regions = faceRegionSets(prepared.mesh.regions, prepared.mesh.triangles);
     prepared.region_bits = vertexRegionBits(prepared.mesh.regions);
@@ -392,17 +419,32 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
       centre_positions.row(nl + static_cast<Eigen::Index>(k)) = result.warped_positions.row(v);
       centre_normals.row(nl + static_cast<Eigen::Index>(k)) = warped_normals.row(v);
     }
+    // Rims matched as warped by the landmarks: their centres are put on the
+    // target's rims (the slide along a tube that projection cannot see).
+    std::vector<Rim> target_rims;
+    std::vector<int> rim_match(source.rims.size(), -1);
+    const Eigen::Matrix3d rim_frame = result.landmark_warp.affine().topRows<3>();
+    if (options.rim_matching && !source.rims.empty()) {
+      target_rims = meshRims(*matched);
+      rim_match = matchRims(source.rims, result.warped_positions, target_rims, matched->positions, options.rims);
+      report.matched_rims = static_cast<int>(std::count_if(rim_match.begin(), rim_match.end(), [](int t) { return t >= 0; }));
+    }
     TpsWarp dense;
     for (int it = 0; it < options.refine_iterations; ++it) {
       const Eigen::MatrixX3d samples = centre_positions.bottomRows(nc - nl);
-      const GuideModel projected = projectToTarget(samples, centre_normals.bottomRows(nc - nl), target_index,
-                                                   report.target_diagonal, projection,
-                                                   selectMasks(source_masks, source.dense_vertices));
+      GuideModel projected = projectToTarget(samples, centre_normals.bottomRows(nc - nl), target_index,
+                                             report.target_diagonal, projection,
+                                             selectMasks(source_masks, source.dense_vertices));
+      projectRimCentres(projected, samples, source.dense_vertices, source, rim_frame, rim_match, target_rims, *matched);
       Eigen::MatrixX3d centre_targets(nc, 3);
       centre_targets.topRows(nl) = pinned;
       for (Eigen::Index k = 0; k < nc - nl; ++k) {
         const bool trusted = projected.on_target[static_cast<std::size_t>(k)].found() && projected.distance(k) <= trust;
-        centre_targets.row(nl + k) = trusted ? projected.positions.row(k) : samples.row(k);
+        if (trusted) {
+          centre_targets.row(nl + k) = projected.positions.row(k);
+        } else {
+          centre_targets.row(nl + k) = samples.row(k);
+        }
       }
       dense = source.dense_factorization->fit(centre_targets);
       // Centres and their normals through the new map (normals by J^-T).

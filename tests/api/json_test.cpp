@@ -387,7 +387,7 @@ TEST(ApiOpenApi, TransferOptionsSchemaListsEveryOptionKey) {
   for (const char* key : {"components", "uvs", "max_influences", "weight_encoding", "low_confidence_distance",
                           "low_confidence_angle_deg", "adaptation", "exaggeration", "shape_exaggeration",
                           "joint_exaggeration", "diagnostic_attributes", "refine_iterations",
-                          "region_matching"}) {
+                          "region_matching", "rim_matching"}) {
     EXPECT_TRUE(props.contains(key)) << key;
   }
 }

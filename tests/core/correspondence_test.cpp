@@ -1,6 +1,7 @@
 #include "core/correspondence.h"
 
 #include <cstdint>
+#include <cstdio>
 #include <set>
 
 #include <gtest/gtest.h>
@@ -225,6 +226,49 @@ TEST(Correspondence, RefinementBringsTheSurfaceCloserThanThePlainWarp) {
   ASSERT_TRUE(a && b);
   EXPECT_LT(b->report.mean_distance, a->report.mean_distance);
   EXPECT_EQ(b->report.refine_iterations, core::WarpOptions{}.refine_iterations);
+}
+
+// The synthetic head with its neck drawn out (everything below the chin
+// stretched down): the face landmarks say nothing about it, and projection
+// cannot pull the warped neck along the tube, so without rims the source's
+// neck cut stops short of the target's and the rim region goes unmatched.
+TEST(Correspondence, MatchedRimsPullTheNeckCutOntoTheTargets) {
+  const auto source = core::generateHead();
+  core::SyntheticHead target = core::generateHead(core::randomHeadShape(7, 0.1), core::HeadResolution{88, 70, true, 0.2, 7});
+  const double chin = target.mesh.positions.col(1).minCoeff() * 0.55;
+  for (Eigen::Index v = 0; v < target.mesh.positions.rows(); ++v) {
+    const double y = target.mesh.positions(v, 1);
+    if (y < chin) target.mesh.positions(v, 1) = chin + 1.6 * (y - chin);
+  }
+  target.mesh.normals = core::computeVertexNormals(target.mesh.positions, target.mesh.triangles);
+  auto prepared = core::prepareSource(source.mesh, source.landmarks, "source");
+  ASSERT_TRUE(prepared);
+  ASSERT_FALSE(prepared->rims.empty());
+  core::WarpOptions without;
+  without.rim_matching = false;
+  auto off = core::runWarp(*prepared, target.mesh, target.landmarks, "long_neck", without);
+  auto on = core::runWarp(*prepared, target.mesh, target.landmarks, "long_neck");
+  ASSERT_TRUE(off && on);
+  EXPECT_EQ(off->report.matched_rims, 0);
+  EXPECT_GE(on->report.matched_rims, 1);
+  // Mean distance of the guide's outer-rim vertices (the source's longest
+  // rim: neck cut and back opening) to the target's outer rim.
+  const std::vector<core::Rim> target_rims = core::meshRims(target.mesh);
+  auto rimGap = [&](const core::WarpResult& r) {
+    double sum = 0.0;
+    for (int v : prepared->rims[0].vertices) {
+      sum += std::sqrt(core::closestPointOnRim(r.guide.positions.row(v).transpose(),
+                                               (prepared->rim_vertices.tangent.row(v) * r.landmark_warp.affine().topRows<3>()).transpose(),
+                                               target_rims[0], target.mesh)
+                           .sq_distance);
+    }
+    return sum / static_cast<double>(prepared->rims[0].vertices.size());
+  };
+  const double gap_off = rimGap(*off), gap_on = rimGap(*on);
+  std::printf("[ long neck ] outer rim gap %.4f -> %.4f (diagonal %.3f), low-confidence vertices %d -> %d\n", gap_off,
+              gap_on, on->report.target_diagonal, off->report.low_confidence_vertices, on->report.low_confidence_vertices);
+  EXPECT_LT(gap_on, 0.5 * gap_off);
+  EXPECT_LT(on->report.low_confidence_vertices, off->report.low_confidence_vertices);
 }
 
 TEST(Correspondence, FoldsAreCounted) {

@@ -10,6 +10,7 @@
 #include "core/mesh.h"
 #include "core/skinning.h"
 #include "core/synthetic_rig.h"
+#include "core/transfer_options.h"
 #include "tests/test_support.h"
 
 namespace {
@@ -682,6 +683,18 @@ TEST(TransferRig, AnimationStrainFollowsTheSource) {
   std::printf("strain correlation %.4f amplitude ratio %.3f\n", correlation, amplitude);
   EXPECT_GE(correlation, 0.99);
   EXPECT_NEAR(amplitude, 1.0, 0.1);
+}
+
+TEST(TransferOptions, RimMatchingCanBeSwitchedOff) {
+  auto defaults = core::parseTransferOptions("{}", "opts.json");
+  ASSERT_TRUE(defaults) << defaults.error().message;
+  EXPECT_TRUE(defaults->transfer.warp.rim_matching);
+  auto off = core::parseTransferOptions(R"({"rim_matching": false})", "opts.json");
+  ASSERT_TRUE(off) << off.error().message;
+  EXPECT_FALSE(off->transfer.warp.rim_matching);
+  auto bad = core::parseTransferOptions(R"({"rim_matching": "no"})", "opts.json");
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("rim_matching"), std::string::npos) << bad.error().message;
 }
 
 }  // namespace

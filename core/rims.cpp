@@ -1,0 +1,146 @@
+#include "core/rims.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+
+namespace core {
+
+namespace {
+
+// Closest point of p on segment a-b: parameter t in [0, 1] from a.
+double segmentParameter(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  const Eigen::Vector3d ab = b - a;
+  const double len2 = ab.squaredNorm();
+  return len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+}
+
+double squaredDistanceToLoop(const Eigen::Vector3d& p, const Eigen::MatrixX3d& positions, const std::vector<int>& loop) {
+  double best = std::numeric_limits<double>::infinity();
+  const std::size_t n = loop.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d a = positions.row(loop[i]), b = positions.row(loop[(i + 1) % n]);
+    best = std::min(best, (a + segmentParameter(p, a, b) * (b - a) - p).squaredNorm());
+  }
+  return best;
+}
+
+// Mean distance from (at most 64 evenly spaced) vertices of loop `from` to the polyline `to`.
+double meanDistanceToLoop(const Eigen::MatrixX3d& from_positions, const std::vector<int>& from,
+                          const Eigen::MatrixX3d& to_positions, const std::vector<int>& to) {
+  const std::size_t stride = std::max<std::size_t>(1, from.size() / 64);
+  double sum = 0.0;
+  int count = 0;
+  for (std::size_t i = 0; i < from.size(); i += stride) {
+    sum += std::sqrt(squaredDistanceToLoop(from_positions.row(from[i]).transpose(), to_positions, to));
+    ++count;
+  }
+  return count > 0 ? sum / count : std::numeric_limits<double>::infinity();
+}
+
+}  // namespace
+
+std::vector<Rim> meshRims(const Mesh& mesh) {
+  const std::vector<int> representative = coincidentVertexRepresentatives(mesh.positions);
+  Mesh welded;  // faces re-pointed to each point's representative, when any point is split
+  if (!representative.empty()) {
+    welded.positions = mesh.positions;
+    welded.triangles = mesh.triangles;
+    for (Eigen::Index i = 0; i < welded.triangles.size(); ++i) {
+      welded.triangles.data()[i] = representative[static_cast<std::size_t>(welded.triangles.data()[i])];
+    }
+  }
+  std::vector<Rim> rims = boundaryLoops(representative.empty() ? mesh : welded);
+  std::erase_if(rims, [](const Rim& rim) { return !rim.closed || rim.vertices.size() < 3; });
+  return rims;
+}
+
+std::vector<int> matchRims(const std::vector<Rim>& source_rims, const Eigen::MatrixX3d& warped_source,
+                           const std::vector<Rim>& target_rims, const Eigen::MatrixX3d& target_positions,
+                           const RimMatchOptions& options) {
+  const std::size_t ns = source_rims.size(), nt = target_rims.size();
+  constexpr double kNone = std::numeric_limits<double>::infinity();
+  std::vector<double> mismatch(ns * nt, kNone);
+  for (std::size_t s = 0; s < ns; ++s) {
+    const std::vector<int>& loop = source_rims[s].vertices;
+    double warped_length = 0.0;
+    Eigen::RowVector3d centre = Eigen::RowVector3d::Zero();
+    for (std::size_t i = 0; i < loop.size(); ++i) {
+      warped_length += (warped_source.row(loop[i]) - warped_source.row(loop[(i + 1) % loop.size()])).norm();
+      centre += warped_source.row(loop[i]);
+    }
+    centre /= static_cast<double>(loop.size());
+    double radius2 = 0.0;
+    for (int v : loop) radius2 += (warped_source.row(v) - centre).squaredNorm();
+    const double radius = std::sqrt(radius2 / static_cast<double>(loop.size()));
+    if (!(radius > 0.0)) continue;
+    for (std::size_t t = 0; t < nt; ++t) {
+      const double ratio = target_rims[t].length / warped_length;
+      if (!(ratio <= options.max_length_ratio && ratio * options.max_length_ratio >= 1.0)) continue;
+      const double there = meanDistanceToLoop(warped_source, loop, target_positions, target_rims[t].vertices);
+      if (there > options.max_mismatch * radius) continue;
+      const double back = meanDistanceToLoop(target_positions, target_rims[t].vertices, warped_source, loop);
+      const double m = std::max(there, back) / radius;
+      if (m <= options.max_mismatch) mismatch[s * nt + t] = m;
+    }
+  }
+  std::vector<int> match(ns, -1);
+  for (std::size_t s = 0; s < ns; ++s) {
+    const auto row = mismatch.begin() + static_cast<std::ptrdiff_t>(s * nt);
+    const auto best = std::min_element(row, row + static_cast<std::ptrdiff_t>(nt));
+    if (nt == 0 || *best == kNone) continue;
+    const auto t = static_cast<std::size_t>(best - row);
+    // Mutual: no other source rim fits this target rim better.
+    bool mutual = true;
+    for (std::size_t o = 0; o < ns; ++o) {
+      if (o != s && mismatch[o * nt + t] < *best) mutual = false;
+    }
+    if (mutual) match[s] = static_cast<int>(t);
+  }
+  return match;
+}
+
+RimVertices rimVertices(const std::vector<Rim>& rims, const Mesh& mesh) {
+  RimVertices out;
+  out.rim.assign(static_cast<std::size_t>(mesh.vertexCount()), -1);
+  out.tangent = Eigen::MatrixX3d::Zero(mesh.vertexCount(), 3);
+  for (std::size_t r = 0; r < rims.size(); ++r) {
+    const std::vector<int>& loop = rims[r].vertices;
+    const std::size_t n = loop.size();
+    for (std::size_t i = 0; i < n; ++i) {
+      out.rim[static_cast<std::size_t>(loop[i])] = static_cast<int>(r);
+      const Eigen::RowVector3d t = mesh.positions.row(loop[(i + 1) % n]) - mesh.positions.row(loop[(i + n - 1) % n]);
+      if (t.norm() > 0.0) out.tangent.row(loop[i]) = t.normalized();
+    }
+  }
+  const std::vector<int> representative = coincidentVertexRepresentatives(mesh.positions);
+  for (std::size_t v = 0; v < representative.size(); ++v) {
+    out.rim[v] = out.rim[static_cast<std::size_t>(representative[v])];
+    out.tangent.row(static_cast<Eigen::Index>(v)) = out.tangent.row(representative[v]);
+  }
+  return out;
+}
+
+SurfacePoint closestPointOnRim(const Eigen::Vector3d& p, const Eigen::Vector3d& tangent, const Rim& rim,
+                               const Mesh& mesh) {
+  SurfacePoint best;
+  const std::size_t n = rim.vertices.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d a = mesh.positions.row(rim.vertices[i]), b = mesh.positions.row(rim.vertices[(i + 1) % n]);
+    if ((b - a).dot(tangent) <= 0.0) continue;
+    const double t = segmentParameter(p, a, b);
+    const Eigen::Vector3d q = a + t * (b - a);
+    const double d2 = (q - p).squaredNorm();
+    if (d2 >= best.sq_distance) continue;
+    best.face = rim.faces[i];
+    best.barycentric.setZero();
+    best.barycentric(rim.corners[i][0]) = 1.0 - t;
+    best.barycentric(rim.corners[i][1]) = t;
+    best.point = q;
+    best.sq_distance = d2;
+  }
+  return best;
+}
+
+}  // namespace core
