@@ -59,7 +59,9 @@ std::vector<Rim> meshRims(const Mesh& mesh) {
 std::vector<int> matchRims(const std::vector<Rim>& source_rims, const Eigen::MatrixX3d& warped_source,
                            const std::vector<Rim>& target_rims, const Eigen::MatrixX3d& target_positions,
                            const RimMatchOptions& options) {
-  const std::size_t ns = source_rims.size(), nt = target_rims.size();
+  // Rims come longest first: the candidates are the first max_rims of each side.
+  const std::size_t limit = static_cast<std::size_t>(std::max(0, options.max_rims));
+  const std::size_t ns = std::min(source_rims.size(), limit), nt = std::min(target_rims.size(), limit);
   constexpr double kNone = std::numeric_limits<double>::infinity();
   std::vector<double> mismatch(ns * nt, kNone);
   for (std::size_t s = 0; s < ns; ++s) {
@@ -85,7 +87,7 @@ std::vector<int> matchRims(const std::vector<Rim>& source_rims, const Eigen::Mat
       if (m <= options.max_mismatch) mismatch[s * nt + t] = m;
     }
   }
-  std::vector<int> match(ns, -1);
+  std::vector<int> match(source_rims.size(), -1);
   for (std::size_t s = 0; s < ns; ++s) {
     const auto row = mismatch.begin() + static_cast<std::ptrdiff_t>(s * nt);
     const auto best = std::min_element(row, row + static_cast<std::ptrdiff_t>(nt));

@@ -31,6 +31,10 @@ struct RimMatchOptions {
   // is the other's closest candidate.
   double max_mismatch = 0.5;
   double max_length_ratio = 1.5;
+  // Only the longest rims of each side are candidates (a face has a handful;
+  // a scan full of small holes or an unwelded soup must not cost a quadratic
+  // search).
+  int max_rims = 16;
 };
 
 // Per source rim: the index of its target rim, or -1.

@@ -128,6 +128,10 @@ TEST(Rims, MatchedToTheirOwnAndNotToStrangers) {
   ASSERT_EQ(other.size(), 2u);
   core::RimMatchOptions options;
   EXPECT_EQ(core::matchRims(rims, mesh.positions, other, big_hole.positions, options), (std::vector<int>{0, -1}));
+  // Only the longest max_rims of each side are candidates.
+  core::RimMatchOptions longest;
+  longest.max_rims = 1;
+  EXPECT_EQ(core::matchRims(rims, moved, rims, mesh.positions, longest), (std::vector<int>{0, -1}));
   // Far away: nothing matches.
   Eigen::MatrixX3d far = mesh.positions;
   far.col(2).array() += 100.0;
