@@ -46,9 +46,11 @@ json toJson(const Problem& p) {
 }
 
 json toJson(const RigInfo& r) {
-  return {{"id", r.id}, {"name", r.name}, {"size_bytes", r.size_bytes}, {"vertices", r.vertices},
-          {"joints", r.joints}, {"morph_targets", r.morph_targets}, {"landmarks", r.landmarks},
-          {"has_components", r.has_components}, {"created_at", r.created_at}};
+  json j = {{"id", r.id}, {"name", r.name}, {"size_bytes", r.size_bytes}, {"vertices", r.vertices},
+            {"joints", r.joints}, {"morph_targets", r.morph_targets}, {"landmarks", r.landmarks},
+            {"has_components", r.has_components}, {"created_at", r.created_at}};
+  if (r.region_labels) j["region_labels"] = *r.region_labels;
+  return j;
 }
 
 json toJson(const JobSpec& s) {
@@ -108,6 +110,18 @@ Parsed<RigInfo> rigInfoFromJson(const json& j) {
         readNumber(j, "landmarks", r.landmarks, "rig", false), readBool(j, "has_components", r.has_components, "rig"),
         readString(j, "created_at", r.created_at, "rig", false)}) {
     if (!e.empty()) return e;
+  }
+  if (j.contains("region_labels")) {
+    const json& labels = j["region_labels"];
+    if (!labels.is_array()) return std::string("rig.region_labels: expected an array of integers 0-63");
+    std::vector<int> values;
+    for (const json& l : labels) {
+      if (!l.is_number_integer() || l.get<std::int64_t>() < 0 || l.get<std::int64_t>() > 63) {
+        return std::string("rig.region_labels: expected an array of integers 0-63");
+      }
+      values.push_back(l.get<int>());
+    }
+    r.region_labels = std::move(values);
   }
   return r;
 }

@@ -41,6 +41,9 @@ struct RigInfo {
   int landmarks = 0;
   bool has_components = false;
   std::string created_at;      // RFC 3339 UTC
+  // The _REGION labels its mesh carries, ascending (empty: none); absent for
+  // rigs stored before the service recorded them.
+  std::optional<std::vector<int>> region_labels;
 };
 
 // The `spec` part of POST /v1/jobs: {"kind":"transfer","rig":"<id>","options":{...}}.

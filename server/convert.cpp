@@ -1,5 +1,6 @@
 #include "server/convert.h"
 
+#include <algorithm>
 #include <chrono>
 
 #include "api/content_id.h"
@@ -97,6 +98,10 @@ std::variant<api::RigInfo, api::Problem> checkRigUpload(Bytes rig_bytes, const s
   info.morph_targets = static_cast<int>(rig->rig.morph_targets.size());
   info.landmarks = static_cast<int>(landmarks->landmarks.size());
   info.has_components = components.has_value();
+  std::vector<int> labels(rig->rig.mesh.regions.data(), rig->rig.mesh.regions.data() + rig->rig.mesh.regions.size());
+  std::sort(labels.begin(), labels.end());
+  labels.erase(std::unique(labels.begin(), labels.end()), labels.end());
+  info.region_labels = std::move(labels);
   return info;
 }
 

@@ -21,6 +21,7 @@
 
 #include <openssl/evp.h>
 #include <openssl/rand.h>
+#include <nlohmann/json.hpp>
 #include <sqlite3.h>
 
 #include <algorithm>
@@ -341,7 +342,7 @@ void BlobStore::removeTemporaries() {
 
 namespace {
 
-constexpr int kSchemaVersion = 1;
+constexpr int kSchemaVersion = 2;
 constexpr int kBusyTimeoutMs = 5000;
 
 // Schema version 1. Rig created_at is stored as RFC 3339 UTC text (the wire
@@ -406,9 +407,15 @@ CREATE TABLE job_inputs (
 CREATE INDEX job_inputs_blob ON job_inputs(blob);
 )sql";
 
+// Version 2: rigs record their region labels (JSON array text; '' for rigs
+// stored by version 1, which did not: "unknown", not "none").
+constexpr const char* kMigrateV1ToV2 = R"sql(
+ALTER TABLE rigs ADD COLUMN region_labels TEXT NOT NULL DEFAULT '';
+)sql";
+
 constexpr const char* kRigColumns =
     "tenant, id, name, size_bytes, vertices, joints, morph_targets, landmarks, has_components, created_at, "
-    "rig_blob, landmarks_blob, components_blob";
+    "rig_blob, landmarks_blob, components_blob, region_labels";
 
 constexpr const char* kJobColumns =
     "sequence, id, tenant, kind, rig, spec_json, inputs_json, input_names_json, idempotency_key, status, stage, "
@@ -548,6 +555,16 @@ RigRecord readRig(const Stmt& s) {
   r.rig_blob = s.text(10);
   r.landmarks_blob = s.text(11);
   r.components_blob = s.text(12);
+  if (const std::string labels = s.text(13); !labels.empty()) {
+    const auto parsed = nlohmann::json::parse(labels, nullptr, /*allow_exceptions=*/false);
+    if (parsed.is_array()) {
+      std::vector<int> values;
+      for (const auto& l : parsed) {
+        if (l.is_number_integer()) values.push_back(l.get<int>());
+      }
+      r.info.region_labels = std::move(values);
+    }
+  }
   return r;
 }
 
@@ -684,11 +701,13 @@ core::Result<std::unique_ptr<MetadataStore>> MetadataStore::open(const fs::path&
                                                   std::to_string(version) + ", newer than this build knows (" +
                                                   std::to_string(kSchemaVersion) + "): upgrade rigport");
   }
-  if (version == 0) {
+  if (version < kSchemaVersion) {
+    // Create or upgrade in one transaction: a crash leaves the old version
+    // whole, and the next open does it again.
     core::Status begun = core::Ok{};
     Transaction tx(*c, begun);
     if (!begun) return begun.error();
-    // Re-check under the write lock: another process may have created it.
+    // Re-check under the write lock: another process may have done it.
     int now_version = 0;
     {
       auto stmt = c->prepare("PRAGMA user_version");
@@ -698,8 +717,15 @@ core::Result<std::unique_ptr<MetadataStore>> MetadataStore::open(const fs::path&
     }
     if (now_version == 0) {
       if (auto st = c->exec(kSchemaV1); !st) return st.error();
-      if (auto st = c->exec("PRAGMA user_version=1"); !st) return st.error();
+      now_version = 1;
     }
+    if (now_version == 1) {
+      if (auto st = c->exec(kMigrateV1ToV2); !st) {
+        return Error{st.error().code, "database " + file.string() + ": upgrading schema 1 to 2: " + st.error().message};
+      }
+      now_version = 2;
+    }
+    if (auto st = c->exec(("PRAGMA user_version=" + std::to_string(now_version)).c_str()); !st) return st.error();
     if (auto st = tx.commit(); !st) return st.error();
   }
   return std::unique_ptr<MetadataStore>(new MetadataStore(std::move(c)));
@@ -720,8 +746,8 @@ core::Result<std::pair<RigRecord, bool>> MetadataStore::insertRig(const RigRecor
   if (!begun) return begun.error();
   static const char* kInsert =
       "INSERT INTO rigs (tenant, id, name, size_bytes, vertices, joints, morph_targets, landmarks, has_components, "
-      "created_at, rig_blob, landmarks_blob, components_blob) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, "
-      "?12, ?13) ON CONFLICT (tenant, id) DO NOTHING";
+      "created_at, rig_blob, landmarks_blob, components_blob, region_labels) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, "
+      "?9, ?10, ?11, ?12, ?13, ?14) ON CONFLICT (tenant, id) DO NOTHING";
   auto stmt = c.prepare(kInsert);
   if (!stmt) return stmt.error();
   {
@@ -730,6 +756,7 @@ core::Result<std::pair<RigRecord, bool>> MetadataStore::insertRig(const RigRecor
     s.bind(5, stored.info.vertices).bind(6, stored.info.joints).bind(7, stored.info.morph_targets);
     s.bind(8, stored.info.landmarks).bind(9, stored.info.has_components).bind(10, stored.info.created_at);
     s.bind(11, stored.rig_blob).bind(12, stored.landmarks_blob).bind(13, stored.components_blob);
+    s.bind(14, stored.info.region_labels ? nlohmann::json(*stored.info.region_labels).dump() : std::string());
     if (s.step() != SQLITE_DONE) return c.error("cannot insert rig " + stored.info.id);
   }
   if (sqlite3_changes(c.db) == 0) {

@@ -88,7 +88,9 @@ struct JobListQuery {
 class MetadataStore {
  public:
   // Opens or creates <file> (WAL, synchronous=FULL, foreign keys, schema
-  // version checked); errors name the file.
+  // version checked); errors name the file. A store of an older schema is
+  // upgraded in place, in one transaction (schema 1 -> 2: rigs gain their
+  // region labels, unknown for the rigs already stored); a newer one is refused.
   static core::Result<std::unique_ptr<MetadataStore>> open(const std::filesystem::path& file);
   // Where the read functions (which return empty results on a SQLite error)
   // report the error: the server passes its structured log. Default: dropped.

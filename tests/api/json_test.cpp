@@ -44,6 +44,7 @@ api::RigInfo sampleRig() {
   r.landmarks = 68;
   r.has_components = true;
   r.created_at = "2026-11-21T16:00:00Z";
+  r.region_labels = std::vector<int>{0, 1, 2};
   return r;
 }
 
@@ -116,7 +117,13 @@ TEST(ApiJson, RigInfoRoundTrips) {
   EXPECT_EQ(back.landmarks, r.landmarks);
   EXPECT_EQ(back.has_components, r.has_components);
   EXPECT_EQ(back.created_at, r.created_at);
+  EXPECT_EQ(back.region_labels, r.region_labels);
   EXPECT_EQ(api::toJson(back), api::toJson(r));
+  // Unknown labels (a rig stored before they were recorded) stay unknown.
+  api::RigInfo unknown = r;
+  unknown.region_labels.reset();
+  EXPECT_FALSE(api::toJson(unknown).contains("region_labels"));
+  EXPECT_FALSE(valueOf(api::rigInfoFromJson(api::toJson(unknown))).region_labels.has_value());
 }
 
 TEST(ApiJson, JobSpecRoundTrips) {
@@ -230,6 +237,9 @@ TEST(ApiJson, RigInfoAndProblemErrorsNameTheField) {
   rig = api::toJson(sampleRig());
   rig["has_components"] = 1;
   EXPECT_NE(errorOf(api::rigInfoFromJson(rig)).find("rig.has_components"), std::string::npos);
+  rig = api::toJson(sampleRig());
+  rig["region_labels"] = json::array({1, 64});
+  EXPECT_NE(errorOf(api::rigInfoFromJson(rig)).find("rig.region_labels"), std::string::npos);
   EXPECT_NE(errorOf(api::problemFromJson(json{{"type", "x"}})).find("problem.status"), std::string::npos);
 }
 

@@ -300,6 +300,56 @@ TEST(MetadataStore, OpenRefusesNewerSchemaNamingTheFile) {
   EXPECT_NE(store.error().message.find("99"), std::string::npos) << store.error().message;
 }
 
+// A store written by schema 1 (rigs without region labels) is upgraded in
+// place on open: its rigs stay, with their labels unknown rather than "none".
+TEST(MetadataStore, SchemaOneIsUpgradedKeepingItsRigs) {
+  const fs::path file = rigport_test::makeTempDir("upgrade") / "meta.db";
+  {
+    auto store = openStore(file);
+    ASSERT_TRUE(store);
+    RigRecord old_rig = makeRig("acme", "old", "old.glb");
+    old_rig.info.region_labels = std::vector<int>{1, 2};
+    ASSERT_TRUE(store->insertRig(old_rig).ok());
+  }
+  // Back to what schema 1 wrote.
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(file.c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db, "ALTER TABLE rigs DROP COLUMN region_labels; PRAGMA user_version=1;", nullptr, nullptr,
+                         nullptr),
+            SQLITE_OK)
+      << sqlite3_errmsg(db);
+  sqlite3_close(db);
+
+  auto store = openStore(file);
+  ASSERT_TRUE(store);
+  auto old_rig = store->getRig("acme", "old");
+  ASSERT_TRUE(old_rig);
+  EXPECT_EQ(old_rig->info.name, "old.glb");
+  EXPECT_EQ(old_rig->rig_blob, makeRig("acme", "old", "old.glb").rig_blob);
+  EXPECT_FALSE(old_rig->info.region_labels.has_value());
+  RigRecord labelled = makeRig("acme", "labelled", "labelled.glb");
+  labelled.info.region_labels = std::vector<int>{0, 3, 4};
+  RigRecord unlabelled = makeRig("acme", "unlabelled", "unlabelled.glb");
+  unlabelled.info.region_labels = std::vector<int>{};
+  ASSERT_TRUE(store->insertRig(labelled).ok());
+  ASSERT_TRUE(store->insertRig(unlabelled).ok());
+  store.reset();
+
+  auto reopened = openStore(file);
+  ASSERT_TRUE(reopened);
+  EXPECT_EQ(reopened->getRig("acme", "labelled")->info.region_labels, (std::vector<int>{0, 3, 4}));
+  EXPECT_EQ(reopened->getRig("acme", "unlabelled")->info.region_labels, std::vector<int>{});
+  EXPECT_FALSE(reopened->getRig("acme", "old")->info.region_labels.has_value());
+  EXPECT_EQ(reopened->listRigs("acme").size(), 3u);
+  ASSERT_EQ(sqlite3_open(file.c_str(), &db), SQLITE_OK);
+  sqlite3_stmt* stmt = nullptr;
+  ASSERT_EQ(sqlite3_prepare_v2(db, "PRAGMA user_version", -1, &stmt, nullptr), SQLITE_OK);
+  ASSERT_EQ(sqlite3_step(stmt), SQLITE_ROW);
+  EXPECT_EQ(sqlite3_column_int(stmt, 0), 2);
+  sqlite3_finalize(stmt);
+  sqlite3_close(db);
+}
+
 TEST(MetadataStore, OpenReportsUnopenableFileWithItsPath) {
   const fs::path dir = rigport_test::makeTempDir("bad");
   fs::create_directories(dir / "meta.db");  // a directory where the file should be

@@ -53,6 +53,15 @@ TEST(TransferJobs, UploadSubmitPollFetchGivesTheCliBytes) {
   EXPECT_FALSE(diagnostics.body["cache"]["hit"].get<bool>()) << diagnostics.raw.substr(0, 400);
   // The target's region labels came through upload, store and job.
   EXPECT_TRUE(diagnostics.body["correspondence"]["region_matching"].get<bool>()) << diagnostics.raw.substr(0, 400);
+  // The rig's labels are on record.
+  Reply on_record = get(*client, "/v1/rigs/" + rig_id);
+  ASSERT_EQ(on_record.status, 200) << on_record.raw;
+  ASSERT_TRUE(on_record.body.contains("region_labels")) << on_record.raw;
+  EXPECT_FALSE(on_record.body["region_labels"].empty()) << on_record.raw;
+  EXPECT_EQ(on_record.body["region_labels"], rig.body["region_labels"]);
+  for (const auto& l : on_record.body["region_labels"]) {
+    EXPECT_TRUE(l.is_number_integer() && l.get<int>() >= 0 && l.get<int>() < 64) << on_record.raw;
+  }
 
   // A second job on the same rig skips all source-only work.
   Reply second = submitTransfer(*client, rig_id, files);
