@@ -8,19 +8,30 @@ namespace core {
 
 namespace {
 
-// Closest point of p on segment a-b: parameter t in [0, 1] from a.
-double segmentParameter(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  const Eigen::Vector3d ab = b - a;
-  const double len2 = ab.squaredNorm();
-  return len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-}
-
-double squaredDistanceToLoop(const Eigen::Vector3d& p, const Eigen::MatrixX3d& positions, const std::vector<int>& loop) {
-  double best = std::numeric_limits<double>::infinity();
+// Closest point of p on the closed polyline `loop` among the edges (a, b)
+// that `accept` allows: the edge (from loop[edge] to the next vertex), the
+// parameter t in [0, 1] from its start, the point and its squared distance
+// (edge -1 and infinite distance when no edge is accepted).
+struct LoopPoint {
+  int edge = -1;
+  double t = 0.0;
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();
+  double sq_distance = std::numeric_limits<double>::infinity();
+};
+template <class Accept>
+LoopPoint closestOnLoop(const Eigen::Vector3d& p, const Eigen::MatrixX3d& positions, const std::vector<int>& loop,
+                        Accept accept) {
+  LoopPoint best;
   const std::size_t n = loop.size();
   for (std::size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d a = positions.row(loop[i]), b = positions.row(loop[(i + 1) % n]);
-    best = std::min(best, (a + segmentParameter(p, a, b) * (b - a) - p).squaredNorm());
+    const Eigen::Vector3d ab = b - a;
+    if (!accept(ab)) continue;
+    const double len2 = ab.squaredNorm();
+    const double t = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+    const Eigen::Vector3d q = a + t * ab;
+    const double d2 = (q - p).squaredNorm();
+    if (d2 < best.sq_distance) best = {static_cast<int>(i), t, q, d2};
   }
   return best;
 }
@@ -32,7 +43,8 @@ double meanDistanceToLoop(const Eigen::MatrixX3d& from_positions, const std::vec
   double sum = 0.0;
   int count = 0;
   for (std::size_t i = 0; i < from.size(); i += stride) {
-    sum += std::sqrt(squaredDistanceToLoop(from_positions.row(from[i]).transpose(), to_positions, to));
+    const Eigen::Vector3d p = from_positions.row(from[i]).transpose();
+    sum += std::sqrt(closestOnLoop(p, to_positions, to, [](const Eigen::Vector3d&) { return true; }).sq_distance);
     ++count;
   }
   return count > 0 ? sum / count : std::numeric_limits<double>::infinity();
@@ -40,8 +52,7 @@ double meanDistanceToLoop(const Eigen::MatrixX3d& from_positions, const std::vec
 
 }  // namespace
 
-std::vector<Rim> meshRims(const Mesh& mesh) {
-  const std::vector<int> representative = coincidentVertexRepresentatives(mesh.positions);
+std::vector<Rim> meshRims(const Mesh& mesh, const std::vector<int>& representative) {
   Mesh welded;  // faces re-pointed to each point's representative, when any point is split
   if (!representative.empty()) {
     welded.positions = mesh.positions;
@@ -102,7 +113,7 @@ std::vector<int> matchRims(const std::vector<Rim>& source_rims, const Eigen::Mat
   return match;
 }
 
-RimVertices rimVertices(const std::vector<Rim>& rims, const Mesh& mesh) {
+RimVertices rimVertices(const std::vector<Rim>& rims, const Mesh& mesh, const std::vector<int>& representative) {
   RimVertices out;
   out.rim.assign(static_cast<std::size_t>(mesh.vertexCount()), -1);
   out.tangent = Eigen::MatrixX3d::Zero(mesh.vertexCount(), 3);
@@ -115,7 +126,6 @@ RimVertices rimVertices(const std::vector<Rim>& rims, const Mesh& mesh) {
       if (t.norm() > 0.0) out.tangent.row(loop[i]) = t.normalized();
     }
   }
-  const std::vector<int> representative = coincidentVertexRepresentatives(mesh.positions);
   for (std::size_t v = 0; v < representative.size(); ++v) {
     out.rim[v] = out.rim[static_cast<std::size_t>(representative[v])];
     out.tangent.row(static_cast<Eigen::Index>(v)) = out.tangent.row(representative[v]);
@@ -125,22 +135,17 @@ RimVertices rimVertices(const std::vector<Rim>& rims, const Mesh& mesh) {
 
 SurfacePoint closestPointOnRim(const Eigen::Vector3d& p, const Eigen::Vector3d& tangent, const Rim& rim,
                                const Mesh& mesh) {
+  const LoopPoint q =
+      closestOnLoop(p, mesh.positions, rim.vertices, [&](const Eigen::Vector3d& edge) { return edge.dot(tangent) > 0.0; });
   SurfacePoint best;
-  const std::size_t n = rim.vertices.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d a = mesh.positions.row(rim.vertices[i]), b = mesh.positions.row(rim.vertices[(i + 1) % n]);
-    if ((b - a).dot(tangent) <= 0.0) continue;
-    const double t = segmentParameter(p, a, b);
-    const Eigen::Vector3d q = a + t * (b - a);
-    const double d2 = (q - p).squaredNorm();
-    if (d2 >= best.sq_distance) continue;
-    best.face = rim.faces[i];
-    best.barycentric.setZero();
-    best.barycentric(rim.corners[i][0]) = 1.0 - t;
-    best.barycentric(rim.corners[i][1]) = t;
-    best.point = q;
-    best.sq_distance = d2;
-  }
+  if (q.edge < 0) return best;
+  const auto i = static_cast<std::size_t>(q.edge);
+  best.face = rim.faces[i];
+  best.barycentric.setZero();
+  best.barycentric(rim.corners[i][0]) = 1.0 - q.t;
+  best.barycentric(rim.corners[i][1]) = q.t;
+  best.point = q.point;
+  best.sq_distance = q.sq_distance;
   return best;
 }
 

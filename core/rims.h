@@ -22,7 +22,9 @@ using Rim = BoundaryLoop;
 // Closed boundary loops of the mesh with split points welded (copies at one
 // position, e.g. along UV seams, are one point: a seam is not a rim), longest
 // first. Open chains of an inconsistently wound mesh are left out.
-std::vector<Rim> meshRims(const Mesh& mesh);
+// `representative` is coincidentVertexRepresentatives(mesh.positions), which
+// the caller usually needs again (rimVertices).
+std::vector<Rim> meshRims(const Mesh& mesh, const std::vector<int>& representative);
 
 struct RimMatchOptions {
   // A source rim (as warped) and a target rim match when each one's mean
@@ -44,12 +46,12 @@ std::vector<int> matchRims(const std::vector<Rim>& source_rims, const Eigen::Mat
 
 // Per vertex of `mesh`: the rim it lies on (index into `rims`) or -1, and the
 // rim's unit tangent there in the loop's direction (zero off the rims). Every
-// copy of a split rim point gets its point's.
+// copy of a split rim point gets its point's (`representative` as for meshRims).
 struct RimVertices {
   std::vector<int> rim;
   Eigen::MatrixX3d tangent;
 };
-RimVertices rimVertices(const std::vector<Rim>& rims, const Mesh& mesh);
+RimVertices rimVertices(const std::vector<Rim>& rims, const Mesh& mesh, const std::vector<int>& representative);
 
 // Closest point of `p` on the rim's polyline among the edges running the way
 // of `tangent` (dot > 0), as a point on the face owning that edge

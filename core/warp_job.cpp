@@ -218,30 +218,41 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
   // the projection sample is a maximal independent set of it (greedy in index
   // order: deterministic, every vertex sampled or next to a sampled one).
   {
-    // Two passes over the triangles into one flat array (each vertex's slots
-    // sized by its corner count), then sorted and de-duplicated in place.
+    // Directed edges bucketed twice (a counting sort by the neighbour, then
+    // stably by the vertex), so each vertex's neighbours come out ascending
+    // and de-duplicate in one pass.
     const Eigen::Index nv = prepared.mesh.vertexCount();
     const Eigen::MatrixX3i& tris = prepared.mesh.triangles;
-    std::vector<int> start(static_cast<std::size_t>(nv) + 1, 0);
-    for (Eigen::Index f = 0; f < tris.rows(); ++f) {
-      for (int k = 0; k < 3; ++k) start[static_cast<std::size_t>(tris(f, k)) + 1] += 2;
-    }
-    for (std::size_t v = 0; v < static_cast<std::size_t>(nv); ++v) start[v + 1] += start[v];
-    std::vector<int> slots(static_cast<std::size_t>(start.back()));
-    std::vector<int> fill(start.begin(), start.end() - 1);
+    using Index = std::size_t;
+    const auto n = static_cast<Index>(nv);
+    auto bucketStarts = [n](const std::vector<int>& keys) {
+      std::vector<int> start(n + 1, 0);
+      for (int k : keys) ++start[static_cast<Index>(k) + 1];
+      for (Index v = 0; v < n; ++v) start[v + 1] += start[v];
+      return start;
+    };
+    std::vector<int> from, to;
+    from.reserve(static_cast<Index>(tris.size()) * 2);
+    to.reserve(from.capacity());
     for (Eigen::Index f = 0; f < tris.rows(); ++f) {
       for (int k = 0; k < 3; ++k) {
         const int a = tris(f, k), b = tris(f, (k + 1) % 3);
         if (a == b) continue;
-        slots[static_cast<std::size_t>(fill[static_cast<std::size_t>(a)]++)] = b;
-        slots[static_cast<std::size_t>(fill[static_cast<std::size_t>(b)]++)] = a;
+        from.push_back(a), to.push_back(b);
+        from.push_back(b), to.push_back(a);
       }
     }
-    prepared.neighbor_offsets.assign(static_cast<std::size_t>(nv) + 1, 0);
-    prepared.neighbor_indices.reserve(slots.size() / 2);
-    for (std::size_t v = 0; v < static_cast<std::size_t>(nv); ++v) {
-      const auto first = slots.begin() + start[v], last = slots.begin() + fill[v];
-      std::sort(first, last);
+    std::vector<Index> by_neighbour(from.size());
+    std::vector<int> fill = bucketStarts(to);
+    for (Index e = 0; e < to.size(); ++e) by_neighbour[static_cast<Index>(fill[static_cast<Index>(to[e])]++)] = e;
+    const std::vector<int> start = bucketStarts(from);
+    fill.assign(start.begin(), start.end() - 1);
+    std::vector<int> sorted(from.size());
+    for (Index e : by_neighbour) sorted[static_cast<Index>(fill[static_cast<Index>(from[e])]++)] = to[e];
+    prepared.neighbor_offsets.assign(n + 1, 0);
+    prepared.neighbor_indices.reserve(sorted.size() / 2);
+    for (Index v = 0; v < n; ++v) {
+      const auto first = sorted.begin() + start[v], last = sorted.begin() + start[v + 1];
       prepared.neighbor_indices.insert(prepared.neighbor_indices.end(), first, std::unique(first, last));
       prepared.neighbor_offsets[v + 1] = static_cast<int>(prepared.neighbor_indices.size());
     }
@@ -254,8 +265,11 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
       }
     }
   }
-  prepared.rims = meshRims(prepared.mesh);
-  if (!prepared.rims.empty()) prepared.rim_vertices = rimVertices(prepared.rims, prepared.mesh);
+  {
+    const std::vector<int> representative = coincidentVertexRepresentatives(prepared.mesh.positions);
+    prepared.rims = meshRims(prepared.mesh, representative);
+    if (!prepared.rims.empty()) prepared.rim_vertices = rimVertices(prepared.rims, prepared.mesh, representative);
+  }
   if (prepared.mesh.regions.size() > 0) {
     prepared.face_regions = faceRegionSets(prepared.mesh.regions, prepared.mesh.triangles);
     prepared.region_bits = vertexRegionBits(prepared.mesh.regions);
@@ -425,7 +439,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
     std::vector<int> rim_match(source.rims.size(), -1);
     const Eigen::Matrix3d rim_frame = result.landmark_warp.affine().topRows<3>();
     if (options.rim_matching && !source.rims.empty()) {
-      target_rims = meshRims(*matched);
+      target_rims = meshRims(*matched, coincidentVertexRepresentatives(matched->positions));
       rim_match = matchRims(source.rims, result.warped_positions, target_rims, matched->positions, options.rims);
       report.matched_rims = static_cast<int>(std::count_if(rim_match.begin(), rim_match.end(), [](int t) { return t >= 0; }));
     }

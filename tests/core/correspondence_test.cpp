@@ -253,7 +253,8 @@ TEST(Correspondence, MatchedRimsPullTheNeckCutOntoTheTargets) {
   EXPECT_GE(on->report.matched_rims, 1);
   // Mean distance of the guide's outer-rim vertices (the source's longest
   // rim: neck cut and back opening) to the target's outer rim.
-  const std::vector<core::Rim> target_rims = core::meshRims(target.mesh);
+  const std::vector<core::Rim> target_rims =
+      core::meshRims(target.mesh, core::coincidentVertexRepresentatives(target.mesh.positions));
   auto rimGap = [&](const core::WarpResult& r) {
     double sum = 0.0;
     for (int v : prepared->rims[0].vertices) {
