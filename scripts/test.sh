@@ -15,8 +15,10 @@ bash docker/install-deps.sh
 JOBS="$(nproc 2>/dev/null || echo 2)"
 if [ "$MODE" = asan ]; then
   # -O1 keeps asserts (no NDEBUG) and sanitizer reports exact enough, and makes
-  # the Eigen-heavy jobs of the service tests ~10x faster than -O0.
-  cmake -S . -B build/asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g" \
+  # the Eigen-heavy jobs of the service tests ~10x faster than -O0. -g1 (line
+  # tables: reports still name function, file and line) compiles ~1.5x faster
+  # than full debug info of Eigen's templates.
+  cmake -S . -B build/asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g1" \
     -DRIGPORT_SANITIZE=ON -DRIGPORT_WERROR=ON -DRIGPORT_BUILD_BENCHMARKS=OFF
   cmake --build build/asan -j "$JOBS"
   export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1"
