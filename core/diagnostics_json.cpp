@@ -54,6 +54,7 @@ Json warpJson(const WarpReport& r, const DiagnosticsContext& context) {
   c["refine_iterations"] = r.refine_iterations;
   c["region_matching"] = r.region_matching;
   c["matched_rims"] = r.matched_rims;
+  c["rims_in_warp"] = r.rims_in_warp;
   c["orientation_agreement"] = r.orientation_agreement;
   c["target_turned"] = r.target_turned;
   c["source_normals_against_winding"] = r.source_normals_against_winding;

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
+#include <vector>
 
 namespace core {
 
@@ -35,6 +37,38 @@ LoopPoint closestOnLoop(const Eigen::Vector3d& p, const Eigen::MatrixX3d& positi
   }
   return best;
 }
+
+// A closed polyline parametrised by arc length.
+class LoopArc {
+ public:
+  LoopArc(const std::vector<int>& loop, const Eigen::MatrixX3d& positions) : loop_(loop), positions_(positions) {
+    cumulative_.reserve(loop.size() + 1);
+    cumulative_.push_back(0.0);
+    for (std::size_t i = 0; i < loop.size(); ++i) {
+      cumulative_.push_back(cumulative_.back() +
+                            (positions.row(loop[(i + 1) % loop.size()]) - positions.row(loop[i])).norm());
+    }
+  }
+  // Edge index and parameter on it at `fraction` (wrapped into [0, 1)) of the length.
+  std::pair<std::size_t, double> at(double fraction) const {
+    const double length = cumulative_.back();
+    const double s = (fraction - std::floor(fraction)) * length;
+    const auto it = std::upper_bound(cumulative_.begin(), cumulative_.end(), s);
+    const std::size_t edge = std::min<std::size_t>(loop_.size() - 1, static_cast<std::size_t>(std::max<std::ptrdiff_t>(0, it - cumulative_.begin() - 1)));
+    const double span = cumulative_[edge + 1] - cumulative_[edge];
+    return {edge, span > 0.0 ? std::clamp((s - cumulative_[edge]) / span, 0.0, 1.0) : 0.0};
+  }
+  Eigen::RowVector3d point(const Eigen::MatrixX3d& positions, std::pair<std::size_t, double> where) const {
+    const auto [edge, t] = where;
+    return (1.0 - t) * positions.row(loop_[edge]) + t * positions.row(loop_[(edge + 1) % loop_.size()]);
+  }
+  Eigen::RowVector3d point(double fraction) const { return point(positions_, at(fraction)); }
+
+ private:
+  const std::vector<int>& loop_;
+  const Eigen::MatrixX3d& positions_;
+  std::vector<double> cumulative_;
+};
 
 // Mean distance from (at most 64 evenly spaced) vertices of loop `from` to the polyline `to`.
 double meanDistanceToLoop(const Eigen::MatrixX3d& from_positions, const std::vector<int>& from,
@@ -130,6 +164,47 @@ RimVertices rimVertices(const std::vector<Rim>& rims, const Mesh& mesh, const st
     out.rim[v] = out.rim[static_cast<std::size_t>(representative[v])];
     out.tangent.row(static_cast<Eigen::Index>(v)) = out.tangent.row(representative[v]);
   }
+  return out;
+}
+
+bool rimNearPoints(const Rim& rim, const Eigen::MatrixX3d& positions, const Eigen::MatrixX3d& points, double distance) {
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    const Eigen::Vector3d p = points.row(i).transpose();
+    if (closestOnLoop(p, positions, rim.vertices, [](const Eigen::Vector3d&) { return true; }).sq_distance <=
+        distance * distance) {
+      return true;
+    }
+  }
+  return false;
+}
+
+RimPairs pairRimPoints(const Rim& source_rim, const Eigen::MatrixX3d& source_positions,
+                       const Eigen::MatrixX3d& warped_source, const Rim& target_rim,
+                       const Eigen::MatrixX3d& target_positions, int count) {
+  RimPairs out;
+  if (count <= 0 || source_rim.vertices.size() < 2 || target_rim.vertices.size() < 2) return out;
+  const LoopArc source(source_rim.vertices, warped_source), target(target_rim.vertices, target_positions);
+  out.source.resize(count, 3);
+  Eigen::MatrixX3d warped(count, 3);
+  for (int k = 0; k < count; ++k) {
+    const auto where = source.at((k + 0.5) / count);
+    out.source.row(k) = source.point(source_positions, where);
+    warped.row(k) = source.point(warped_source, where);
+  }
+  // The offset: a search over steps a quarter of the pairs' spacing.
+  const int steps = 4 * count;
+  double best_cost = std::numeric_limits<double>::infinity();
+  double best_offset = 0.0;
+  for (int j = 0; j < steps; ++j) {
+    const double offset = static_cast<double>(j) / steps;
+    double cost = 0.0;
+    for (int k = 0; k < count && cost < best_cost; ++k) {
+      cost += (warped.row(k) - target.point((k + 0.5) / count + offset)).squaredNorm();
+    }
+    if (cost < best_cost) best_cost = cost, best_offset = offset;
+  }
+  out.target.resize(count, 3);
+  for (int k = 0; k < count; ++k) out.target.row(k) = target.point((k + 0.5) / count + best_offset);
   return out;
 }
 

@@ -30,8 +30,11 @@ struct RimMatchOptions {
   // A source rim (as warped) and a target rim match when each one's mean
   // distance to the other is within this fraction of the source rim's rms
   // radius, their lengths are within max_length_ratio of each other, and each
-  // is the other's closest candidate.
-  double max_mismatch = 0.5;
+  // is the other's closest candidate. A full radius (not half) lets the neck
+  // of an identity exaggerated 3x match (ICT: the landmark warp leaves it
+  // 0.5-1 radius off); the eyes and mouth, a few centimetres apart, cannot be
+  // confused at their own radius.
+  double max_mismatch = 1.0;
   double max_length_ratio = 1.5;
   // Only the longest rims of each side are candidates (a face has a handful;
   // a scan full of small holes or an unwelded soup must not cost a quadratic
@@ -60,5 +63,24 @@ RimVertices rimVertices(const std::vector<Rim>& rims, const Mesh& mesh, const st
 // opposite ways: the direction keeps a point of one side off the other.
 SurfacePoint closestPointOnRim(const Eigen::Vector3d& p, const Eigen::Vector3d& tangent, const Rim& rim,
                                const Mesh& mesh);
+
+// Points paired along a source rim and its matched target rim: `count`
+// points at equal arc-length steps of the source rim as warped
+// (`warped_source`), on the source mesh (`source_positions`), and the target
+// rim's points at the same arc-length fractions, shifted round the loop by
+// the offset that brings the two sets closest (both loops run their faces'
+// way). The offset makes the pairs independent of where the warp left the
+// rim along the target's: a rim slid round or along a tube still pairs point
+// for point.
+struct RimPairs {
+  Eigen::MatrixX3d source;  // count x 3, on the source mesh
+  Eigen::MatrixX3d target;  // count x 3, on the target rim
+};
+// True when any of `points` lies within `distance` of the rim's polyline.
+bool rimNearPoints(const Rim& rim, const Eigen::MatrixX3d& positions, const Eigen::MatrixX3d& points, double distance);
+
+RimPairs pairRimPoints(const Rim& source_rim, const Eigen::MatrixX3d& source_positions,
+                       const Eigen::MatrixX3d& warped_source, const Rim& target_rim,
+                       const Eigen::MatrixX3d& target_positions, int count);
 
 }  // namespace core

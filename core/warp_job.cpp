@@ -411,6 +411,53 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
     report.warnings.push_back(source.label + ": " + against(source.normals_against_winding, source.mesh.vertexCount()) +
                               ": matched by their face normals there");
   }
+  // Rims matched as warped by the landmarks. Those no landmark pins (a neck
+  // cut) join the warp as paired points: far from the face's landmarks the
+  // warp only extrapolates, and a neck shaped otherwise lands on the wrong
+  // side of the target's, where projection would keep it. In the dense-map
+  // rounds every matched rim's centres are put on the target's rim (the slide
+  // along a tube that projection cannot see).
+  std::vector<Rim> target_rims;
+  std::vector<int> rim_match(source.rims.size(), -1);
+  if (options.rim_matching && !source.rims.empty()) {
+    target_rims = meshRims(*matched, coincidentVertexRepresentatives(matched->positions));
+    rim_match = matchRims(source.rims, result.warped_positions, target_rims, matched->positions, options.rims);
+    report.matched_rims =
+        static_cast<int>(std::count_if(rim_match.begin(), rim_match.end(), [](int t) { return t >= 0; }));
+    if (options.rim_warp_points > 0) {
+      Eigen::MatrixX3d centres = pairs->source, targets = pairs->target;
+      const double pinned_within = 0.02 * source.diagonal;
+      for (std::size_t r = 0; r < source.rims.size(); ++r) {
+        const Rim& rim = source.rims[r];
+        if (rim_match[r] < 0 || rimNearPoints(rim, source.mesh.positions, pairs->source, pinned_within)) continue;
+        // No denser than the rim's own vertices (a small hole's pairs would crowd the TPS).
+        const int count = std::min(options.rim_warp_points, static_cast<int>(rim.vertices.size()));
+        const RimPairs rim_pairs =
+            pairRimPoints(rim, source.mesh.positions, result.warped_positions,
+                          target_rims[static_cast<std::size_t>(rim_match[r])], matched->positions, count);
+        const Eigen::Index n = centres.rows(), m = rim_pairs.source.rows();
+        centres.conservativeResize(n + m, 3);
+        targets.conservativeResize(n + m, 3);
+        centres.bottomRows(m) = rim_pairs.source;
+        targets.bottomRows(m) = rim_pairs.target;
+        ++report.rims_in_warp;
+      }
+      if (report.rims_in_warp > 0) {
+        TpsOptions rim_tps = tps_options;
+        rim_tps.leave_one_out = false;
+        auto rim_warp = fitTps(centres, targets, rim_tps);
+        if (rim_warp) {
+          result.landmark_warp = std::move(*rim_warp);
+          result.warped_positions = result.landmark_warp.apply(source.mesh.positions);
+          warped_normals = computeVertexNormals(result.warped_positions, tris);
+        } else {
+          report.rims_in_warp = 0;
+          report.warnings.push_back(target_label + ": the landmark warp with the matched rims' points failed (" +
+                                    rim_warp.error().message + "): the landmarks alone warp the source");
+        }
+      }
+    }
+  }
   // Targets of the dense map's landmark centres: the job's target landmarks,
   // and the warp's image for source landmarks the target does not use.
   Eigen::MatrixX3d pinned = result.landmark_warp.apply(source.landmark_positions);
@@ -433,16 +480,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
       centre_positions.row(nl + static_cast<Eigen::Index>(k)) = result.warped_positions.row(v);
       centre_normals.row(nl + static_cast<Eigen::Index>(k)) = warped_normals.row(v);
     }
-    // Rims matched as warped by the landmarks: their centres are put on the
-    // target's rims (the slide along a tube that projection cannot see).
-    std::vector<Rim> target_rims;
-    std::vector<int> rim_match(source.rims.size(), -1);
     const Eigen::Matrix3d rim_frame = result.landmark_warp.affine().topRows<3>();
-    if (options.rim_matching && !source.rims.empty()) {
-      target_rims = meshRims(*matched, coincidentVertexRepresentatives(matched->positions));
-      rim_match = matchRims(source.rims, result.warped_positions, target_rims, matched->positions, options.rims);
-      report.matched_rims = static_cast<int>(std::count_if(rim_match.begin(), rim_match.end(), [](int t) { return t >= 0; }));
-    }
     TpsWarp dense;
     for (int it = 0; it < options.refine_iterations; ++it) {
       const Eigen::MatrixX3d samples = centre_positions.bottomRows(nc - nl);

@@ -84,15 +84,24 @@ struct WarpOptions {
   // match (projection, refinement, location) stays within compatible regions;
   // see faceRegionSets. false: labels are ignored.
   bool region_matching = true;
-  // Refinement: source rims (neck cut, mouth, eyes) matched to target rims
-  // after the landmark warp (matchRims) pull their dense centres onto those
-  // rims instead of the surface. Only there: snapping the guide's rim
+  // Source rims (neck cut, mouth, eyes) matched to target rims after the
+  // landmark warp (matchRims); those no landmark pins join the warp (below),
+  // and in the refinement every matched rim pulls its dense centres onto its
+  // target rim instead of the surface. Only there: snapping the guide's rim
   // vertices themselves folds the triangles next to them (measured: 57 more
   // flipped triangles and eyeBlink_R E 0.18 -> 0.21 on a 10-landmark
   // target), while the dense map carries the rim's pull smoothly.
   // false: rims are matched like any other surface.
   bool rim_matching = true;
   RimMatchOptions rims;
+  // Matched rims that no source landmark lies on (within 2% of the source
+  // diagonal: a neck cut, not the mouth or eyes) join the landmark warp with
+  // this many point pairs each, at most one per rim vertex (pairRimPoints):
+  // far from the face's landmarks the warp only extrapolates. Rims the
+  // landmarks pin are left out: pairs a few millimetres from a landmark's
+  // exact target would bend the warp between them. 0: rims only act in the
+  // refinement.
+  int rim_warp_points = 24;
   ProjectionOptions projection;
   LocateOptions locate;
   int threads = 0;                     // 0 = hardware threads (stages that run in parallel)
@@ -120,7 +129,8 @@ struct WarpReport {
   int collapsed_triangles = 0;
   int unmatched_source_vertices = 0;
   int low_confidence_vertices = 0;
-  int matched_rims = 0;               // source rims whose dense centres were pulled onto a target rim
+  int matched_rims = 0;               // source rims matched to a target rim (matchRims)
+  int rims_in_warp = 0;               // of those, rims whose paired points joined the landmark warp
   int refine_iterations = 0;
   bool region_matching = false;       // matches were region-constrained
   // faceOrientationAgreement of the target after the landmark warp (+1: its
@@ -148,6 +158,8 @@ struct WarpReport {
 };
 
 struct WarpResult {
+  // TPS from the source landmarks to the target's, with the paired points of
+  // rims no landmark pins (WarpOptions::rim_warp_points) when there are any.
   TpsWarp landmark_warp;
   Eigen::MatrixX3d warped_positions;   // #Vs by 3 source after the (last) warp
   GuideModel guide;

@@ -70,6 +70,7 @@ void BM_WarpCorrespondPlain(benchmark::State& state) {
   core::WarpOptions options;
   options.refine_iterations = 0;
   options.local_rounds = 0;
+  options.rim_matching = false;
   runCase(state, options);
 }
 BENCHMARK(BM_WarpCorrespondPlain)->Unit(benchmark::kMillisecond);

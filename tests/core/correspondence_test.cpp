@@ -272,6 +272,53 @@ TEST(Correspondence, MatchedRimsPullTheNeckCutOntoTheTargets) {
   EXPECT_LT(on->report.low_confidence_vertices, off->report.low_confidence_vertices);
 }
 
+// A neck pushed far forward below the chin (as on a strongly exaggerated
+// identity): the face's landmarks say nothing of it, so the landmark warp
+// leaves the source's neck on the wrong side of the target's, where closest
+// points hold it. The neck cut, matched and paired point for point, joins the
+// warp and brings it over. Same topology: target vertex v is source vertex v.
+TEST(Correspondence, NeckCutJoinsTheWarpWhenNoLandmarkPinsIt) {
+  const auto source = core::generateHead();
+  core::SyntheticHead target = source;
+  const double bottom = source.mesh.positions.col(1).minCoeff(), chin = 0.55 * bottom;
+  const double depth = source.mesh.positions.col(2).maxCoeff() - source.mesh.positions.col(2).minCoeff();
+  std::vector<Eigen::Index> neck;  // sheared forward, by 3/4 of the head's depth at the cut
+  for (Eigen::Index v = 0; v < target.mesh.positions.rows(); ++v) {
+    const double below = chin - target.mesh.positions(v, 1);
+    if (below <= 0.0) continue;
+    target.mesh.positions(v, 2) += 0.75 * depth * below / (chin - bottom);
+    neck.push_back(v);
+  }
+  target.mesh.normals = core::computeVertexNormals(target.mesh.positions, target.mesh.triangles);
+  auto prepared = core::prepareSource(source.mesh, source.landmarks, "source");
+  ASSERT_TRUE(prepared);
+  core::WarpOptions landmarks_only;
+  landmarks_only.rim_warp_points = 0;
+  auto off = core::runWarp(*prepared, target.mesh, target.landmarks, "neck_forward", landmarks_only);
+  auto on = core::runWarp(*prepared, target.mesh, target.landmarks, "neck_forward");
+  ASSERT_TRUE(off && on);
+  EXPECT_EQ(off->report.rims_in_warp, 0);
+  EXPECT_EQ(on->report.rims_in_warp, 1);  // the outer rim; the mouth and eyes carry landmarks
+  auto neckSlide = [&](const core::WarpResult& r) {
+    double sum = 0.0;
+    for (Eigen::Index v : neck) {
+      const core::SurfacePoint& at = r.locations.on_source[static_cast<std::size_t>(v)];
+      if (!at.found()) {
+        sum += depth;
+        continue;
+      }
+      Eigen::RowVector3d p = Eigen::RowVector3d::Zero();
+      for (int c = 0; c < 3; ++c) p += at.barycentric(c) * source.mesh.positions.row(source.mesh.triangles(at.face, c));
+      sum += (p - source.mesh.positions.row(v)).norm();
+    }
+    return sum / static_cast<double>(neck.size());
+  };
+  const double slide_off = neckSlide(*off), slide_on = neckSlide(*on);
+  std::printf("[ neck forward ] %zu neck vertices, mean distance from their true source point %.4f -> %.4f "
+              "(head depth %.3f)\n", neck.size(), slide_off, slide_on, depth);
+  EXPECT_LT(slide_on, 0.5 * slide_off);
+}
+
 TEST(Correspondence, FoldsAreCounted) {
   const auto head = core::generateHead(core::HeadShape{}, core::HeadResolution{16, 16});
   Eigen::MatrixX3d crumpled = head.mesh.positions;

@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <numbers>
+
 #include "core/synthetic_head.h"
 #include "core/warp_job.h"
 
@@ -140,6 +143,36 @@ TEST(Rims, MatchedToTheirOwnAndNotToStrangers) {
   Eigen::MatrixX3d far = mesh.positions;
   far.col(2).array() += 100.0;
   EXPECT_EQ(core::matchRims(rims, far, rims, mesh.positions), (std::vector<int>{-1, -1}));
+}
+
+// A rim warped off its target (shifted along the tube's axis, and sampled
+// otherwise) pairs each point with the target point at its own place round
+// the loop, evenly spaced.
+TEST(Rims, PairedPointsKeepTheirPlaceRoundTheLoopWhereverTheWarpLeftIt) {
+  auto circle = [](int n, double start, double z) {
+    Eigen::MatrixX3d p(n, 3);
+    for (int i = 0; i < n; ++i) {
+      const double a = start + 2.0 * std::numbers::pi * i / n;
+      p.row(i) << 2.0 * std::cos(a), 2.0 * std::sin(a), z;
+    }
+    return p;
+  };
+  auto loopOf = [](int n) {
+    core::Rim rim;
+    for (int i = 0; i < n; ++i) rim.vertices.push_back(i);
+    return rim;
+  };
+  const Eigen::MatrixX3d source = circle(48, 0.0, 0.0), target = circle(30, 0.3, 0.0);
+  const Eigen::MatrixX3d warped = circle(48, 0.0, 3.0);  // the warp left the rim 1.5 radii down the tube
+  const core::RimPairs pairs = core::pairRimPoints(loopOf(48), source, warped, loopOf(30), target, 16);
+  ASSERT_EQ(pairs.source.rows(), 16);
+  ASSERT_EQ(pairs.target.rows(), 16);
+  const double spacing = 2.0 * 2.0 * std::numbers::pi / 16;
+  for (Eigen::Index k = 0; k < 16; ++k) {
+    // Within a quarter spacing (the offset's step) plus the polygons' chords.
+    EXPECT_LT((pairs.target.row(k) - pairs.source.row(k)).norm(), 0.3 * spacing) << "pair " << k;
+    EXPECT_NEAR((pairs.source.row((k + 1) % 16) - pairs.source.row(k)).norm(), spacing, 0.05 * spacing) << "pair " << k;
+  }
 }
 
 }  // namespace

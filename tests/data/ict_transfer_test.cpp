@@ -105,6 +105,7 @@ TEST_P(IctTransfer, ShapesBeatThePlainMethodAndOutputIsValid) {
   core::TransferOptions plain_options;
   plain_options.warp.refine_iterations = 0;
   plain_options.warp.local_rounds = 0;
+  plain_options.warp.rim_matching = false;
   plain_options.warp.locate.max_relative_distance = 0.0;
   plain_options.warp.locate.max_normal_angle_deg = 180.0;
   plain_options.warp.projection.max_normal_angle_deg = 180.0;
