@@ -139,7 +139,9 @@ struct RetargetOptions {
   int rest_frame = 0;                               // 0-based frame whose marker positions are the neutral face
   // Remove rigid head motion first: each frame's markers are rigidly aligned
   // (Umeyama, rotation + translation) to the rest frame's on `head_markers`
-  // (names; empty = all markers), so only the expression is retargeted. The
+  // (names; empty = chosen from the clip: the half of the markers the
+  // expression moves least, so a jaw opening is not read as a nod), so only
+  // the expression is retargeted. The
   // paper's tool (algorithm 4.1) transfers raw offsets; a kernel without a
   // polynomial cannot move the whole head, so head motion would smear the face.
   bool remove_head_motion = true;
@@ -178,6 +180,7 @@ struct RetargetReport {
   double jacobian_max_singular = 0.0;
   double max_marker_displacement = 0.0;   // calibrated, model units
   bool head_motion_removed = false;
+  std::vector<std::string> head_markers;  // the markers head motion was measured on
   double head_max_rotation_deg = 0.0;     // largest rigid head rotation from the rest frame (measured either way)
   double head_max_translation = 0.0;      // largest rigid head translation, model units
 

@@ -219,6 +219,46 @@ TEST(Retarget, CalibrationUndoesMocapUnitsRotationAndOffset) {
   EXPECT_LT(r.marker_max_residual, 1e-9);
 }
 
+// Head motion is found on the markers the expression leaves still, without
+// being told which: the jaw clip with a nod and a turn added (mocap space)
+// retargets as the plain jaw clip. Aligned on all markers, the fit turns the
+// head with the jaw and leaves the still markers moving.
+TEST(Retarget, HeadMotionIsMeasuredOnTheMarkersTheExpressionLeavesStill) {
+  const int frames = 9;
+  core::MarkerTrajectories clip = jawOpenClip(markerSet(), frames);
+  const Eigen::Vector3d pivot = clip.positions.block(0, 0, 1, 3).transpose();
+  for (int f = 1; f < frames; ++f) {
+    const Eigen::Matrix3d turn = (Eigen::AngleAxisd(0.015 * f, Eigen::Vector3d::UnitX()) *
+                                  Eigen::AngleAxisd(-0.01 * f, Eigen::Vector3d::UnitY())).toRotationMatrix();
+    for (Eigen::Index i = 0; i < clip.positions.cols() / 3; ++i) {
+      const Eigen::Vector3d p = clip.positions.block(f, 3 * i, 1, 3).transpose();
+      clip.positions.block(f, 3 * i, 1, 3) = (turn * (p - pivot) + pivot + Eigen::Vector3d(0.2 * f, 0.0, 0.1)).transpose();
+    }
+  }
+  const core::MarkerDistances& distances = distancesFor(core::DistanceMethod::kEuclidean);
+  auto found = core::retargetMocap(head().mesh, distances, clip, core::RetargetOptions{});
+  ASSERT_TRUE(found) << found.error().message;
+  for (const std::string& name : found->report.head_markers) EXPECT_FALSE(isMoving(name)) << name;
+  EXPECT_GT(found->report.head_max_rotation_deg, 5.0);
+  core::RetargetOptions everything;
+  for (const auto& lm : markerSet().landmarks) everything.head_markers.push_back(lm.name);
+  auto all = core::retargetMocap(head().mesh, distances, clip, everything);
+  ASSERT_TRUE(all) << all.error().message;
+  // Calibrated displacements at the last frame: the jaw's, and nothing else.
+  auto worstStill = [](const core::RetargetOutput& out) {
+    double worst = 0.0;
+    for (std::size_t i = 0; i < markerSet().landmarks.size(); ++i) {
+      if (isMoving(markerSet().landmarks[i].name)) continue;
+      worst = std::max(worst, out.marker_displacements.block(frames - 1, 3 * static_cast<Eigen::Index>(i), 1, 3).norm());
+    }
+    return worst;
+  };
+  const int moving = markerSet().indexOf("mouth_outer_9");
+  EXPECT_TRUE(matricesNear(found->marker_displacements.block(frames - 1, 3 * moving, 1, 3), kJawOpen.transpose(), 1e-9));
+  EXPECT_LT(worstStill(*found), 1e-9);
+  EXPECT_GT(worstStill(*all), 0.05 * kJawOpen.norm());
+}
+
 core::RetargetOptions compressed(double tolerance, core::BakeError metric = core::BakeError::kRelativeFrobenius) {
   core::RetargetOptions o = jawOptions();
   o.bake.tolerance = tolerance;
