@@ -350,7 +350,6 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
                               ": check that its left/right landmark names are not swapped (fine only if the "
                               "target is a mirror-image character)");
   }
-  result.warped_positions = result.landmark_warp.apply(source.mesh.positions);
   report.warp_ms = msSince(t0);
 
   // --- correspond: refine through the dense map, project, locate
@@ -358,13 +357,29 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   ProjectionOptions projection = options.projection;
   projection.threads = options.threads;
   const Eigen::MatrixX3i& tris = source.mesh.triangles;
-  Eigen::MatrixX3d warped_normals = computeVertexNormals(result.warped_positions, tris);
+  // The whole source is warped once the rims have had their say (below);
+  // until then only the vertices sampled here and the rims' are.
   // A target whose faces face the other way (winding reversed on export, or
   // a mirroring warp) would fail every normal test below and be matched
   // across the surface; it is matched as a copy turned the source's way
-  // (same faces, corners 1 and 2 swapped, normals negated).
-  report.orientation_agreement =
-      faceOrientationAgreement(result.warped_positions, warped_normals, target_index, target);
+  // (same faces, corners 1 and 2 swapped, normals negated). The sampled
+  // vertices' normals are carried by the warp's Jacobian (J^-T n).
+  {
+    constexpr int kOrientationSamples = 256;
+    const Eigen::Index nv = source.mesh.vertexCount();
+    const Eigen::Index stride = std::max<Eigen::Index>(1, nv / kOrientationSamples);
+    std::vector<int> rows;
+    for (Eigen::Index v = 0; v < nv; v += stride) rows.push_back(static_cast<int>(v));
+    const Eigen::MatrixX3d sampled = selectRows(source.mesh.positions, rows);
+    const std::vector<Eigen::Matrix3d> jacobians = result.landmark_warp.jacobians(sampled);
+    Eigen::MatrixX3d normals(sampled.rows(), 3);
+    for (Eigen::Index k = 0; k < sampled.rows(); ++k) {
+      const Eigen::Vector3d n = source.mesh.normals.row(rows[static_cast<std::size_t>(k)]).transpose();
+      normals.row(k) = (jacobians[static_cast<std::size_t>(k)].inverse().transpose() * n).normalized().transpose();
+    }
+    report.orientation_agreement = faceOrientationAgreement(result.landmark_warp.apply(sampled), normals, target_index,
+                                                            target, static_cast<int>(rows.size()));
+  }
   const std::string facing_against =
       std::to_string(std::lround(50.0 * (1.0 - report.orientation_agreement))) + "% of sampled matches face against it";
   Mesh adjusted;  // the target as matched, when that differs from the file
@@ -420,8 +435,17 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   std::vector<Rim> target_rims;
   std::vector<int> rim_match(source.rims.size(), -1);
   if (options.rim_matching && !source.rims.empty()) {
+    // The source's rim vertices as the landmarks warp them (the only rows
+    // matchRims and pairRimPoints read; the others keep source positions).
+    Eigen::MatrixX3d rims_warped = source.mesh.positions;
+    {
+      std::vector<int> rows;
+      for (const Rim& rim : source.rims) rows.insert(rows.end(), rim.vertices.begin(), rim.vertices.end());
+      const Eigen::MatrixX3d warped = result.landmark_warp.apply(selectRows(source.mesh.positions, rows));
+      for (std::size_t k = 0; k < rows.size(); ++k) rims_warped.row(rows[k]) = warped.row(static_cast<Eigen::Index>(k));
+    }
     target_rims = meshRims(*matched, coincidentVertexRepresentatives(matched->positions));
-    rim_match = matchRims(source.rims, result.warped_positions, target_rims, matched->positions, options.rims);
+    rim_match = matchRims(source.rims, rims_warped, target_rims, matched->positions, options.rims);
     report.matched_rims =
         static_cast<int>(std::count_if(rim_match.begin(), rim_match.end(), [](int t) { return t >= 0; }));
     if (options.rim_warp_points > 0) {
@@ -433,7 +457,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
         // No denser than the rim's own vertices (a small hole's pairs would crowd the TPS).
         const int count = std::min(options.rim_warp_points, static_cast<int>(rim.vertices.size()));
         const RimPairs rim_pairs =
-            pairRimPoints(rim, source.mesh.positions, result.warped_positions,
+            pairRimPoints(rim, source.mesh.positions, rims_warped,
                           target_rims[static_cast<std::size_t>(rim_match[r])], matched->positions, count);
         const Eigen::Index n = centres.rows(), m = rim_pairs.source.rows();
         centres.conservativeResize(n + m, 3);
@@ -448,8 +472,6 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
         auto rim_warp = fitTps(centres, targets, rim_tps);
         if (rim_warp) {
           result.landmark_warp = std::move(*rim_warp);
-          result.warped_positions = result.landmark_warp.apply(source.mesh.positions);
-          warped_normals = computeVertexNormals(result.warped_positions, tris);
         } else {
           report.rims_in_warp = 0;
           report.warnings.push_back(target_label + ": the landmark warp with the matched rims' points failed (" +
@@ -458,6 +480,8 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
       }
     }
   }
+  result.warped_positions = result.landmark_warp.apply(source.mesh.positions);
+  Eigen::MatrixX3d warped_normals = computeVertexNormals(result.warped_positions, tris);
   // Targets of the dense map's landmark centres: the job's target landmarks,
   // and the warp's image for source landmarks the target does not use.
   Eigen::MatrixX3d pinned = result.landmark_warp.apply(source.landmark_positions);
