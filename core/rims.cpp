@@ -37,6 +37,7 @@ LoopPoint closestOnLoop(const Eigen::Vector3d& p, const Eigen::MatrixX3d& positi
   }
   return best;
 }
+constexpr auto kAnyEdge = [](const Eigen::Vector3d&) { return true; };
 
 // A closed polyline parametrised by arc length.
 class LoopArc {
@@ -53,8 +54,8 @@ class LoopArc {
   std::pair<std::size_t, double> at(double fraction) const {
     const double length = cumulative_.back();
     const double s = (fraction - std::floor(fraction)) * length;
-    const auto it = std::upper_bound(cumulative_.begin(), cumulative_.end(), s);
-    const std::size_t edge = std::min<std::size_t>(loop_.size() - 1, static_cast<std::size_t>(std::max<std::ptrdiff_t>(0, it - cumulative_.begin() - 1)));
+    const auto after = std::upper_bound(cumulative_.begin(), cumulative_.end(), s) - cumulative_.begin();
+    const std::size_t edge = std::min(loop_.size() - 1, static_cast<std::size_t>(std::max<std::ptrdiff_t>(0, after - 1)));
     const double span = cumulative_[edge + 1] - cumulative_[edge];
     return {edge, span > 0.0 ? std::clamp((s - cumulative_[edge]) / span, 0.0, 1.0) : 0.0};
   }
@@ -78,7 +79,7 @@ double meanDistanceToLoop(const Eigen::MatrixX3d& from_positions, const std::vec
   int count = 0;
   for (std::size_t i = 0; i < from.size(); i += stride) {
     const Eigen::Vector3d p = from_positions.row(from[i]).transpose();
-    sum += std::sqrt(closestOnLoop(p, to_positions, to, [](const Eigen::Vector3d&) { return true; }).sq_distance);
+    sum += std::sqrt(closestOnLoop(p, to_positions, to, kAnyEdge).sq_distance);
     ++count;
   }
   return count > 0 ? sum / count : std::numeric_limits<double>::infinity();
@@ -170,10 +171,7 @@ RimVertices rimVertices(const std::vector<Rim>& rims, const Mesh& mesh, const st
 bool rimNearPoints(const Rim& rim, const Eigen::MatrixX3d& positions, const Eigen::MatrixX3d& points, double distance) {
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
     const Eigen::Vector3d p = points.row(i).transpose();
-    if (closestOnLoop(p, positions, rim.vertices, [](const Eigen::Vector3d&) { return true; }).sq_distance <=
-        distance * distance) {
-      return true;
-    }
+    if (closestOnLoop(p, positions, rim.vertices, kAnyEdge).sq_distance <= distance * distance) return true;
   }
   return false;
 }
