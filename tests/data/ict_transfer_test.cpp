@@ -122,10 +122,17 @@ TEST_P(IctTransfer, ShapesBeatThePlainMethodAndOutputIsValid) {
               "still-lid p95 %.2f%% (plain %.2f%%) | inpainted %d\n",
               name.c_str(), e.median(), e.worst(), p.median(), p.worst(), 100 * jaw, 100 * jaw_p, 100 * blink,
               100 * blink_p, ours->report.inpainted_vertices);
-  // Never meaningfully worse than the plain method (measured: better on 8 of
-  // the 9 ICT targets, level on the coarsest remesh).
+  // Never meaningfully worse than the plain method (measured: better median
+  // and worst on all 9 ICT targets).
   EXPECT_LE(e.median(), p.median() + 0.005);
   EXPECT_LE(e.worst(), p.worst() + 0.005);
+  // Lips and lids that the ground truth keeps still stay still on the
+  // remeshed targets: within 3% of the moving part's mean motion (measured
+  // 0.41-1.76% lips, 0.44-1.86% lids).
+  if (name.ends_with("_remesh") || name.starts_with("sparse")) {
+    EXPECT_LE(jaw, 0.03) << "jawOpen";
+    EXPECT_LE(blink, 0.03) << "eyeBlink_L/R";
+  }
 
   // Skin rules and the Khronos validator on the written GLB.
   const auto dir = rigport_test::makeTempDir("out");
