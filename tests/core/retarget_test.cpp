@@ -406,7 +406,8 @@ TEST(Retarget, OutputIsAValidGlbWithDeterministicBytes) {
   // Diagnostics JSON with the stable keys.
   const std::string json = core::formatRetargetDiagnostics(out->report, {{"write", 1.0}});
   for (const char* key : {"\"method\": \"hybrid\"", "\"marker_max_residual\"", "\"rank\"", "\"geodesic_regions\"",
-                          "\"timings_ms\"", "\"factorise\"", "\"write\"", "\"head_max_rotation_deg\""}) {
+                          "\"timings_ms\"", "\"factorise\"", "\"write\"", "\"head_max_rotation_deg\"",
+                          "\"head_markers\""}) {
     EXPECT_NE(json.find(key), std::string::npos) << key;
   }
   // Exact mode output is valid too.
