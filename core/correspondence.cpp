@@ -51,15 +51,12 @@ GuideModel projectToTarget(const Eigen::MatrixX3d& warped_positions, const Eigen
   return guide;
 }
 
-double faceOrientationAgreement(const Eigen::MatrixX3d& warped_positions, const Eigen::MatrixX3d& warped_normals,
-                                const ClosestPointIndex& target_index, const Mesh& target, int samples) {
-  const Eigen::Index nv = warped_positions.rows();
-  if (nv == 0 || samples <= 0) return 0.0;
-  const Eigen::Index stride = std::max<Eigen::Index>(1, nv / samples);
+double faceOrientationAgreement(const Eigen::MatrixX3d& warped_points, const Eigen::MatrixX3d& warped_normals,
+                                const ClosestPointIndex& target_index, const Mesh& target) {
   double sum = 0.0;
   int votes = 0;
-  for (Eigen::Index v = 0; v < nv; v += stride) {
-    const SurfacePoint sp = target_index.closestPoint(warped_positions.row(v).transpose());
+  for (Eigen::Index v = 0; v < warped_points.rows(); ++v) {
+    const SurfacePoint sp = target_index.closestPoint(warped_points.row(v).transpose());
     if (!sp.found()) continue;
     const Eigen::Vector3i t = target.triangles.row(sp.face);
     const Eigen::Vector3d a = target.positions.row(t(0)), b = target.positions.row(t(1)), c = target.positions.row(t(2));

@@ -53,13 +53,14 @@ GuideModel projectToTarget(const Eigen::MatrixX3d& warped_positions, const Eigen
                            const ProjectionOptions& options, std::vector<std::uint64_t> region_masks = {});
 
 // How the target's faces face, seen from the warped source: the mean over
-// `samples` source vertices (evenly strided) of the sign of (warped normal .
-// normal of the closest target face, unfiltered). About +1 when the target's
-// winding agrees with the source's, about -1 when it is reversed (faces
-// inside out, or a warp that mirrors the source onto an unmirrored mesh),
-// near 0 when the target's own winding is inconsistent. 0 when nothing matched.
-double faceOrientationAgreement(const Eigen::MatrixX3d& warped_positions, const Eigen::MatrixX3d& warped_normals,
-                                const ClosestPointIndex& target_index, const Mesh& target, int samples = 256);
+// the given points (warped source vertices, a sample chosen by the caller)
+// of the sign of (their normal . normal of the closest target face,
+// unfiltered). About +1 when the target's winding agrees with the source's,
+// about -1 when it is reversed (faces inside out, or a warp that mirrors the
+// source onto an unmirrored mesh), near 0 when the target's own winding is
+// inconsistent. 0 when nothing matched.
+double faceOrientationAgreement(const Eigen::MatrixX3d& warped_points, const Eigen::MatrixX3d& warped_normals,
+                                const ClosestPointIndex& target_index, const Mesh& target);
 
 // Triangles of the guide whose orientation flips against the warped source
 // (folds of plain projection) and triangles that collapse to zero area.

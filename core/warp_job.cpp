@@ -29,6 +29,18 @@ Eigen::MatrixX3d selectRows(const Eigen::MatrixX3d& m, const std::vector<int>& r
   return out;
 }
 
+// Unit normals at `points` carried through `warp` (J^-T n).
+Eigen::MatrixX3d normalsThroughWarp(const TpsWarp& warp, const Eigen::MatrixX3d& points, const Eigen::MatrixX3d& normals) {
+  const std::vector<Eigen::Matrix3d> jacobians = warp.jacobians(points);
+  Eigen::MatrixX3d out(points.rows(), 3);
+  for (Eigen::Index k = 0; k < points.rows(); ++k) {
+    const Eigen::Vector3d n =
+        jacobians[static_cast<std::size_t>(k)].inverse().transpose() * normals.row(k).transpose();
+    out.row(k) = n.normalized().transpose();
+  }
+  return out;
+}
+
 // The entries `rows` of per-vertex masks (empty stays empty: no constraint).
 std::vector<std::uint64_t> selectMasks(const std::vector<std::uint64_t>& masks, const std::vector<int>& rows) {
   std::vector<std::uint64_t> out;
@@ -371,14 +383,9 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
     std::vector<int> rows;
     for (Eigen::Index v = 0; v < nv; v += stride) rows.push_back(static_cast<int>(v));
     const Eigen::MatrixX3d sampled = selectRows(source.mesh.positions, rows);
-    const std::vector<Eigen::Matrix3d> jacobians = result.landmark_warp.jacobians(sampled);
-    Eigen::MatrixX3d normals(sampled.rows(), 3);
-    for (Eigen::Index k = 0; k < sampled.rows(); ++k) {
-      const Eigen::Vector3d n = source.mesh.normals.row(rows[static_cast<std::size_t>(k)]).transpose();
-      normals.row(k) = (jacobians[static_cast<std::size_t>(k)].inverse().transpose() * n).normalized().transpose();
-    }
-    report.orientation_agreement = faceOrientationAgreement(result.landmark_warp.apply(sampled), normals, target_index,
-                                                            target, static_cast<int>(rows.size()));
+    report.orientation_agreement = faceOrientationAgreement(
+        result.landmark_warp.apply(sampled),
+        normalsThroughWarp(result.landmark_warp, sampled, selectRows(source.mesh.normals, rows)), target_index, target);
   }
   const std::string facing_against =
       std::to_string(std::lround(50.0 * (1.0 - report.orientation_agreement))) + "% of sampled matches face against it";
@@ -505,6 +512,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
       centre_normals.row(nl + static_cast<Eigen::Index>(k)) = warped_normals.row(v);
     }
     const Eigen::Matrix3d rim_frame = result.landmark_warp.affine().topRows<3>();
+    const Eigen::MatrixX3d sample_normals = selectRows(source.mesh.normals, source.dense_vertices);
     TpsWarp dense;
     for (int it = 0; it < options.refine_iterations; ++it) {
       const Eigen::MatrixX3d samples = centre_positions.bottomRows(nc - nl);
@@ -526,12 +534,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
       // Centres and their normals through the new map (normals by J^-T).
       const Eigen::MatrixX3d source_samples = source.dense_centres.bottomRows(nc - nl);
       centre_positions.bottomRows(nc - nl) = dense.apply(source_samples);
-      const auto jac = dense.jacobians(source_samples);
-      for (Eigen::Index k = 0; k < nc - nl; ++k) {
-        const int v = source.dense_vertices[static_cast<std::size_t>(k)];
-        Eigen::Vector3d n = jac[static_cast<std::size_t>(k)].inverse().transpose() * source.mesh.normals.row(v).transpose();
-        centre_normals.row(nl + k) = n.normalized().transpose();
-      }
+      centre_normals.bottomRows(nc - nl) = normalsThroughWarp(dense, source_samples, sample_normals);
       report.refine_iterations = it + 1;
     }
     result.warped_positions = dense.apply(source.mesh.positions);
