@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <random>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -86,6 +87,35 @@ TEST(Mesh, CopiesOfASplitPointShareTheNormalOfAllItsFaces) {
   // Per vertex, each copy only sees its own faces.
   const Eigen::MatrixX3d per_vertex = core::computeVertexNormals(split.positions, split.triangles);
   EXPECT_GT((per_vertex.row(0) - per_vertex.row(4)).norm(), 0.5);
+}
+
+// Against a brute-force search: points on a coarse grid (so many coincide,
+// some three or more times), -0 and +0 as one coordinate.
+TEST(Mesh, CoincidentVerticesShareTheirLowestIndex) {
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int> cell(-3, 3);
+  Eigen::MatrixX3d positions(3000, 3);
+  for (Eigen::Index v = 0; v < positions.rows(); ++v) {
+    for (int c = 0; c < 3; ++c) positions(v, c) = 0.25 * cell(rng);
+  }
+  positions.row(2998) << -0.0, 0.5, 0.25;
+  positions.row(2999) << 0.0, 0.5, 0.25;
+  const std::vector<int> representative = core::coincidentVertexRepresentatives(positions);
+  ASSERT_EQ(representative.size(), 3000u);
+  int shared = 0;
+  for (Eigen::Index v = 0; v < positions.rows(); ++v) {
+    Eigen::Index lowest = v;
+    for (Eigen::Index u = 0; u < v; ++u) {
+      if (positions.row(u) == positions.row(v)) {
+        lowest = u;
+        break;
+      }
+    }
+    ASSERT_EQ(representative[static_cast<std::size_t>(v)], lowest) << "vertex " << v;
+    shared += lowest != v ? 1 : 0;
+  }
+  EXPECT_GT(shared, 2000);  // 343 grid cells for 3000 points
+  EXPECT_EQ(representative[2999], representative[2998]);
 }
 
 // Authored normals may lean off the face normal (hard edges, smoothing
