@@ -200,7 +200,10 @@ int runRetarget(const RetargetArgs& args) {
   if (!mesh) return fail(mesh.error());
   auto markers = core::readLandmarks(args.markers);
   if (!markers) return fail(markers.error());
-  auto clip = core::readTrc(args.mocap);
+  core::TrcReadOptions clip_options;
+  clip_options.max_gap_frames = args.max_gap_frames;
+  clip_options.fill_long_gaps = args.fill_long_gaps;
+  auto clip = core::readTrc(args.mocap, clip_options);
   if (!clip) return fail(clip.error());
   core::RetargetOptions options;
   if (!args.stiffness.empty()) {
@@ -215,8 +218,12 @@ int runRetarget(const RetargetArgs& args) {
                mesh->mesh.vertexCount(), markers->landmarks.size(), args.mocap.filename().string(), clip->markerCount(),
                clip->frameCount(), clip->data_rate, clip->units);
   for (const auto& gap : clip->filled_gaps) {
-    spdlog::warn("{}: marker {} missing for {} frames from frame {}: interpolated", args.mocap.filename().string(),
-                 gap.marker, gap.frame_count, gap.first_frame);
+    std::string donors;
+    for (const auto& d : gap.donors) donors += (donors.empty() ? "" : ", ") + d;
+    spdlog::warn("{}: marker {} missing for {} frames from frame {}: {}", args.mocap.filename().string(), gap.marker,
+                 gap.frame_count, gap.first_frame,
+                 gap.fill == core::GapFill::kInterpolated ? std::string("interpolated")
+                                                          : "carried by its neighbours " + donors);
   }
 
   core::MarkerDistanceOptions distance_options;

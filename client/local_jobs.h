@@ -57,6 +57,8 @@ struct RetargetArgs {
   double tolerance = 0.05;             // relative Frobenius error of the bake
   bool exact = false;                  // one morph target per frame (short clips)
   bool keep_head_motion = false;       // do not remove rigid head motion
+  int max_gap_frames = 10;             // longest gap filled by interpolation in time
+  bool fill_long_gaps = true;          // longer ones from neighbouring markers (else an error)
   int threads = 0;
   bool print_diagnostics = false;
 };

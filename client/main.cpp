@@ -77,6 +77,10 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0))->capture_default_str();
   retarget_cmd->add_flag("--exact", retarget.exact, "One morph target per frame (short clips)");
   retarget_cmd->add_flag("--keep-head-motion", retarget.keep_head_motion, "Do not remove rigid head motion");
+  retarget_cmd->add_option("--max-gap-frames", retarget.max_gap_frames, "Clip gaps up to this many frames: interpolated in time")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
+  retarget_cmd->add_flag("!--no-fill-long-gaps", retarget.fill_long_gaps,
+                         "Longer gaps are an error (by default they follow the neighbouring markers)");
   retarget_cmd->add_option("--threads", retarget.threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
   retarget_cmd->add_flag("--print-diagnostics", retarget.print_diagnostics, "Also print the diagnostics JSON on stdout");
 

@@ -554,6 +554,7 @@ Result<RetargetOutput> retargetMocap(const Mesh& mesh, const MarkerDistances& di
   report.markers = static_cast<int>(nm);
   report.vertices = static_cast<int>(nv);
   report.data_rate = clip.data_rate;
+  report.filled_gaps = clip.filled_gaps;
   report.rest_frame = options.rest_frame;
   report.mocap_units_to_metres = clip.units_to_metres;
   report.mesh_diagonal = distances.mesh_diagonal;
@@ -788,6 +789,15 @@ std::string formatRetargetDiagnostics(const RetargetReport& r, const std::map<st
                         {"head_markers", r.head_markers},
                         {"head_max_rotation_deg", r.head_max_rotation_deg},
                         {"head_max_translation", r.head_max_translation}};
+  Json gaps = Json::array();
+  for (const TrcGap& g : r.filled_gaps) {
+    gaps.push_back({{"marker", g.marker},
+                    {"first_frame", g.first_frame},
+                    {"frames", g.frame_count},
+                    {"fill", g.fill == GapFill::kInterpolated ? "interpolated" : "neighbours"},
+                    {"donors", g.donors}});
+  }
+  doc["gaps"] = gaps;
   doc["interpolation"] = {{"marker_max_residual", r.marker_max_residual}, {"marker_rms_residual", r.marker_rms_residual}};
   const double diag = r.mesh_diagonal > 0.0 ? r.mesh_diagonal : 1.0;
   doc["bake"] = {{"exact", r.exact},

@@ -50,6 +50,14 @@ Result<RetargetSettings> parseRetargetOptions(const std::string& text, const std
     } else if (key == "keep_head_motion") {
       if (!value.is_boolean()) return bad("true or false");
       s.retarget.remove_head_motion = !value.get<bool>();
+    } else if (key == "max_gap_frames") {
+      if (!value.is_number_integer() || value.get<long long>() < 0 || value.get<long long>() > 1000000) {
+        return bad("a frame count >= 0");
+      }
+      s.clip.max_gap_frames = value.get<int>();
+    } else if (key == "fill_long_gaps") {
+      if (!value.is_boolean()) return bad("true or false");
+      s.clip.fill_long_gaps = value.get<bool>();
     } else {
       return makeError(ErrorCode::kInvalidArgument, where + " is not a known option");
     }

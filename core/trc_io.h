@@ -15,10 +15,18 @@
 
 namespace core {
 
+// How a gap was filled.
+enum class GapFill {
+  kInterpolated,    // linear in time between the samples either side (held at a clip end)
+  kFromNeighbours,  // carried by the rigid motion of nearby markers (TrcGap::donors)
+};
+
 struct TrcGap {
   std::string marker;
   int first_frame = 0;   // 0-based frame index of the first missing sample
   int frame_count = 0;   // consecutive missing frames
+  GapFill fill = GapFill::kInterpolated;
+  std::vector<std::string> donors;  // kFromNeighbours: the markers it moved with
 };
 
 struct MarkerTrajectories {
@@ -40,9 +48,14 @@ struct MarkerTrajectories {
 
 struct TrcReadOptions {
   // Gaps (empty or NaN cells) up to this many consecutive frames are filled by
-  // linear interpolation between the neighbouring samples (held at clip ends);
-  // longer gaps are an error naming the marker and frames.
+  // linear interpolation between the neighbouring samples (held at clip ends).
   int max_gap_frames = 10;
+  // Longer gaps (an occluded marker) are filled from the marker's neighbours:
+  // it follows the rigid motion of the 3-4 nearest markers present throughout
+  // the gap, estimated from the samples on either side and blended across it.
+  // An error naming the marker and frames when this is off, or when no such
+  // neighbours exist.
+  bool fill_long_gaps = true;
   // A header NumFrames different from the number of data rows is an error by
   // default, because fewer rows is exactly what a truncated file looks like.
   // When true (hand-trimmed clips whose header was not updated), the rows
@@ -52,7 +65,7 @@ struct TrcReadOptions {
 
 // `label` (usually the file name) starts every error message, followed by the
 // 1-based line number. Codes: kParse for malformed or inconsistent content and
-// for gaps longer than max_gap_frames, kUnsupported for unknown Units,
+// for gaps that cannot be filled (TrcReadOptions), kUnsupported for unknown Units,
 // kInvalidArgument for a negative max_gap_frames, kIo (readTrc) for unreadable files.
 Result<MarkerTrajectories> parseTrc(std::string_view text, const std::string& label,
                                     const TrcReadOptions& options = {});

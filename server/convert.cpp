@@ -134,7 +134,7 @@ std::optional<api::Problem> checkJobInputs(const api::JobSpec& spec,
     if (auto positions = core::resolveLandmarks(*markers, mesh->mesh, "markers"); !positions) {
       return problemFromCoreError(positions.error(), instance);
     }
-    auto clip = core::parseTrc(asText(files.at("mocap").second), files.at("mocap").first);
+    auto clip = core::parseTrc(asText(files.at("mocap").second), files.at("mocap").first, settings->clip);
     if (!clip) return problemFromCoreError(clip.error(), instance);
     if (const auto it = files.find("stiffness"); it != files.end()) {
       if (auto stiffness = core::parseStiffness(std::string(asText(it->second.second)), "stiffness"); !stiffness) {
@@ -190,7 +190,7 @@ std::variant<JobOutput, core::Error> runRetargetJob(const JobFiles& in, Distance
   if (!markers) return markers.error();
   auto clip_bytes = in.bytes("mocap");
   if (!clip_bytes) return clip_bytes.error();
-  auto clip = core::parseTrc(asText(*clip_bytes), in.name("mocap"));
+  auto clip = core::parseTrc(asText(*clip_bytes), in.name("mocap"), settings->clip);
   if (!clip) return clip.error();
   if (in.has("stiffness")) {
     auto stiffness_bytes = in.bytes("stiffness");

@@ -1,8 +1,12 @@
 #include "core/trc_io.h"
 
 #include <cmath>
+#include <cstdio>
+#include <functional>
 #include <random>
 #include <string>
+
+#include <Eigen/Geometry>
 
 #include <gtest/gtest.h>
 
@@ -143,10 +147,93 @@ TEST(TrcIo, TooLongGapIsAnErrorNamingMarkerAndFrames) {
   EXPECT_NE(msg.find("gapped.trc"), std::string::npos) << msg;
   EXPECT_NE(msg.find("'A'"), std::string::npos) << msg;
   EXPECT_NE(msg.find("frames 1..2"), std::string::npos) << msg;
+  // Two markers: too few neighbours to carry A through the gap.
+  EXPECT_NE(msg.find("fewer than 3 other markers"), std::string::npos) << msg;
   options.max_gap_frames = -1;
   auto bad = core::parseTrc(kSmallTrc, "small.trc", options);
   ASSERT_FALSE(bad);
   EXPECT_EQ(bad.error().code, core::ErrorCode::kInvalidArgument);
+}
+
+// Five markers on a rigid plate that turns and slides, sampled at 100 Hz;
+// `hide(marker, frame)` leaves a sample out.
+std::string rigidPlateTrc(int frames, const std::function<bool(int, int)>& hide, Eigen::MatrixXd& truth) {
+  const std::vector<std::string> names{"P0", "P1", "P2", "P3", "Q"};
+  const Eigen::Matrix<double, 5, 3> local{{0, 0, 0}, {30, 0, 0}, {0, 25, 0}, {30, 25, 5}, {18, 12, 10}};
+  truth.resize(frames, 15);
+  std::string text = trcHeader(frames, names);
+  for (int f = 0; f < frames; ++f) {
+    const double t = 0.01 * f;
+    const Eigen::Matrix3d rotation =
+        (Eigen::AngleAxisd(6.0 * t, Eigen::Vector3d::UnitY()) * Eigen::AngleAxisd(0.8 * t, Eigen::Vector3d::UnitX()))
+            .toRotationMatrix();
+    const Eigen::Vector3d shift(100 * t, 5 * std::sin(6 * t), 700);
+    text += std::to_string(f + 1) + "\t" + std::to_string(t);
+    for (int m = 0; m < 5; ++m) {
+      const Eigen::Vector3d p = rotation * local.row(m).transpose() + shift;
+      truth.block<1, 3>(f, 3 * m) = p.transpose();
+      for (int c = 0; c < 3; ++c) {
+        char cell[32];
+        std::snprintf(cell, sizeof cell, "%.9f", p(c));
+        text += "\t" + (hide(m, f) ? std::string() : std::string(cell));
+      }
+    }
+    text += "\n";
+  }
+  return text;
+}
+
+TEST(TrcIo, LongGapsAreCarriedByTheMarkersNearby) {
+  // Q hidden for 40 frames mid-clip and for the first 15; P3 for 3 frames
+  // inside Q's gap (interpolated first; still a donor, as it is measured on
+  // both sides). A straight line in time would cut the turn.
+  Eigen::MatrixXd truth;
+  const std::string text = rigidPlateTrc(
+      90, [](int m, int f) { return (m == 4 && ((f >= 30 && f < 70) || f < 15)) || (m == 3 && f >= 50 && f < 53); },
+      truth);
+  auto traj = core::parseTrc(text, "plate.trc");
+  ASSERT_TRUE(traj) << traj.error().message;
+  ASSERT_EQ(traj->filled_gaps.size(), 3u);
+  EXPECT_EQ(traj->filled_gaps[0].marker, "P3");
+  EXPECT_EQ(traj->filled_gaps[0].fill, core::GapFill::kInterpolated);
+  for (int k : {1, 2}) {
+    const core::TrcGap& gap = traj->filled_gaps[static_cast<std::size_t>(k)];
+    EXPECT_EQ(gap.marker, "Q");
+    EXPECT_EQ(gap.fill, core::GapFill::kFromNeighbours);
+    EXPECT_EQ(gap.donors.size(), 4u);
+  }
+  EXPECT_EQ(traj->filled_gaps[1].first_frame, 0);
+  EXPECT_EQ(traj->filled_gaps[2].first_frame, 30);
+  EXPECT_EQ(traj->filled_gaps[2].frame_count, 40);
+  double worst = 0.0;
+  for (int f = 0; f < 70; ++f) worst = std::max(worst, (traj->positions.block<1, 3>(f, 12) - truth.block<1, 3>(f, 12)).norm());
+  // Rigid motion is carried exactly, up to the printed decimals and P3's
+  // interpolated frames (a 3-frame chord of the turn: 0.04 of the plate's 30).
+  EXPECT_LT(worst, 0.1);
+  const Eigen::RowVector3d line = 0.5 * (truth.block<1, 3>(29, 12) + truth.block<1, 3>(70, 12));
+  EXPECT_GT((line - truth.block<1, 3>(50, 12)).norm(), 10.0) << "the test's motion must defeat interpolation";
+
+  core::TrcReadOptions strict;
+  strict.fill_long_gaps = false;
+  auto refused = core::parseTrc(text, "plate.trc", strict);
+  ASSERT_FALSE(refused);
+  EXPECT_NE(refused.error().message.find("marker 'Q' is missing for 15 frames"), std::string::npos)
+      << refused.error().message;
+  EXPECT_NE(refused.error().message.find("fill_long_gaps is off"), std::string::npos) << refused.error().message;
+}
+
+TEST(TrcIo, LongGapNeedsNeighboursPresentThroughoutIt) {
+  // P0's gap overlaps long gaps of P1 and Q: two neighbours left, not enough
+  // for a rotation (one long-gap estimate never carries another).
+  Eigen::MatrixXd truth;
+  const std::string text = rigidPlateTrc(
+      60, [](int m, int f) { return (m == 4 && f >= 20 && f < 40) || (m <= 1 && f >= 35 && f < 50); }, truth);
+  auto traj = core::parseTrc(text, "plate.trc");
+  ASSERT_FALSE(traj);
+  const std::string& msg = traj.error().message;
+  EXPECT_NE(msg.find("plate.trc:42-56"), std::string::npos) << msg;  // frame 0 is line 7
+  EXPECT_NE(msg.find("marker 'P0' is missing for 15 frames (frames 35..49"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("fewer than 3 other markers"), std::string::npos) << msg;
 }
 
 TEST(TrcIo, MarkerWithNoSamplesIsAnError) {

@@ -4,6 +4,7 @@
 
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <sstream>
 
 #include "core/landmarks.h"
@@ -21,7 +22,9 @@ struct RetargetFiles {
 
 // A head with an open mouth, 16 markers from its landmarks, and a 24-frame
 // TRC clip (centimetres, shifted) in which the lower-lip and jaw markers open.
-RetargetFiles writeRetargetFiles(const std::filesystem::path& dir) {
+// `hidden(marker, frame)` leaves a sample out (a gap).
+RetargetFiles writeRetargetFiles(const std::filesystem::path& dir,
+                                 const std::function<bool(const std::string&, int)>& hidden = {}) {
   core::HeadShape shape;
   shape.mouth_open = 0.04;
   const core::SyntheticHead head = core::generateHead(shape, core::HeadResolution{64, 56});
@@ -54,6 +57,10 @@ RetargetFiles writeRetargetFiles(const std::filesystem::path& dir) {
         p += Eigen::Vector3d(0.0, -0.006, -0.001) * frame / (frames - 1.0);
       }
       p = 100.0 * p + Eigen::Vector3d(2.0, 60.0, 0.0);
+      if (hidden && hidden(name, frame)) {
+        trc << "\t\t\t";
+        continue;
+      }
       trc << "\t" << p.x() << "\t" << p.y() << "\t" << p.z();
     }
     trc << "\n";
@@ -130,6 +137,48 @@ TEST(RetargetJobs, BadOptionsAndClipsAreRejectedBeforeQueueing) {
   EXPECT_EQ(r.status, 400) << r.raw;
   EXPECT_NE(r.body.value("detail", "").find("jaw.trc"), std::string::npos) << r.raw;
   EXPECT_TRUE(get(*client, "/v1/jobs").body["items"].empty());
+}
+
+// A marker hidden for 16 frames (longer than the 10 interpolated by
+// default): carried by its neighbours and listed in the diagnostics; an
+// error when long-gap filling is off; interpolated when max_gap_frames covers it.
+TEST(RetargetJobs, LongClipGapsAreFilledFromNeighboursOrRefusedOnRequest) {
+  const auto dir = makeTempDir("retarget_gaps");
+  const RetargetFiles files =
+      writeRetargetFiles(dir, [](const std::string& name, int frame) { return name == "mouth_outer_3" && frame >= 4 && frame < 20; });
+  InProcessService service(testConfig(dir / "data"));
+  auto client = service.client();
+
+  Reply job = submitRetarget(*client, files, "{}");
+  ASSERT_EQ(job.status, 202) << job.raw;
+  nlohmann::json done = waitForJob(*client, job.body["id"]);
+  ASSERT_EQ(done["status"], "succeeded") << done.dump();
+  nlohmann::json gaps = get(*client, "/v1/jobs/" + done["id"].get<std::string>() + "/diagnostics").body["gaps"];
+  ASSERT_EQ(gaps.size(), 1u) << gaps.dump();
+  EXPECT_EQ(gaps[0]["marker"], "mouth_outer_3");
+  EXPECT_EQ(gaps[0]["first_frame"], 4);
+  EXPECT_EQ(gaps[0]["frames"], 16);
+  EXPECT_EQ(gaps[0]["fill"], "neighbours");
+  EXPECT_GE(gaps[0]["donors"].size(), 3u);
+
+  Reply refused = submitRetarget(*client, files, R"({"fill_long_gaps":false})");
+  EXPECT_EQ(refused.status, 400) << refused.raw;
+  EXPECT_NE(refused.body.value("detail", "").find("'mouth_outer_3' is missing for 16 frames"), std::string::npos)
+      << refused.raw;
+
+  Reply interpolated = submitRetarget(*client, files, R"({"max_gap_frames":16})");
+  ASSERT_EQ(interpolated.status, 202) << interpolated.raw;
+  done = waitForJob(*client, interpolated.body["id"]);
+  ASSERT_EQ(done["status"], "succeeded") << done.dump();
+  gaps = get(*client, "/v1/jobs/" + done["id"].get<std::string>() + "/diagnostics").body["gaps"];
+  ASSERT_EQ(gaps.size(), 1u) << gaps.dump();
+  EXPECT_EQ(gaps[0]["fill"], "interpolated");
+  EXPECT_TRUE(gaps[0]["donors"].empty());
+
+  for (const char* bad : {R"({"max_gap_frames":-1})", R"({"max_gap_frames":2.5})", R"({"fill_long_gaps":"yes"})"}) {
+    Reply r = submitRetarget(*client, files, bad);
+    EXPECT_EQ(r.status, 400) << bad << " " << r.raw;
+  }
 }
 
 }  // namespace
