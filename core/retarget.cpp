@@ -570,7 +570,44 @@ Result<RetargetOutput> retargetMocap(const Mesh& mesh, const MarkerDistances& di
     if (column[static_cast<std::size_t>(i)] < 0) missing += (missing.empty() ? "" : ", ") + distances.marker_names[static_cast<std::size_t>(i)];
   }
   if (!missing.empty()) {
-    return makeError(ErrorCode::kInvalidLandmarks, "retarget: markers not in the clip: " + missing);
+    // Placed markers the clip does not carry (one lost in the session, a
+    // placement shared by several sessions): the others drive the mesh, and
+    // the report names the absent ones.
+    std::vector<Eigen::Index> present;
+    for (Eigen::Index i = 0; i < nm; ++i) {
+      if (column[static_cast<std::size_t>(i)] >= 0) present.push_back(i);
+    }
+    if (present.empty()) {
+      return makeError(ErrorCode::kInvalidLandmarks,
+                       "retarget: none of the " + std::to_string(nm) + " placed markers is in the clip (placed: " +
+                           missing + ")");
+    }
+    MarkerDistances carried = distances;
+    carried.marker_names.clear();
+    carried.marker_positions.resize(static_cast<Eigen::Index>(present.size()), 3);
+    carried.marker_marker.resize(carried.marker_positions.rows(), carried.marker_positions.rows());
+    carried.vertex_marker.resize(nv, carried.marker_positions.rows());
+    for (std::size_t a = 0; a < present.size(); ++a) {
+      const auto ia = static_cast<Eigen::Index>(a);
+      carried.marker_names.push_back(distances.marker_names[static_cast<std::size_t>(present[a])]);
+      carried.marker_positions.row(ia) = distances.marker_positions.row(present[a]);
+      carried.vertex_marker.col(ia) = distances.vertex_marker.col(present[a]);
+      for (std::size_t b = 0; b < present.size(); ++b) {
+        carried.marker_marker(ia, static_cast<Eigen::Index>(b)) = distances.marker_marker(present[a], present[b]);
+      }
+    }
+    RetargetOptions carried_options = options;
+    std::vector<std::string> absent;
+    for (Eigen::Index i = 0; i < nm; ++i) {
+      if (column[static_cast<std::size_t>(i)] >= 0) continue;
+      const std::string& name = distances.marker_names[static_cast<std::size_t>(i)];
+      absent.push_back(name);
+      carried_options.stiffness.erase(name);
+      std::erase(carried_options.head_markers, name);
+    }
+    auto out = retargetMocap(mesh, carried, clip, carried_options);
+    if (out) out->report.markers_not_in_clip = std::move(absent);
+    return out;
   }
   for (const std::string& name : clip.marker_names) {
     if (std::find(distances.marker_names.begin(), distances.marker_names.end(), name) == distances.marker_names.end()) {
@@ -778,7 +815,8 @@ std::string formatRetargetDiagnostics(const RetargetReport& r, const std::map<st
   doc["polynomial_terms"] = r.polynomial_terms;
   doc["condition"] = r.condition;
   doc["counts"] = {{"frames", r.frames}, {"markers", r.markers}, {"vertices", r.vertices}, {"data_rate", r.data_rate},
-                   {"rest_frame", r.rest_frame}, {"unused_clip_markers", r.unused_clip_markers}};
+                   {"rest_frame", r.rest_frame}, {"unused_clip_markers", r.unused_clip_markers},
+                   {"markers_not_in_clip", r.markers_not_in_clip}};
   doc["calibration"] = {{"mocap_units_to_metres", r.mocap_units_to_metres},
                         {"similarity_scale", r.similarity_scale},
                         {"similarity_rms", r.similarity_rms},

@@ -171,6 +171,7 @@ struct RetargetReport {
   double data_rate = 0.0;         // frames per second
   int rest_frame = 0;
   std::vector<std::string> unused_clip_markers;  // in the TRC but not in the marker set
+  std::vector<std::string> markers_not_in_clip;  // placed but absent from the TRC: not used
   std::vector<TrcGap> filled_gaps;                // the clip's gaps and how they were filled (as read)
 
   // Calibration.

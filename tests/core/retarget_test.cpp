@@ -428,14 +428,50 @@ TEST(Retarget, StiffnessLetsAMarkerGo) {
   EXPECT_FALSE(core::retargetMocap(head().mesh, distancesFor(core::DistanceMethod::kEuclidean), jawOpenClip(markerSet(), 5), o));
 }
 
+// A placed marker the clip does not carry is left out and named: the result
+// is the retarget with a placement that never had it.
+TEST(Retarget, APlacedMarkerTheClipLacksIsLeftOutAndNamed) {
+  const core::LandmarkSet markers = markerSet();
+  const core::MarkerTrajectories clip = jawOpenClip(markers, 12);
+  const std::string lost = "brow_right_2";
+  const int k = clip.markerIndex(lost);
+  ASSERT_GE(k, 0);
+  core::MarkerTrajectories without = clip;
+  without.marker_names.erase(without.marker_names.begin() + k);
+  Eigen::MatrixXd kept(clip.frameCount(), clip.positions.cols() - 3);
+  kept << clip.positions.leftCols(3 * k), clip.positions.rightCols(clip.positions.cols() - 3 * (k + 1));
+  without.positions = kept;
+  core::RetargetOptions options = jawOptions();
+  options.stiffness[lost] = 5.0;  // options naming the lost marker do not fail the job
+  auto out = core::retargetMocap(head().mesh, distancesFor(core::DistanceMethod::kEuclidean), without, options);
+  ASSERT_TRUE(out) << out.error().message;
+  EXPECT_EQ(out->report.markers_not_in_clip, std::vector<std::string>{lost});
+  EXPECT_EQ(out->report.markers, static_cast<int>(markers.landmarks.size()) - 1);
+
+  core::LandmarkSet fewer = markers;
+  fewer.landmarks.erase(fewer.landmarks.begin() + fewer.indexOf(lost));
+  core::MarkerDistanceOptions euclidean;
+  euclidean.method = core::DistanceMethod::kEuclidean;
+  auto distances = core::computeMarkerDistances(head().mesh, fewer, "fewer", euclidean);
+  ASSERT_TRUE(distances) << distances.error().message;
+  auto expected = core::retargetMocap(head().mesh, *distances, without, jawOptions());
+  ASSERT_TRUE(expected) << expected.error().message;
+  ASSERT_EQ(out->rig.morph_targets.size(), expected->rig.morph_targets.size());
+  for (std::size_t t = 0; t < out->rig.morph_targets.size(); ++t) {
+    EXPECT_TRUE(out->rig.morph_targets[t].position_deltas == expected->rig.morph_targets[t].position_deltas) << t;
+  }
+  EXPECT_GT(out->rig.morph_targets.size(), 0u);
+}
+
 TEST(Retarget, BadInputsGiveClearErrors) {
   const core::MarkerDistances& d = distancesFor(core::DistanceMethod::kEuclidean);
   core::MarkerTrajectories clip = jawOpenClip(markerSet(), 5);
   core::MarkerTrajectories renamed = clip;
-  renamed.marker_names[2] = "somewhere_else";
+  for (auto& name : renamed.marker_names) name += "_other_session";
   auto missing = core::retargetMocap(head().mesh, d, renamed);
   ASSERT_FALSE(missing);
   EXPECT_EQ(missing.error().code, core::ErrorCode::kInvalidLandmarks);
+  EXPECT_NE(missing.error().message.find("none of the 31 placed markers"), std::string::npos) << missing.error().message;
   EXPECT_NE(missing.error().message.find(clip.marker_names[2]), std::string::npos) << missing.error().message;
 
   core::RetargetOptions o = jawOptions();
