@@ -107,6 +107,8 @@ Eigen::MatrixX3d gatherDeltas(const MorphTarget& s, const std::vector<Corners>& 
 // deltas blended from their surroundings, never a copy from the wrong lip or
 // lid: all shapes in one solve, from the boundary rows only (stacking whole
 // shapes cost #V x 3 #shapes doubles: 335 MB at 93k vertices, 150 shapes).
+// Those on a piece with no trusted vertex (an eyeball in the face's mesh)
+// have nothing to blend from and do not move.
 void inpaintMismatched(const HarmonicInpainting& inpainting, std::vector<MorphTarget>& shapes) {
   if (shapes.empty()) return;
   const std::vector<int>& boundary = inpainting.boundary();
@@ -121,7 +123,10 @@ void inpaintMismatched(const HarmonicInpainting& inpainting, std::vector<MorphTa
   const std::vector<int>& unknown_vertices = inpainting.unknown();
   for (std::size_t k = 0; k < shapes.size(); ++k) {
     for (std::size_t i = 0; i < unknown_vertices.size(); ++i) {
-      if (!inpainting.reached(i)) continue;
+      if (!inpainting.reached(i)) {
+        shapes[k].position_deltas.row(unknown_vertices[i]).setZero();
+        continue;
+      }
       const Eigen::RowVector3d d = solved.row(static_cast<Eigen::Index>(i)).segment<3>(3 * static_cast<Eigen::Index>(k));
       shapes[k].position_deltas.row(unknown_vertices[i]) = d.cwiseAbs().maxCoeff() < 1e-12 ? Eigen::RowVector3d::Zero() : d;
     }

@@ -51,6 +51,8 @@ Json warpJson(const WarpReport& r, const DiagnosticsContext& context) {
   c["collapsed_triangles"] = r.collapsed_triangles;
   c["unmatched_source_vertices"] = r.unmatched_source_vertices;
   c["low_confidence_vertices"] = r.low_confidence_vertices;
+  c["detached_pieces"] = r.detached_pieces;
+  c["detached_vertices"] = r.detached_vertices;
   c["refine_iterations"] = r.refine_iterations;
   c["region_matching"] = r.region_matching;
   c["matched_rims"] = r.matched_rims;

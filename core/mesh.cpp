@@ -188,6 +188,50 @@ Status validateMesh(const Mesh& mesh, const std::string& label) {
   return Ok{};
 }
 
+Mesh weldedTopology(const Mesh& mesh, const std::vector<int>& representative) {
+  Mesh welded;
+  welded.positions = mesh.positions;
+  welded.triangles = mesh.triangles;
+  if (!representative.empty()) {
+    for (Eigen::Index i = 0; i < welded.triangles.size(); ++i) {
+      welded.triangles.data()[i] = representative[static_cast<std::size_t>(welded.triangles.data()[i])];
+    }
+  }
+  return welded;
+}
+
+MeshPieces meshPieces(const Mesh& mesh, const std::vector<int>& representative) {
+  const Eigen::Index nv = mesh.vertexCount(), nf = mesh.triangleCount();
+  auto weld = [&](int v) { return representative.empty() ? v : representative[static_cast<std::size_t>(v)]; };
+  std::vector<int> parent(static_cast<std::size_t>(nv));
+  std::iota(parent.begin(), parent.end(), 0);
+  auto root = [&](int v) {
+    while (parent[static_cast<std::size_t>(v)] != v) {
+      parent[static_cast<std::size_t>(v)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(v)])];
+      v = parent[static_cast<std::size_t>(v)];
+    }
+    return v;
+  };
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    const int a = root(weld(mesh.triangles(f, 0)));
+    for (int k = 1; k < 3; ++k) {
+      const int b = root(weld(mesh.triangles(f, k)));
+      if (a != b) parent[static_cast<std::size_t>(b)] = a;
+    }
+  }
+  MeshPieces pieces;
+  pieces.face_piece.resize(static_cast<std::size_t>(nf));
+  pieces.vertex_piece.assign(static_cast<std::size_t>(nv), -1);
+  std::vector<int> number(static_cast<std::size_t>(nv), -1);  // by root
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    int& n = number[static_cast<std::size_t>(root(weld(mesh.triangles(f, 0))))];
+    if (n < 0) n = pieces.count++;
+    pieces.face_piece[static_cast<std::size_t>(f)] = n;
+    for (int k = 0; k < 3; ++k) pieces.vertex_piece[static_cast<std::size_t>(mesh.triangles(f, k))] = n;
+  }
+  return pieces;
+}
+
 std::vector<BoundaryLoop> boundaryLoops(const Mesh& mesh) {
   const Eigen::MatrixX3i& tris = mesh.triangles;
   const auto nv = static_cast<std::size_t>(mesh.vertexCount());

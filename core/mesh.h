@@ -56,6 +56,20 @@ struct BoundaryLoop {
   double length = 0.0;        // geometric length (with the closing edge when closed)
 };
 
+// Positions and triangles with every corner re-pointed to its point's
+// representative (coincidentVertexRepresentatives; empty: a plain copy):
+// split points (UV seams, hard edges) joined for topology.
+Mesh weldedTopology(const Mesh& mesh, const std::vector<int>& representative);
+
+// Connected pieces of a mesh with split points welded (`representative` as
+// from coincidentVertexRepresentatives: a UV seam does not cut a piece).
+struct MeshPieces {
+  int count = 0;
+  std::vector<int> face_piece;    // #F: piece of each face, numbered in order of first face
+  std::vector<int> vertex_piece;  // #V: piece of each vertex, -1 on no face
+};
+MeshPieces meshPieces(const Mesh& mesh, const std::vector<int>& representative);
+
 // Boundary loops of the mesh, longest first by geometric length (ties: more
 // vertices first, then smaller first vertex). On a face: the outer rim (neck
 // cut), the mouth, the eyes.

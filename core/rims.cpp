@@ -88,15 +88,7 @@ double meanDistanceToLoop(const Eigen::MatrixX3d& from_positions, const std::vec
 }  // namespace
 
 std::vector<Rim> meshRims(const Mesh& mesh, const std::vector<int>& representative) {
-  Mesh welded;  // faces re-pointed to each point's representative, when any point is split
-  if (!representative.empty()) {
-    welded.positions = mesh.positions;
-    welded.triangles = mesh.triangles;
-    for (Eigen::Index i = 0; i < welded.triangles.size(); ++i) {
-      welded.triangles.data()[i] = representative[static_cast<std::size_t>(welded.triangles.data()[i])];
-    }
-  }
-  std::vector<Rim> rims = boundaryLoops(representative.empty() ? mesh : welded);
+  std::vector<Rim> rims = boundaryLoops(representative.empty() ? mesh : weldedTopology(mesh, representative));
   std::erase_if(rims, [](const Rim& rim) { return !rim.closed || rim.vertices.size() < 3; });
   return rims;
 }

@@ -154,6 +154,46 @@ Status checkRegionLabels(const Eigen::VectorXi& source, const Eigen::VectorXi& t
   return Ok{};
 }
 
+// Closed pieces of the target that no landmark is on: eyeballs or teeth
+// modelled in the face's mesh. Lids resting on an eyeball would otherwise
+// project onto it. Per vertex 1 on such a piece; empty when there are none
+// (one piece, or every piece open or landmarked). Open pieces stay skin
+// (an ear modelled apart has a rim where it meets the head).
+std::vector<char> detachedPieces(const Mesh& target, const std::vector<int>& representative,
+                                 const LandmarkSet& landmarks, const Eigen::MatrixX3d& landmark_positions,
+                                 const ClosestPointIndex& index, WarpReport& report) {
+  const MeshPieces pieces = meshPieces(target, representative);
+  if (pieces.count < 2) return {};
+  std::vector<char> skin(static_cast<std::size_t>(pieces.count), 0);
+  for (std::size_t i = 0; i < landmarks.landmarks.size(); ++i) {
+    const Landmark& l = landmarks.landmarks[i];
+    int piece = -1;
+    if (l.kind == LandmarkKind::kVertex) {
+      piece = pieces.vertex_piece[static_cast<std::size_t>(l.vertex)];
+    } else if (l.kind == LandmarkKind::kFace) {
+      piece = pieces.face_piece[static_cast<std::size_t>(l.face)];
+    } else {
+      const SurfacePoint at = index.closestPoint(landmark_positions.row(static_cast<Eigen::Index>(i)).transpose());
+      if (at.found()) piece = pieces.face_piece[static_cast<std::size_t>(at.face)];
+    }
+    if (piece >= 0) skin[static_cast<std::size_t>(piece)] = 1;
+  }
+  for (const BoundaryLoop& loop : boundaryLoops(weldedTopology(target, representative))) {
+    if (!loop.vertices.empty()) skin[static_cast<std::size_t>(pieces.vertex_piece[static_cast<std::size_t>(loop.vertices[0])])] = 1;
+  }
+  report.detached_pieces = static_cast<int>(std::count(skin.begin(), skin.end(), 0));
+  if (report.detached_pieces == 0) return {};
+  std::vector<char> detached(static_cast<std::size_t>(target.vertexCount()), 0);
+  for (Eigen::Index v = 0; v < target.vertexCount(); ++v) {
+    const int piece = pieces.vertex_piece[static_cast<std::size_t>(v)];
+    if (piece >= 0 && !skin[static_cast<std::size_t>(piece)]) {
+      detached[static_cast<std::size_t>(v)] = 1;
+      ++report.detached_vertices;
+    }
+  }
+  return detached;
+}
+
 }  // namespace
 
 std::size_t PreparedSource::memoryBytes() const {
@@ -329,6 +369,26 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   const std::vector<std::uint64_t>& source_masks = report.region_matching ? source.region_bits : no_masks;
   auto target_positions = resolveLandmarks(target_landmarks, target, target_label, &target_index);
   if (!target_positions) return target_positions.error();
+  const std::vector<int> target_representative = coincidentVertexRepresentatives(target.positions);
+  const std::vector<char> detached = detachedPieces(target, target_representative, target_landmarks, *target_positions,
+                                                    target_index, report);
+  // The faces the source is matched to: detached ones made degenerate, which
+  // the index skips (face numbers stay those of the target).
+  auto skinTriangles = [&](Eigen::MatrixX3i triangles) {
+    for (Eigen::Index f = 0; f < triangles.rows() && !detached.empty(); ++f) {
+      if (detached[static_cast<std::size_t>(triangles(f, 0))]) triangles.row(f).setConstant(triangles(f, 0));
+    }
+    return triangles;
+  };
+  if (!detached.empty()) {
+    target_index = ClosestPointIndex(target.positions, skinTriangles(target.triangles), target_face_regions);
+    report.warnings.push_back(target_label + ": " + std::to_string(report.detached_pieces) + " closed piece" +
+                              (report.detached_pieces == 1 ? "" : "s") + " with no landmark on " +
+                              (report.detached_pieces == 1 ? "it" : "them") + " (" +
+                              std::to_string(report.detached_vertices) +
+                              " vertices: eyes, teeth?) not matched as skin: they keep the skin weights where they "
+                              "sit and take no shape deltas");
+  }
   auto pairs = pairLandmarks(source.landmarks, source.landmark_positions, target_landmarks, *target_positions,
                              target_label);
   if (!pairs) return pairs.error();
@@ -395,7 +455,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
     adjusted = target;
     adjusted.triangles.col(1).swap(adjusted.triangles.col(2));
     adjusted.normals = -adjusted.normals;
-    target_index = ClosestPointIndex(adjusted.positions, adjusted.triangles, target_face_regions);
+    target_index = ClosestPointIndex(adjusted.positions, skinTriangles(adjusted.triangles), target_face_regions);
     matched = &adjusted;
     report.target_turned = true;
     report.warnings.push_back(target_label + ": its faces face the opposite way to the source (" +
@@ -451,7 +511,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
       const Eigen::MatrixX3d warped = result.landmark_warp.apply(selectRows(source.mesh.positions, rows));
       for (std::size_t k = 0; k < rows.size(); ++k) rims_warped.row(rows[k]) = warped.row(static_cast<Eigen::Index>(k));
     }
-    target_rims = meshRims(*matched, coincidentVertexRepresentatives(matched->positions));
+    target_rims = meshRims(*matched, target_representative);
     rim_match = matchRims(source.rims, rims_warped, target_rims, matched->positions, options.rims);
     report.matched_rims =
         static_cast<int>(std::count_if(rim_match.begin(), rim_match.end(), [](int t) { return t >= 0; }));
@@ -568,6 +628,12 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   locate.threads = options.threads;
   result.locations = locateOnGuide(*matched, result.guide.positions, tris, locate,
                                    report.region_matching ? source.face_regions : std::vector<std::uint64_t>());
+  for (Eigen::Index v = 0; v < target.vertexCount() && !detached.empty(); ++v) {
+    if (!detached[static_cast<std::size_t>(v)]) continue;
+    if (result.locations.confidence(v) > 0.0) ++result.locations.low_confidence;
+    result.locations.confidence(v) = 0.0;
+    result.locations.mismatched(v) = 1;
+  }
   report.correspond_ms = msSince(t0);
 
   std::vector<double> d(result.guide.distance.data(), result.guide.distance.data() + result.guide.distance.size());

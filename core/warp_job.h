@@ -129,6 +129,8 @@ struct WarpReport {
   int collapsed_triangles = 0;
   int unmatched_source_vertices = 0;
   int low_confidence_vertices = 0;
+  int detached_pieces = 0;            // closed target pieces without landmarks (eyes, teeth) not matched as skin
+  int detached_vertices = 0;          // their vertices (low-confidence, mismatched)
   int matched_rims = 0;               // source rims matched to a target rim (matchRims)
   int rims_in_warp = 0;               // of those, rims whose paired points joined the landmark warp
   int refine_iterations = 0;

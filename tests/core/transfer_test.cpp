@@ -7,7 +7,9 @@
 
 #include <gtest/gtest.h>
 
+#include "core/landmarks.h"
 #include "core/mesh.h"
+#include "core/rig_io.h"
 #include "core/skinning.h"
 #include "core/synthetic_rig.h"
 #include "core/transfer_options.h"
@@ -140,6 +142,88 @@ TEST(TransferRig, WeightsAreNormalisedPrunedAndShapesSparseOnAnotherFace) {
   const auto& blink = out.morph_targets[5];
   EXPECT_EQ(blink.name, "eyeBlink_R");
   EXPECT_LT((blink.position_deltas.rowwise().norm().array() > 0).count(), out.mesh.vertexCount() / 10);
+}
+
+// A closed sphere (UV sphere, poles shared) appended to `mesh`; returns its
+// first vertex.
+Eigen::Index appendSphere(core::Mesh& mesh, const Eigen::Vector3d& centre, double radius) {
+  constexpr int kAround = 20, kRings = 12;
+  const Eigen::Index base = mesh.positions.rows();
+  std::vector<Eigen::Vector3d> points{centre + Eigen::Vector3d(0, radius, 0)};
+  for (int i = 1; i < kRings; ++i) {
+    for (int j = 0; j < kAround; ++j) {
+      const double theta = std::numbers::pi * i / kRings, phi = 2 * std::numbers::pi * j / kAround;
+      points.push_back(centre + radius * Eigen::Vector3d(std::sin(theta) * std::cos(phi), std::cos(theta),
+                                                         std::sin(theta) * std::sin(phi)));
+    }
+  }
+  points.push_back(centre - Eigen::Vector3d(0, radius, 0));
+  const int bottom = static_cast<int>(points.size()) - 1;
+  auto ring = [](int i, int j) { return 1 + (i - 1) * kAround + (j % kAround); };
+  std::vector<Eigen::Vector3i> faces;
+  for (int j = 0; j < kAround; ++j) {
+    faces.emplace_back(0, ring(1, j + 1), ring(1, j));
+    faces.emplace_back(bottom, ring(kRings - 1, j), ring(kRings - 1, j + 1));
+    for (int i = 1; i + 1 < kRings; ++i) {
+      faces.emplace_back(ring(i, j), ring(i, j + 1), ring(i + 1, j));
+      faces.emplace_back(ring(i, j + 1), ring(i + 1, j + 1), ring(i + 1, j));
+    }
+  }
+  mesh.positions.conservativeResize(base + static_cast<Eigen::Index>(points.size()), 3);
+  for (std::size_t k = 0; k < points.size(); ++k) mesh.positions.row(base + static_cast<Eigen::Index>(k)) = points[k].transpose();
+  const Eigen::Index first_face = mesh.triangles.rows();
+  mesh.triangles.conservativeResize(first_face + static_cast<Eigen::Index>(faces.size()), 3);
+  for (std::size_t k = 0; k < faces.size(); ++k) {
+    mesh.triangles.row(first_face + static_cast<Eigen::Index>(k)) = (faces[k].array() + static_cast<int>(base)).transpose();
+  }
+  return base;
+}
+
+// Eyeballs modelled in the face's mesh: closed pieces no landmark is on. The
+// lids resting on them must not be matched to them (the face gets the rig it
+// gets without them), and they keep the skin weights where they sit and no
+// shape deltas.
+TEST(TransferRig, ClosedPiecesWithoutLandmarksAreNotMatchedAsSkin) {
+  const core::HeadResolution res{.columns = 80, .rows = 72, .alternate_diagonals = false, .jitter = 0.0, .seed = 5};
+  const core::SyntheticRig face = core::generateRig(core::randomHeadShape(5, 0.1), res);
+  auto corners = core::resolveLandmarks(face.landmarks, face.rig.mesh, "face");
+  ASSERT_TRUE(corners) << corners.error().message;
+  core::Mesh skin = face.rig.mesh;  // as a scan or sculpt comes: no labels or UVs to extend
+  skin.regions.resize(0);
+  skin.uvs.resize(0, 2);
+  core::Mesh with_eyes = skin;
+  const Eigen::Index nv = with_eyes.vertexCount();
+  for (const char* side : {"eye_right_", "eye_left_"}) {
+    const Eigen::Vector3d inner = corners->row(face.landmarks.indexOf(std::string(side) + "0")).transpose();
+    const Eigen::Vector3d outer = corners->row(face.landmarks.indexOf(std::string(side) + "3")).transpose();
+    const double radius = 0.6 * (outer - inner).norm();
+    // The ball's front reaches the lids' line between the corners.
+    appendSphere(with_eyes, 0.5 * (inner + outer) - Eigen::Vector3d(0, 0, 0.9 * radius), radius);
+  }
+  with_eyes.normals.resize(0, 3);  // recomputed by the transfer, as for a file without normals
+  auto plain = core::transferRig(preparedSource(), skin, face.landmarks, "face");
+  auto eyes = core::transferRig(preparedSource(), with_eyes, face.landmarks, "face with eyes");
+  ASSERT_TRUE(plain) << plain.error().message;
+  ASSERT_TRUE(eyes) << eyes.error().message;
+  EXPECT_EQ(eyes->report.warp.detached_pieces, 2);
+  EXPECT_EQ(eyes->report.warp.detached_vertices, with_eyes.vertexCount() - nv);
+  ASSERT_FALSE(eyes->report.warp.warnings.empty());
+  EXPECT_NE(eyes->report.warp.warnings.back().find("not matched as skin"), std::string::npos);
+  EXPECT_EQ(plain->report.warp.detached_pieces, 0);
+
+  const double diagonal = core::boundingBoxDiagonal(face.rig.mesh.positions);
+  for (std::size_t k = 0; k < plain->rig.morph_targets.size(); ++k) {
+    const Eigen::MatrixX3d& alone = plain->rig.morph_targets[k].position_deltas;
+    const Eigen::MatrixX3d& d = eyes->rig.morph_targets[k].position_deltas;
+    EXPECT_LT((d.topRows(nv) - alone).cwiseAbs().maxCoeff(), 1e-9 * diagonal) << plain->rig.morph_targets[k].name;
+    EXPECT_TRUE(d.bottomRows(d.rows() - nv).isZero(0.0)) << plain->rig.morph_targets[k].name;
+  }
+  const Eigen::MatrixXd weights(eyes->rig.weights);
+  EXPECT_LT((weights.topRows(nv) - Eigen::MatrixXd(plain->rig.weights)).cwiseAbs().maxCoeff(), 1e-9);
+  for (Eigen::Index v = nv; v < weights.rows(); ++v) ASSERT_NEAR(weights.row(v).sum(), 1.0, 1e-12) << "vertex " << v;
+  const auto glb = rigport_test::makeTempDir("detached") / "eyes.glb";
+  ASSERT_TRUE(core::writeRigGlb(eyes->rig, glb)) << glb;
+  EXPECT_GLTF_VALID(glb);
 }
 
 // Some exporters write faces inside out (corners in clockwise order). The
