@@ -253,8 +253,8 @@ int runRetarget(const RetargetArgs& args) {
   if (!r.markers_not_in_clip.empty()) {
     std::string names;
     for (const auto& n : r.markers_not_in_clip) names += (names.empty() ? "" : ", ") + n;
-    spdlog::warn("{} placed in {} but not in {}: not used ({})", r.markers_not_in_clip.size() == 1 ? "1 marker" : std::to_string(r.markers_not_in_clip.size()) + " markers",
-                 args.markers.filename().string(), args.mocap.filename().string(), names);
+    spdlog::warn("{} of {} not in {}, not used: {}", r.markers_not_in_clip.size(), args.markers.filename().string(),
+                 args.mocap.filename().string(), names);
   }
   if (!r.tolerance_met) spdlog::warn("bake tolerance {} not met with the maximum rank {}", r.tolerance, r.rank);
   spdlog::info("retarget ({}, {} kernel): {} frames, {} markers, marker residual max {:.3g}; {} {}, error rms {:.3g} "

@@ -77,7 +77,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0))->capture_default_str();
   retarget_cmd->add_flag("--exact", retarget.exact, "One morph target per frame (short clips)");
   retarget_cmd->add_flag("--keep-head-motion", retarget.keep_head_motion, "Do not remove rigid head motion");
-  retarget_cmd->add_option("--max-gap-frames", retarget.max_gap_frames, "Clip gaps up to this many frames: interpolated in time")
+  retarget_cmd->add_option("--max-gap-frames", retarget.max_gap_frames, "Gaps up to this many frames: interpolated in time")
       ->check(CLI::NonNegativeNumber)->capture_default_str();
   retarget_cmd->add_flag("!--no-fill-long-gaps", retarget.fill_long_gaps,
                          "Longer gaps are an error (by default they follow the neighbouring markers)");

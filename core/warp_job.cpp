@@ -179,7 +179,8 @@ std::vector<char> detachedPieces(const Mesh& target, const std::vector<int>& rep
     if (piece >= 0) skin[static_cast<std::size_t>(piece)] = 1;
   }
   for (const BoundaryLoop& loop : boundaryLoops(weldedTopology(target, representative))) {
-    if (!loop.vertices.empty()) skin[static_cast<std::size_t>(pieces.vertex_piece[static_cast<std::size_t>(loop.vertices[0])])] = 1;
+    if (loop.vertices.empty()) continue;
+    skin[static_cast<std::size_t>(pieces.vertex_piece[static_cast<std::size_t>(loop.vertices.front())])] = 1;
   }
   report.detached_pieces = static_cast<int>(std::count(skin.begin(), skin.end(), 0));
   if (report.detached_pieces == 0) return {};

@@ -471,8 +471,9 @@ TEST(Retarget, BadInputsGiveClearErrors) {
   auto missing = core::retargetMocap(head().mesh, d, renamed);
   ASSERT_FALSE(missing);
   EXPECT_EQ(missing.error().code, core::ErrorCode::kInvalidLandmarks);
-  EXPECT_NE(missing.error().message.find("none of the 31 placed markers"), std::string::npos) << missing.error().message;
-  EXPECT_NE(missing.error().message.find(clip.marker_names[2]), std::string::npos) << missing.error().message;
+  const std::string& message = missing.error().message;
+  EXPECT_NE(message.find("none of the 31 placed markers"), std::string::npos) << message;
+  EXPECT_NE(message.find(clip.marker_names[2]), std::string::npos) << message;
 
   core::RetargetOptions o = jawOptions();
   o.rest_frame = 5;

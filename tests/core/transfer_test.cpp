@@ -170,11 +170,14 @@ Eigen::Index appendSphere(core::Mesh& mesh, const Eigen::Vector3d& centre, doubl
     }
   }
   mesh.positions.conservativeResize(base + static_cast<Eigen::Index>(points.size()), 3);
-  for (std::size_t k = 0; k < points.size(); ++k) mesh.positions.row(base + static_cast<Eigen::Index>(k)) = points[k].transpose();
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    mesh.positions.row(base + static_cast<Eigen::Index>(k)) = points[k].transpose();
+  }
   const Eigen::Index first_face = mesh.triangles.rows();
   mesh.triangles.conservativeResize(first_face + static_cast<Eigen::Index>(faces.size()), 3);
   for (std::size_t k = 0; k < faces.size(); ++k) {
-    mesh.triangles.row(first_face + static_cast<Eigen::Index>(k)) = (faces[k].array() + static_cast<int>(base)).transpose();
+    const Eigen::Vector3i corners = faces[k].array() + static_cast<int>(base);
+    mesh.triangles.row(first_face + static_cast<Eigen::Index>(k)) = corners.transpose();
   }
   return base;
 }

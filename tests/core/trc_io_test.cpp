@@ -206,7 +206,9 @@ TEST(TrcIo, LongGapsAreCarriedByTheMarkersNearby) {
   EXPECT_EQ(traj->filled_gaps[2].first_frame, 30);
   EXPECT_EQ(traj->filled_gaps[2].frame_count, 40);
   double worst = 0.0;
-  for (int f = 0; f < 70; ++f) worst = std::max(worst, (traj->positions.block<1, 3>(f, 12) - truth.block<1, 3>(f, 12)).norm());
+  for (int f = 0; f < 70; ++f) {
+    worst = std::max(worst, (traj->positions.block<1, 3>(f, 12) - truth.block<1, 3>(f, 12)).norm());
+  }
   // Rigid motion is carried exactly, up to the printed decimals and P3's
   // interpolated frames (a 3-frame chord of the turn: 0.04 of the plate's 30).
   EXPECT_LT(worst, 0.1);

@@ -145,7 +145,7 @@ TEST(RetargetJobs, BadOptionsAndClipsAreRejectedBeforeQueueing) {
 TEST(RetargetJobs, LongClipGapsAreFilledFromNeighboursOrRefusedOnRequest) {
   const auto dir = makeTempDir("retarget_gaps");
   const RetargetFiles files =
-      writeRetargetFiles(dir, [](const std::string& name, int frame) { return name == "mouth_outer_3" && frame >= 4 && frame < 20; });
+      writeRetargetFiles(dir, [](const std::string& name, int f) { return name == "mouth_outer_3" && f >= 4 && f < 20; });
   InProcessService service(testConfig(dir / "data"));
   auto client = service.client();
 
