@@ -99,6 +99,10 @@ struct TargetLocations {
   // are inpainted; other low-confidence vertices keep their (sharp) values.
   Eigen::VectorXi mismatched;
   int low_confidence = 0;               // vertices beyond a threshold (confidence 0)
+  // #Vt or empty: the detached piece (closed, no landmark on it: an eyeball,
+  // teeth) each vertex is on, numbered from 0, or -1 on the skin. Set by the
+  // warp job; such vertices are also low-confidence and mismatched.
+  std::vector<int> detached_piece;
 };
 
 // source_face_regions: empty, or faceRegionSets of the source (then

@@ -53,6 +53,28 @@ Result<TransferredWeights> transferSkinWeights(const SkinWeights& source_weights
     known[static_cast<std::size_t>(v)] = locations.confidence(v) > 0.0 && dense.row(v).sum() > 0.0;
   }
 
+  // 1b. Detached pieces (eyeballs, teeth modelled in the face's mesh) move
+  // rigidly with the joint that dominates the weights where they sit: lower
+  // teeth follow the jaw, an eyeball the head or its eye joint, and nothing
+  // bends them.
+  if (!locations.detached_piece.empty()) {
+    const int pieces = 1 + *std::max_element(locations.detached_piece.begin(), locations.detached_piece.end());
+    Eigen::MatrixXd votes = Eigen::MatrixXd::Zero(pieces, nj);
+    for (Eigen::Index v = 0; v < nt; ++v) {
+      const int piece = locations.detached_piece[static_cast<std::size_t>(v)];
+      if (piece >= 0) votes.row(piece) += dense.row(v);
+    }
+    for (Eigen::Index v = 0; v < nt; ++v) {
+      const int piece = locations.detached_piece[static_cast<std::size_t>(v)];
+      if (piece < 0 || !(votes.row(piece).maxCoeff() > 0.0)) continue;
+      Eigen::Index joint = 0;
+      votes.row(piece).maxCoeff(&joint);
+      dense.row(v).setZero();
+      dense(v, joint) = 1.0;
+      known[static_cast<std::size_t>(v)] = 1;
+    }
+  }
+
   // 2. Inpaint untrusted vertices from trusted ones (harmonic).
   if (options.inpaint) {
     const std::size_t unknown = static_cast<std::size_t>(std::count(known.begin(), known.end(), 0));

@@ -156,10 +156,11 @@ Status checkRegionLabels(const Eigen::VectorXi& source, const Eigen::VectorXi& t
 
 // Closed pieces of the target that no landmark is on: eyeballs or teeth
 // modelled in the face's mesh. Lids resting on an eyeball would otherwise
-// project onto it. Per vertex 1 on such a piece; empty when there are none
-// (one piece, or every piece open or landmarked). Open pieces stay skin
-// (an ear modelled apart has a rim where it meets the head).
-std::vector<char> detachedPieces(const Mesh& target, const std::vector<int>& representative,
+// project onto it. Per vertex the number of its detached piece (0, 1, ...)
+// or -1; empty when there are none (one piece, or every piece open or
+// landmarked). Open pieces stay skin (an ear modelled apart has a rim where
+// it meets the head).
+std::vector<int> detachedPieces(const Mesh& target, const std::vector<int>& representative,
                                  const LandmarkSet& landmarks, const Eigen::MatrixX3d& landmark_positions,
                                  const ClosestPointIndex& index, WarpReport& report) {
   const MeshPieces pieces = meshPieces(target, representative);
@@ -184,11 +185,15 @@ std::vector<char> detachedPieces(const Mesh& target, const std::vector<int>& rep
   }
   report.detached_pieces = static_cast<int>(std::count(skin.begin(), skin.end(), 0));
   if (report.detached_pieces == 0) return {};
-  std::vector<char> detached(static_cast<std::size_t>(target.vertexCount()), 0);
+  std::vector<int> number(static_cast<std::size_t>(pieces.count), -1);
+  for (int piece = 0, next = 0; piece < pieces.count; ++piece) {
+    if (!skin[static_cast<std::size_t>(piece)]) number[static_cast<std::size_t>(piece)] = next++;
+  }
+  std::vector<int> detached(static_cast<std::size_t>(target.vertexCount()), -1);
   for (Eigen::Index v = 0; v < target.vertexCount(); ++v) {
     const int piece = pieces.vertex_piece[static_cast<std::size_t>(v)];
     if (piece >= 0 && !skin[static_cast<std::size_t>(piece)]) {
-      detached[static_cast<std::size_t>(v)] = 1;
+      detached[static_cast<std::size_t>(v)] = number[static_cast<std::size_t>(piece)];
       ++report.detached_vertices;
     }
   }
@@ -371,13 +376,13 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   auto target_positions = resolveLandmarks(target_landmarks, target, target_label, &target_index);
   if (!target_positions) return target_positions.error();
   const std::vector<int> target_representative = coincidentVertexRepresentatives(target.positions);
-  const std::vector<char> detached = detachedPieces(target, target_representative, target_landmarks, *target_positions,
+  const std::vector<int> detached = detachedPieces(target, target_representative, target_landmarks, *target_positions,
                                                     target_index, report);
   // The faces the source is matched to: detached ones made degenerate, which
   // the index skips (face numbers stay those of the target).
   auto skinTriangles = [&](Eigen::MatrixX3i triangles) {
     for (Eigen::Index f = 0; f < triangles.rows() && !detached.empty(); ++f) {
-      if (detached[static_cast<std::size_t>(triangles(f, 0))]) triangles.row(f).setConstant(triangles(f, 0));
+      if (detached[static_cast<std::size_t>(triangles(f, 0))] >= 0) triangles.row(f).setConstant(triangles(f, 0));
     }
     return triangles;
   };
@@ -387,8 +392,8 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
                               (report.detached_pieces == 1 ? "" : "s") + " with no landmark on " +
                               (report.detached_pieces == 1 ? "it" : "them") + " (" +
                               std::to_string(report.detached_vertices) +
-                              " vertices: eyes, teeth?) not matched as skin: they keep the skin weights where they "
-                              "sit and take no shape deltas");
+                              " vertices: eyes, teeth?) not matched as skin: each follows rigidly the joint that "
+                              "dominates the skin weights where it sits, and takes no shape deltas");
   }
   auto pairs = pairLandmarks(source.landmarks, source.landmark_positions, target_landmarks, *target_positions,
                              target_label);
@@ -630,11 +635,12 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   result.locations = locateOnGuide(*matched, result.guide.positions, tris, locate,
                                    report.region_matching ? source.face_regions : std::vector<std::uint64_t>());
   for (Eigen::Index v = 0; v < target.vertexCount() && !detached.empty(); ++v) {
-    if (!detached[static_cast<std::size_t>(v)]) continue;
+    if (detached[static_cast<std::size_t>(v)] < 0) continue;
     if (result.locations.confidence(v) > 0.0) ++result.locations.low_confidence;
     result.locations.confidence(v) = 0.0;
     result.locations.mismatched(v) = 1;
   }
+  result.locations.detached_piece = detached;
   report.correspond_ms = msSince(t0);
 
   std::vector<double> d(result.guide.distance.data(), result.guide.distance.data() + result.guide.distance.size());
