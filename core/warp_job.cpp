@@ -392,8 +392,8 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
                               (report.detached_pieces == 1 ? "" : "s") + " with no landmark on " +
                               (report.detached_pieces == 1 ? "it" : "them") + " (" +
                               std::to_string(report.detached_vertices) +
-                              " vertices: eyes, teeth?) not matched as skin: each follows rigidly the joint that "
-                              "dominates the skin weights where it sits, and takes no shape deltas");
+                              " vertices: eyes, teeth?) not matched as skin; a transfer moves each rigidly with "
+                              "the joint that dominates the skin weights where it sits, without shape deltas");
   }
   auto pairs = pairLandmarks(source.landmarks, source.landmark_positions, target_landmarks, *target_positions,
                              target_label);
