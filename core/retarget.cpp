@@ -564,23 +564,26 @@ Result<RetargetOutput> retargetMocap(const Mesh& mesh, const MarkerDistances& di
 
   // Markers by name in the clip.
   std::vector<int> column(static_cast<std::size_t>(nm));
-  std::string missing;
+  std::vector<Eigen::Index> present;
+  std::vector<std::string> absent;
   for (Eigen::Index i = 0; i < nm; ++i) {
-    column[static_cast<std::size_t>(i)] = clip.markerIndex(distances.marker_names[static_cast<std::size_t>(i)]);
-    if (column[static_cast<std::size_t>(i)] < 0) missing += (missing.empty() ? "" : ", ") + distances.marker_names[static_cast<std::size_t>(i)];
+    const std::string& name = distances.marker_names[static_cast<std::size_t>(i)];
+    column[static_cast<std::size_t>(i)] = clip.markerIndex(name);
+    if (column[static_cast<std::size_t>(i)] >= 0) {
+      present.push_back(i);
+    } else {
+      absent.push_back(name);
+    }
   }
-  if (!missing.empty()) {
+  if (!absent.empty()) {
     // Placed markers the clip does not carry (one lost in the session, a
     // placement shared by several sessions): the others drive the mesh, and
     // the report names the absent ones.
-    std::vector<Eigen::Index> present;
-    for (Eigen::Index i = 0; i < nm; ++i) {
-      if (column[static_cast<std::size_t>(i)] >= 0) present.push_back(i);
-    }
     if (present.empty()) {
-      return makeError(ErrorCode::kInvalidLandmarks,
-                       "retarget: none of the " + std::to_string(nm) + " placed markers is in the clip (placed: " +
-                           missing + ")");
+      std::string placed;
+      for (const std::string& name : absent) placed += (placed.empty() ? "" : ", ") + name;
+      return makeError(ErrorCode::kInvalidLandmarks, "retarget: none of the " + std::to_string(nm) +
+                                                         " placed markers is in the clip (placed: " + placed + ")");
     }
     MarkerDistances carried = distances;
     carried.marker_names.clear();
@@ -597,11 +600,7 @@ Result<RetargetOutput> retargetMocap(const Mesh& mesh, const MarkerDistances& di
       }
     }
     RetargetOptions carried_options = options;
-    std::vector<std::string> absent;
-    for (Eigen::Index i = 0; i < nm; ++i) {
-      if (column[static_cast<std::size_t>(i)] >= 0) continue;
-      const std::string& name = distances.marker_names[static_cast<std::size_t>(i)];
-      absent.push_back(name);
+    for (const std::string& name : absent) {
       carried_options.stiffness.erase(name);
       std::erase(carried_options.head_markers, name);
     }
