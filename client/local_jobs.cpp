@@ -47,9 +47,8 @@ core::Status emitDiagnostics(const std::string& diagnostics, const std::filesyst
   }
   if (print) std::fputs(diagnostics.c_str(), stdout);
   if (!warp.suspicious_landmarks.empty()) {
-    std::string names;
-    for (const auto& n : warp.suspicious_landmarks) names += (names.empty() ? "" : ", ") + n;
-    spdlog::warn("suspicious landmarks (the others cannot explain them; swapped or misplaced?): {}", names);
+    spdlog::warn("suspicious landmarks (the others cannot explain them; swapped or misplaced?): {}",
+                 core::joinNames(warp.suspicious_landmarks));
   }
   for (const std::string& warning : warp.warnings) spdlog::warn("{}", warning);
   for (const std::string& warning : more_warnings) spdlog::warn("{}", warning);
@@ -218,12 +217,10 @@ int runRetarget(const RetargetArgs& args) {
                mesh->mesh.vertexCount(), markers->landmarks.size(), args.mocap.filename().string(), clip->markerCount(),
                clip->frameCount(), clip->data_rate, clip->units);
   for (const auto& gap : clip->filled_gaps) {
-    std::string donors;
-    for (const auto& d : gap.donors) donors += (donors.empty() ? "" : ", ") + d;
     spdlog::warn("{}: marker {} missing for {} frames from frame {}: {}", args.mocap.filename().string(), gap.marker,
                  gap.frame_count, gap.first_frame,
                  gap.fill == core::GapFill::kInterpolated ? std::string("interpolated")
-                                                          : "carried by its neighbours " + donors);
+                                                          : "carried by its neighbours " + core::joinNames(gap.donors));
   }
 
   core::MarkerDistanceOptions distance_options;
@@ -251,10 +248,8 @@ int runRetarget(const RetargetArgs& args) {
     spdlog::warn("{} clip markers are not in {} and were ignored", r.unused_clip_markers.size(), args.markers.filename().string());
   }
   if (!r.markers_not_in_clip.empty()) {
-    std::string names;
-    for (const auto& n : r.markers_not_in_clip) names += (names.empty() ? "" : ", ") + n;
     spdlog::warn("{} of {} not in {}, not used: {}", r.markers_not_in_clip.size(), args.markers.filename().string(),
-                 args.mocap.filename().string(), names);
+                 args.mocap.filename().string(), core::joinNames(r.markers_not_in_clip));
   }
   if (!r.tolerance_met) spdlog::warn("bake tolerance {} not met with the maximum rank {}", r.tolerance, r.rank);
   spdlog::info("retarget ({}, {} kernel): {} frames, {} markers, marker residual max {:.3g}; {} {}, error rms {:.3g} "

@@ -16,4 +16,10 @@ const char* errorCodeName(ErrorCode code) {
   return "unknown";
 }
 
+std::string joinNames(const std::vector<std::string>& names) {
+  std::string out;
+  for (const std::string& name : names) out += (out.empty() ? "" : ", ") + name;
+  return out;
+}
+
 }  // namespace core

@@ -10,6 +10,7 @@
 #include <string>
 #include <utility>
 #include <variant>
+#include <vector>
 
 namespace core {
 
@@ -60,5 +61,8 @@ struct Ok {};
 using Status = Result<Ok>;
 
 inline Error makeError(ErrorCode code, std::string message) { return Error{code, std::move(message)}; }
+
+// "a, b, c": names listed in a message or warning.
+std::string joinNames(const std::vector<std::string>& names);
 
 }  // namespace core

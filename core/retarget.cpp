@@ -580,10 +580,9 @@ Result<RetargetOutput> retargetMocap(const Mesh& mesh, const MarkerDistances& di
     // placement shared by several sessions): the others drive the mesh, and
     // the report names the absent ones.
     if (present.empty()) {
-      std::string placed;
-      for (const std::string& name : absent) placed += (placed.empty() ? "" : ", ") + name;
       return makeError(ErrorCode::kInvalidLandmarks, "retarget: none of the " + std::to_string(nm) +
-                                                         " placed markers is in the clip (placed: " + placed + ")");
+                                                         " placed markers is in the clip (placed: " + joinNames(absent) +
+                                                         ")");
     }
     MarkerDistances carried = distances;
     carried.marker_names.clear();
