@@ -202,6 +202,62 @@ std::ptrdiff_t nearestSampleUpdate(const double* x, const double* y, const doubl
 
 }  // namespace
 
+Eigen::MatrixX3d slideInTangentPlanes(const Eigen::MatrixXd& bending, const Eigen::MatrixX3d& targets,
+                                      const std::vector<int>& sliding, const Eigen::MatrixX3d& normals,
+                                      int iterations) {
+  const auto m = static_cast<Eigen::Index>(sliding.size());
+  Eigen::MatrixX3d moved = targets;
+  if (m == 0) return moved;
+  // Two tangent directions per sliding point; unknowns t (2 per point):
+  // minimise tr((Y + S T t)^T B (Y + S T t)), i.e. solve
+  // (T^T B_ss T) t = -T^T (B Y)_s, positive semidefinite.
+  std::vector<Eigen::Matrix<double, 3, 2>> tangent(static_cast<std::size_t>(m));
+  Eigen::MatrixXd b_ss(m, m);
+  for (Eigen::Index i = 0; i < m; ++i) {
+    const Eigen::Vector3d n = normals.row(i).normalized();
+    const Eigen::Vector3d u = n.unitOrthogonal();
+    tangent[static_cast<std::size_t>(i)] << u, n.cross(u);
+    for (Eigen::Index j = 0; j < m; ++j) b_ss(i, j) = bending(sliding[static_cast<std::size_t>(i)], sliding[static_cast<std::size_t>(j)]);
+  }
+  auto toPoints = [&](const Eigen::VectorXd& t) {
+    Eigen::MatrixX3d d(m, 3);
+    for (Eigen::Index i = 0; i < m; ++i) d.row(i) = (tangent[static_cast<std::size_t>(i)] * t.segment<2>(2 * i)).transpose();
+    return d;
+  };
+  auto toTangents = [&](const Eigen::MatrixX3d& d) {
+    Eigen::VectorXd t(2 * m);
+    for (Eigen::Index i = 0; i < m; ++i) t.segment<2>(2 * i) = tangent[static_cast<std::size_t>(i)].transpose() * d.row(i).transpose();
+    return t;
+  };
+  const Eigen::MatrixX3d by = bending * targets;
+  Eigen::MatrixX3d by_s(m, 3);
+  for (Eigen::Index i = 0; i < m; ++i) by_s.row(i) = by.row(sliding[static_cast<std::size_t>(i)]);
+  // Preconditioned by the diagonal (B_ii for both directions of point i).
+  Eigen::VectorXd inverse_diagonal(2 * m);
+  for (Eigen::Index i = 0; i < m; ++i) inverse_diagonal.segment<2>(2 * i).setConstant(b_ss(i, i) > 0.0 ? 1.0 / b_ss(i, i) : 0.0);
+  Eigen::VectorXd t = Eigen::VectorXd::Zero(2 * m);
+  Eigen::VectorXd residual = -toTangents(by_s);
+  Eigen::VectorXd z = inverse_diagonal.cwiseProduct(residual);
+  Eigen::VectorXd direction = z;
+  double rz = residual.dot(z);
+  const double stop = 1e-16 * rz;
+  for (int k = 0; k < iterations && rz > stop; ++k) {
+    const Eigen::VectorXd a_direction = toTangents(b_ss * toPoints(direction));
+    const double curvature = direction.dot(a_direction);
+    if (!(curvature > 0.0)) break;
+    const double alpha = rz / curvature;
+    t += alpha * direction;
+    residual -= alpha * a_direction;
+    z = inverse_diagonal.cwiseProduct(residual);
+    const double rz_next = residual.dot(z);
+    direction = z + (rz_next / rz) * direction;
+    rz = rz_next;
+  }
+  const Eigen::MatrixX3d step = toPoints(t);
+  for (Eigen::Index i = 0; i < m; ++i) moved.row(sliding[static_cast<std::size_t>(i)]) += step.row(i);
+  return moved;
+}
+
 std::vector<int> farthestPointSample(const Eigen::MatrixX3d& positions, int count) {
   const Eigen::Index n = positions.rows();
   std::vector<int> chosen;

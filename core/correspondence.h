@@ -62,6 +62,19 @@ GuideModel projectToTarget(const Eigen::MatrixX3d& warped_positions, const Eigen
 double faceOrientationAgreement(const Eigen::MatrixX3d& warped_points, const Eigen::MatrixX3d& warped_normals,
                                 const ClosestPointIndex& target_index, const Mesh& target);
 
+// Sliding centres (Bookstein's sliding semilandmarks). Closest-point
+// projection settles where a dense-map centre lies across the target surface
+// but not where along it: that stays wherever the landmark warp put it. Here
+// the rows of `targets` listed in `sliding` move within their tangent planes
+// (plane normal: the matching row of `normals`), the other rows stay, so that
+// the bending energy tr(Y^T B Y) of the spline through the result is least
+// (`bending`: TpsFactorization::bendingEnergyMatrix of the centres).
+// Conjugate gradients, at most `iterations`. The moved points leave a curved
+// surface by the curvature over the slide: project them back.
+Eigen::MatrixX3d slideInTangentPlanes(const Eigen::MatrixXd& bending, const Eigen::MatrixX3d& targets,
+                                      const std::vector<int>& sliding, const Eigen::MatrixX3d& normals,
+                                      int iterations = 30);
+
 // Triangles of the guide whose orientation flips against the warped source
 // (folds of plain projection) and triangles that collapse to zero area.
 struct FoldReport {

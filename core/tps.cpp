@@ -334,6 +334,22 @@ Result<TpsFactorization> TpsFactorization::create(const Eigen::MatrixX3d& centre
   return f;
 }
 
+Eigen::MatrixXd TpsFactorization::bendingEnergyMatrix() const {
+  const Data& d = *data_;
+  const Eigen::Index n = d.centres.rows();
+  Eigen::MatrixXd b = Eigen::MatrixXd::Zero(n, n);
+  if (n <= 4) return b;
+  // Weights are w = -Q2 M^-1 Q2^T q in normalised units and w / s in model
+  // units, so B = Q2 M^-1 Q2^T / s = Z^T Z / s with Z = L^-1 Q2^T (M = L L^T).
+  const auto householder = d.qr.householderQ();
+  Eigen::MatrixXd qt = Eigen::MatrixXd::Identity(n, n);
+  qt.applyOnTheLeft(householder.adjoint());  // rows of Q^T
+  Eigen::MatrixXd z = qt.bottomRows(n - 4);
+  d.llt.matrixL().solveInPlace(z);
+  b.selfadjointView<Eigen::Lower>().rankUpdate(z.transpose(), 1.0 / d.scale);
+  return b.selfadjointView<Eigen::Lower>();
+}
+
 int TpsFactorization::size() const { return static_cast<int>(data_->centres.rows()); }
 const Eigen::MatrixX3d& TpsFactorization::centres() const { return data_->centres; }
 

@@ -87,6 +87,13 @@ class TpsFactorization {
   // found by backward elimination. Requires options.leave_one_out.
   TpsLeaveOneOut leaveOneOut(const Eigen::MatrixX3d& targets) const;
 
+  // Bending-energy matrix B (#n by #n, symmetric positive semidefinite, zero
+  // on affine maps: B [centres 1] = 0): the spline fitted to targets Y has
+  // kernel weights -B Y and, without regularisation, bending energy
+  // tr(Y^T B Y). Dense and O(n^3) (~10 ms at n = 465), so computed on request
+  // and kept by the caller; used to slide centres along a surface.
+  Eigen::MatrixXd bendingEnergyMatrix() const;
+
   int size() const;
   const Eigen::MatrixX3d& centres() const;
   std::size_t memoryBytes() const;

@@ -109,6 +109,10 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
       auto b = boolean(value, where);
       if (!b) return b.error();
       t.warp.rim_matching = *b;
+    } else if (key == "slide_centres") {
+      auto b = boolean(value, where);
+      if (!b) return b.error();
+      t.warp.slide_centres = *b;
     } else if (key == "refine_iterations") {
       auto x = number(value, where, 0, 20);
       if (!x) return x.error();

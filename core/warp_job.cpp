@@ -93,6 +93,14 @@ Eigen::MatrixX3d smoothedDisplacement(const PreparedSource& source, const Eigen:
   return out;
 }
 
+// Source vertex v lies on a source rim that matched a target rim (rim_match:
+// per source rim, its target rim or -1).
+bool onMatchedRim(const PreparedSource& source, int v, const std::vector<int>& rim_match) {
+  if (source.rim_vertices.rim.empty()) return false;
+  const int r = source.rim_vertices.rim[static_cast<std::size_t>(v)];
+  return r >= 0 && rim_match[static_cast<std::size_t>(r)] >= 0;
+}
+
 // Dense centres on a matched source rim (rim_match: per source rim, its
 // target rim or -1) go to the closest point of that target rim instead of the
 // surface. Row k of `projected` is source vertex rows[k] at queries.row(k);
@@ -103,9 +111,9 @@ void projectRimCentres(GuideModel& projected, const Eigen::MatrixX3d& queries, c
   if (source.rim_vertices.rim.empty()) return;
   for (Eigen::Index k = 0; k < queries.rows(); ++k) {
     const int v = rows[static_cast<std::size_t>(k)];
-    const int r = source.rim_vertices.rim[static_cast<std::size_t>(v)];
-    if (r < 0 || rim_match[static_cast<std::size_t>(r)] < 0) continue;
+    if (!onMatchedRim(source, v, rim_match)) continue;
     const Eigen::Vector3d tangent = (source.rim_vertices.tangent.row(v) * frame).transpose();
+    const int r = source.rim_vertices.rim[static_cast<std::size_t>(v)];
     const Rim& rim = target_rims[static_cast<std::size_t>(rim_match[static_cast<std::size_t>(r)])];
     const SurfacePoint sp = closestPointOnRim(queries.row(k).transpose(), tangent, rim, target);
     if (!sp.found()) continue;
@@ -114,6 +122,48 @@ void projectRimCentres(GuideModel& projected, const Eigen::MatrixX3d& queries, c
     projected.positions.row(k) = sp.point.transpose();
     projected.distance(k) = std::sqrt(sp.sq_distance);
   }
+}
+
+// The refinement's sliding step (slideInTangentPlanes) for the dense centres
+// at `sliding` (rows of `centre_targets`; row nl + k is dense sample k,
+// projected to projected.on_target[k] with query normal
+// sample_normals.row(k)): each slides in the plane of the target face it was
+// projected to and is projected again with its normal and region; one that
+// then finds no compatible face keeps its projection.
+Eigen::MatrixX3d slideOnTarget(const PreparedSource& source, const Eigen::MatrixX3d& centre_targets,
+                               const std::vector<int>& sliding, const GuideModel& projected,
+                               const Eigen::MatrixX3d& sample_normals, const Mesh& target,
+                               const ClosestPointIndex& target_index, double target_diagonal,
+                               const ProjectionOptions& projection, const std::vector<std::uint64_t>& source_masks,
+                               WarpReport& report) {
+  const Eigen::Index nl = source.landmark_positions.rows();
+  std::vector<int> samples(sliding.size());
+  Eigen::MatrixX3d face_normals(static_cast<Eigen::Index>(sliding.size()), 3);
+  for (std::size_t i = 0; i < sliding.size(); ++i) {
+    samples[i] = sliding[i] - static_cast<int>(nl);
+    const int f = projected.on_target[static_cast<std::size_t>(samples[i])].face;
+    const Eigen::Vector3d a = target.positions.row(target.triangles(f, 0));
+    const Eigen::Vector3d b = target.positions.row(target.triangles(f, 1));
+    const Eigen::Vector3d c = target.positions.row(target.triangles(f, 2));
+    face_normals.row(static_cast<Eigen::Index>(i)) = (b - a).cross(c - a).transpose();
+  }
+  const Eigen::MatrixX3d slid =
+      slideInTangentPlanes(source.dense_bending, centre_targets, sliding, face_normals);
+  std::vector<int> sample_vertices(sliding.size());
+  for (std::size_t i = 0; i < sliding.size(); ++i) sample_vertices[i] = source.dense_vertices[static_cast<std::size_t>(samples[i])];
+  const GuideModel again = projectToTarget(selectRows(slid, sliding), selectRows(sample_normals, samples), target_index,
+                                           target_diagonal, projection, selectMasks(source_masks, sample_vertices));
+  Eigen::MatrixX3d out = centre_targets;
+  double total = 0.0;
+  for (std::size_t i = 0; i < sliding.size(); ++i) {
+    const auto row = static_cast<Eigen::Index>(sliding[i]);
+    if (!again.on_target[i].found()) continue;
+    out.row(row) = again.positions.row(static_cast<Eigen::Index>(i));
+    total += (out.row(row) - centre_targets.row(row)).norm();
+    ++report.slid_centres;
+  }
+  report.mean_slide = report.slid_centres > 0 ? total / report.slid_centres : 0.0;
+  return out;
 }
 
 // Region labels on one side only cannot match: warns about them by number
@@ -213,6 +263,7 @@ std::size_t PreparedSource::memoryBytes() const {
   for (const Rim& rim : rims) bytes += rim.vertices.size() * 4 * sizeof(int);
   bytes += static_cast<std::size_t>(mesh.regions.size()) * sizeof(int);
   if (dense_factorization) bytes += dense_factorization->memoryBytes();
+  bytes += static_cast<std::size_t>(dense_bending.size()) * sizeof(double);
   return bytes;
 }
 
@@ -271,6 +322,7 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
     auto f = TpsFactorization::create(prepared.dense_centres, dense);
     if (!f) return Error{f.error().code, label + ": dense map: " + f.error().message};
     prepared.dense_factorization = std::move(*f);
+    prepared.dense_bending = prepared.dense_factorization->bendingEnergyMatrix();
   }
   // Vertex adjacency (unique neighbours, sorted) for smoothing on the source;
   // the projection sample is a maximal independent set of it (greedy in index
@@ -588,13 +640,22 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
       projectRimCentres(projected, samples, source.dense_vertices, source, rim_frame, rim_match, target_rims, *matched);
       Eigen::MatrixX3d centre_targets(nc, 3);
       centre_targets.topRows(nl) = pinned;
+      std::vector<int> sliding;  // rows of centre_targets
       for (Eigen::Index k = 0; k < nc - nl; ++k) {
         const bool trusted = projected.on_target[static_cast<std::size_t>(k)].found() && projected.distance(k) <= trust;
         if (trusted) {
           centre_targets.row(nl + k) = projected.positions.row(k);
+          if (!onMatchedRim(source, source.dense_vertices[static_cast<std::size_t>(k)], rim_match)) {
+            sliding.push_back(static_cast<int>(nl + k));
+          }
         } else {
           centre_targets.row(nl + k) = samples.row(k);
         }
+      }
+      if (options.slide_centres && it + 1 == options.refine_iterations && source.dense_bending.size() > 0) {
+        centre_targets = slideOnTarget(source, centre_targets, sliding, projected, centre_normals.bottomRows(nc - nl),
+                                       *matched, target_index, report.target_diagonal, projection, source_masks,
+                                       report);
       }
       dense = source.dense_factorization->fit(centre_targets);
       // Centres and their normals through the new map (normals by J^-T).

@@ -38,6 +38,8 @@ struct PreparedSource {
   std::vector<int> dense_vertices;     // source vertices used as dense-map centres (after the landmarks)
   Eigen::MatrixX3d dense_centres;      // #L + #dense_vertices by 3: landmark positions, then samples
   std::optional<TpsFactorization> dense_factorization;
+  // Its bendingEnergyMatrix (#centres squared), for sliding the centres.
+  Eigen::MatrixXd dense_bending;
   // Vertex adjacency of the source (CSR): neighbours of v are
   // neighbor_indices[neighbor_offsets[v] .. neighbor_offsets[v+1]).
   std::vector<int> neighbor_offsets;
@@ -70,6 +72,11 @@ struct WarpOptions {
   // Non-rigid ICP rounds: fit the dense map to the current guide, re-warp the
   // source through it and re-project. 0 = the papers' plain warp + projection.
   int refine_iterations = 3;
+  // In the last refinement round the projected dense centres slide along the
+  // target surface to where the dense map bends least
+  // (slideInTangentPlanes): projection alone leaves them where the landmark
+  // warp put them along the surface. Landmarks and rim centres stay.
+  bool slide_centres = true;
   // Projections farther than this (fraction of the target diagonal) do not
   // pull their dense centre during refinement.
   double refine_max_distance = 0.1;
@@ -134,6 +141,8 @@ struct WarpReport {
   int matched_rims = 0;               // source rims matched to a target rim (matchRims)
   int rims_in_warp = 0;               // of those, rims whose paired points joined the landmark warp
   int refine_iterations = 0;
+  int slid_centres = 0;               // dense centres slid along the target in the last round
+  double mean_slide = 0.0;            // their mean slide, target units
   bool region_matching = false;       // matches were region-constrained
   // faceOrientationAgreement of the target after the landmark warp (+1: its
   // faces face as the source's); below 0 the target was matched with its

@@ -1,7 +1,9 @@
 #include "core/correspondence.h"
 
 #include <cstdint>
+#include <cmath>
 #include <cstdio>
+#include <random>
 #include <set>
 
 #include <gtest/gtest.h>
@@ -317,6 +319,95 @@ TEST(Correspondence, NeckCutJoinsTheWarpWhenNoLandmarkPinsIt) {
   std::printf("[ neck forward ] %zu neck vertices, mean distance from their true source point %.4f -> %.4f "
               "(head depth %.3f)\n", neck.size(), slide_off, slide_on, depth);
   EXPECT_LT(slide_on, 0.5 * slide_off);
+}
+
+// Points displaced within their own tangent planes off an affine image slide
+// back onto it: the affine map is the only one of zero bending energy that
+// the fixed points allow.
+TEST(Correspondence, SlidingInTangentPlanesRestoresAnAffineMap) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  Eigen::MatrixX3d centres(40, 3);
+  for (Eigen::Index i = 0; i < 40; ++i) centres.row(i) << u(rng), u(rng), u(rng);
+  Eigen::Matrix3d a;
+  a << 1.2, 0.1, -0.3, 0.0, 0.8, 0.2, 0.1, -0.1, 1.1;
+  const Eigen::MatrixX3d affine = (centres * a.transpose()).rowwise() + Eigen::RowVector3d(0.5, -1.0, 2.0);
+  auto factorization = core::TpsFactorization::create(centres);
+  ASSERT_TRUE(factorization);
+  const Eigen::MatrixXd bending = factorization->bendingEnergyMatrix();
+  std::vector<int> sliding;
+  Eigen::MatrixX3d normals(25, 3);
+  Eigen::MatrixX3d displaced = affine;
+  for (int i = 0; i < 25; ++i) {
+    const int row = 15 + i;
+    sliding.push_back(row);
+    const Eigen::Vector3d n = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
+    normals.row(i) = 3.0 * n.transpose();  // any length
+    const Eigen::Vector3d in_plane = n.unitOrthogonal() * u(rng) + n.cross(n.unitOrthogonal()) * u(rng);
+    displaced.row(row) += 0.2 * in_plane.transpose();
+  }
+  const double before = (displaced.transpose() * bending * displaced).trace();
+  const Eigen::MatrixX3d slid = core::slideInTangentPlanes(bending, displaced, sliding, normals, 200);
+  EXPECT_GT(before, 1e-3);
+  EXPECT_LT((slid.transpose() * bending * slid).trace(), 1e-12 * before + 1e-14);
+  EXPECT_TRUE(rigport_test::matricesNear(slid, affine, 1e-6));
+  // Fixed rows did not move; sliding rows moved within their planes.
+  EXPECT_TRUE(slid.topRows(15).isApprox(displaced.topRows(15)));
+  for (int i = 0; i < 25; ++i) {
+    EXPECT_NEAR((slid.row(15 + i) - displaced.row(15 + i)).dot(normals.row(i).normalized()), 0.0, 1e-12);
+  }
+}
+
+// A head bent by a smooth space warp (same topology, so target vertex v's
+// true source point is source vertex v), matched with 10 landmarks as a
+// sparse target would be: sliding the dense centres locates the target
+// closer to the truth than projection alone.
+TEST(Correspondence, SlidingCentresLocateASparselyLandmarkedTargetCloser) {
+  const auto source = core::generateHead();
+  const double h = source.mesh.positions.col(1).maxCoeff() - source.mesh.positions.col(1).minCoeff();
+  core::SyntheticHead target = source;
+  for (Eigen::Index v = 0; v < target.mesh.positions.rows(); ++v) {
+    const double y = target.mesh.positions(v, 1) / h;
+    target.mesh.positions(v, 2) *= 1.0 + 0.3 * y * y;
+    target.mesh.positions(v, 0) += 0.04 * h * std::cos(3.0 * y);
+  }
+  target.mesh.normals = core::computeVertexNormals(target.mesh.positions, target.mesh.triangles);
+  core::LandmarkSet sparse;
+  for (const auto& l : target.landmarks.landmarks) {
+    for (const char* name : {"eye_right_0", "eye_right_3", "eye_left_0", "eye_left_3", "nose_bridge_3", "nose_base_0",
+                             "nose_base_4", "mouth_outer_0", "mouth_outer_6", "jaw_08"}) {
+      if (l.name == name) sparse.landmarks.push_back(l);
+    }
+  }
+  ASSERT_EQ(sparse.landmarks.size(), 10u);
+  auto prepared = core::prepareSource(source.mesh, source.landmarks, "source");
+  ASSERT_TRUE(prepared);
+  core::WarpOptions projected_only;
+  projected_only.slide_centres = false;
+  auto off = core::runWarp(*prepared, target.mesh, sparse, "bent", projected_only);
+  auto on = core::runWarp(*prepared, target.mesh, sparse, "bent");
+  ASSERT_TRUE(off && on);
+  EXPECT_EQ(off->report.slid_centres, 0);
+  EXPECT_GT(on->report.slid_centres, 200);
+  EXPECT_GT(on->report.mean_slide, 0.0);
+  auto locationError = [&](const core::WarpResult& r) {
+    double sum = 0.0;
+    for (Eigen::Index v = 0; v < target.mesh.positions.rows(); ++v) {
+      const core::SurfacePoint& at = r.locations.on_source[static_cast<std::size_t>(v)];
+      if (!at.found()) {
+        sum += h;
+        continue;
+      }
+      Eigen::RowVector3d p = Eigen::RowVector3d::Zero();
+      for (int c = 0; c < 3; ++c) p += at.barycentric(c) * source.mesh.positions.row(source.mesh.triangles(at.face, c));
+      sum += (p - source.mesh.positions.row(v)).norm();
+    }
+    return sum / static_cast<double>(target.mesh.positions.rows());
+  };
+  const double error_off = locationError(*off), error_on = locationError(*on);
+  std::printf("[ bent head, 10 landmarks ] mean distance from the true source point %.5f -> %.5f (head height %.3f), "
+              "%d centres slid %.5f on average\n", error_off, error_on, h, on->report.slid_centres, on->report.mean_slide);
+  EXPECT_LT(error_on, 0.95 * error_off);
 }
 
 TEST(Correspondence, FoldsAreCounted) {

@@ -77,6 +77,29 @@ TEST(Tps, FactorisationReuseEqualsFreshSolve) {
   }
 }
 
+TEST(Tps, BendingEnergyMatrixGivesTheWeightsAndTheEnergyOfAFit) {
+  const Eigen::MatrixX3d p = randomPoints(50, 13, 4.0);
+  const Eigen::MatrixX3d q = bend(p);
+  for (double regularization : {0.0, 0.05}) {
+    core::TpsOptions options;
+    options.regularization = regularization;
+    auto factorization = core::TpsFactorization::create(p, options);
+    ASSERT_TRUE(factorization) << factorization.error().message;
+    const Eigen::MatrixXd b = factorization->bendingEnergyMatrix();
+    ASSERT_EQ(b.rows(), 50);
+    EXPECT_TRUE(b.isApprox(b.transpose(), 1e-12));
+    const core::TpsWarp warp = factorization->fit(q);
+    EXPECT_TRUE(matricesNear(warp.kernelWeights(), -b * q, 1e-9)) << "regularization " << regularization;
+    // Affine maps cost nothing.
+    Eigen::MatrixXd affine(50, 4);
+    affine << p, Eigen::VectorXd::Ones(50);
+    EXPECT_LT((b * affine).cwiseAbs().maxCoeff(), 1e-9);
+    if (regularization == 0.0) {
+      EXPECT_NEAR((q.transpose() * b * q).trace(), warp.bendingEnergy(), 1e-9 * warp.bendingEnergy());
+    }
+  }
+}
+
 TEST(Tps, JacobianMatchesFiniteDifferences) {
   const Eigen::MatrixX3d p = randomPoints(20, 21, 3.0);
   auto warp = core::fitTps(p, bend(p));

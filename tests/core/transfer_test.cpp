@@ -780,6 +780,18 @@ TEST(TransferRig, AnimationStrainFollowsTheSource) {
   EXPECT_NEAR(amplitude, 1.0, 0.1);
 }
 
+TEST(TransferOptions, SlidingCentresCanBeSwitchedOff) {
+  auto defaults = core::parseTransferOptions("{}", "opts.json");
+  ASSERT_TRUE(defaults) << defaults.error().message;
+  EXPECT_TRUE(defaults->transfer.warp.slide_centres);
+  auto off = core::parseTransferOptions(R"({"slide_centres": false})", "opts.json");
+  ASSERT_TRUE(off) << off.error().message;
+  EXPECT_FALSE(off->transfer.warp.slide_centres);
+  auto bad = core::parseTransferOptions(R"({"slide_centres": 1})", "opts.json");
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("slide_centres"), std::string::npos) << bad.error().message;
+}
+
 TEST(TransferOptions, RimMatchingCanBeSwitchedOff) {
   auto defaults = core::parseTransferOptions("{}", "opts.json");
   ASSERT_TRUE(defaults) << defaults.error().message;
