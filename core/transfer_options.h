@@ -6,7 +6,7 @@
 //    "low_confidence_distance": 0.05, "low_confidence_angle_deg": 30,
 //    "adaptation": "rotation", "exaggeration": 1.0,
 //    "shape_exaggeration": {"jawOpen": 1.5}, "joint_exaggeration": {"jaw": 1.2},
-//    "diagnostic_attributes": false, "refine_iterations": 3,
+//    "diagnostic_attributes": false, "refine_iterations": 2,
 //    "region_matching": true, "rim_matching": true, "slide_centres": true}
 // Unknown keys are errors (a typo must not be silently ignored). nlohmann is
 // used privately in the .cpp, as in core/diagnostics_json.cpp.

@@ -71,7 +71,7 @@ struct WarpOptions {
   TpsOptions landmark_tps;             // regularisation of the landmark warp (0 = exact)
   // Non-rigid ICP rounds: fit the dense map to the current guide, re-warp the
   // source through it and re-project. 0 = the papers' plain warp + projection.
-  int refine_iterations = 3;
+  int refine_iterations = 2;
   // In the last refinement round the projected dense centres slide along the
   // target surface to where the dense map bends least
   // (slideInTangentPlanes): projection alone leaves them where the landmark
