@@ -124,39 +124,35 @@ void projectRimCentres(GuideModel& projected, const Eigen::MatrixX3d& queries, c
   }
 }
 
-// The refinement's sliding step (slideInTangentPlanes) for the dense centres
-// at `sliding` (rows of `centre_targets`; row nl + k is dense sample k,
-// projected to projected.on_target[k] with query normal
-// sample_normals.row(k)): each slides in the plane of the target face it was
-// projected to and is projected again with its normal and region; one that
-// then finds no compatible face keeps its projection.
-Eigen::MatrixX3d slideOnTarget(const PreparedSource& source, const Eigen::MatrixX3d& centre_targets,
-                               const std::vector<int>& sliding, const GuideModel& projected,
-                               const Eigen::MatrixX3d& sample_normals, const Mesh& target,
+// The refinement's sliding step (slideInTangentPlanes). Free centre k is
+// row rows[k] of `centre_targets`, projected to projected.on_target[k] with
+// query normal query_normals.row(k) and region mask query_masks[k] (none when
+// empty); those listed in `sliding` slide in the plane of the target face
+// they were projected to and are projected again the same way. One that then
+// finds no compatible face keeps its projection.
+Eigen::MatrixX3d slideOnTarget(const Eigen::MatrixXd& bending, const Eigen::MatrixX3d& centre_targets,
+                               const std::vector<int>& rows, const std::vector<int>& sliding,
+                               const GuideModel& projected, const Eigen::MatrixX3d& query_normals,
+                               const std::vector<std::uint64_t>& query_masks, const Mesh& target,
                                const ClosestPointIndex& target_index, double target_diagonal,
-                               const ProjectionOptions& projection, const std::vector<std::uint64_t>& source_masks,
-                               WarpReport& report) {
-  const Eigen::Index nl = source.landmark_positions.rows();
-  std::vector<int> samples(sliding.size());
+                               const ProjectionOptions& projection, WarpReport& report) {
+  std::vector<int> sliding_rows(sliding.size());
   Eigen::MatrixX3d face_normals(static_cast<Eigen::Index>(sliding.size()), 3);
   for (std::size_t i = 0; i < sliding.size(); ++i) {
-    samples[i] = sliding[i] - static_cast<int>(nl);
-    const int f = projected.on_target[static_cast<std::size_t>(samples[i])].face;
+    sliding_rows[i] = rows[static_cast<std::size_t>(sliding[i])];
+    const int f = projected.on_target[static_cast<std::size_t>(sliding[i])].face;
     const Eigen::Vector3d a = target.positions.row(target.triangles(f, 0));
     const Eigen::Vector3d b = target.positions.row(target.triangles(f, 1));
     const Eigen::Vector3d c = target.positions.row(target.triangles(f, 2));
     face_normals.row(static_cast<Eigen::Index>(i)) = (b - a).cross(c - a).transpose();
   }
-  const Eigen::MatrixX3d slid =
-      slideInTangentPlanes(source.dense_bending, centre_targets, sliding, face_normals);
-  std::vector<int> sample_vertices(sliding.size());
-  for (std::size_t i = 0; i < sliding.size(); ++i) sample_vertices[i] = source.dense_vertices[static_cast<std::size_t>(samples[i])];
-  const GuideModel again = projectToTarget(selectRows(slid, sliding), selectRows(sample_normals, samples), target_index,
-                                           target_diagonal, projection, selectMasks(source_masks, sample_vertices));
+  const Eigen::MatrixX3d slid = slideInTangentPlanes(bending, centre_targets, sliding_rows, face_normals);
+  const GuideModel again = projectToTarget(selectRows(slid, sliding_rows), selectRows(query_normals, sliding),
+                                           target_index, target_diagonal, projection, selectMasks(query_masks, sliding));
   Eigen::MatrixX3d out = centre_targets;
   double total = 0.0;
   for (std::size_t i = 0; i < sliding.size(); ++i) {
-    const auto row = static_cast<Eigen::Index>(sliding[i]);
+    const auto row = static_cast<Eigen::Index>(sliding_rows[i]);
     if (!again.on_target[i].found()) continue;
     out.row(row) = again.positions.row(static_cast<Eigen::Index>(i));
     total += (out.row(row) - centre_targets.row(row)).norm();
@@ -257,6 +253,7 @@ std::size_t PreparedSource::memoryBytes() const {
   bytes += static_cast<std::size_t>(mesh.positions.size() + mesh.normals.size() + mesh.uvs.size()) * sizeof(double);
   bytes += static_cast<std::size_t>(mesh.triangles.size()) * sizeof(int);
   bytes += static_cast<std::size_t>(dense_centres.size() + landmark_positions.size()) * sizeof(double);
+  bytes += landmark_vertices.size() * sizeof(int);
   bytes += (neighbor_offsets.size() + neighbor_indices.size() + projection_sample.size()) * sizeof(int);
   bytes += (face_regions.size() + region_bits.size()) * sizeof(std::uint64_t);
   bytes += rim_vertices.rim.size() * sizeof(int) + static_cast<std::size_t>(rim_vertices.tangent.size()) * sizeof(double);
@@ -291,6 +288,11 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
   if (!positions) return positions.error();
   prepared.landmarks = std::move(landmarks);
   prepared.landmark_positions = std::move(*positions);
+  prepared.landmark_vertices.resize(static_cast<std::size_t>(prepared.landmark_positions.rows()));
+  for (Eigen::Index l = 0; l < prepared.landmark_positions.rows(); ++l) {
+    (prepared.mesh.positions.rowwise() - prepared.landmark_positions.row(l))
+        .rowwise().squaredNorm().minCoeff(&prepared.landmark_vertices[static_cast<std::size_t>(l)]);
+  }
   {
     // The full landmark set must span 3D on its own (names in errors).
     std::vector<std::string> names;
@@ -607,63 +609,66 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   }
   result.warped_positions = result.landmark_warp.apply(source.mesh.positions);
   Eigen::MatrixX3d warped_normals = computeVertexNormals(result.warped_positions, tris);
-  // Targets of the dense map's landmark centres: the job's target landmarks,
-  // and the warp's image for source landmarks the target does not use.
-  Eigen::MatrixX3d pinned = result.landmark_warp.apply(source.landmark_positions);
+  // Targets of the dense map's landmark centres: the job's target landmarks;
+  // for source landmarks the target does not use, the warp's image, then
+  // where the refinement puts them.
+  Eigen::MatrixX3d landmark_targets = result.landmark_warp.apply(source.landmark_positions);
+  std::vector<char> landmark_used(static_cast<std::size_t>(landmark_targets.rows()), 0);
   for (std::size_t i = 0; i < pairs->names.size(); ++i) {
-    pinned.row(source.landmarks.indexOf(pairs->names[i])) = pairs->target.row(static_cast<Eigen::Index>(i));
+    const int l = source.landmarks.indexOf(pairs->names[i]);
+    landmark_targets.row(l) = pairs->target.row(static_cast<Eigen::Index>(i));
+    landmark_used[static_cast<std::size_t>(l)] = 1;
   }
   if (source.dense_factorization && options.refine_iterations > 0) {
-    // Non-rigid ICP on the dense centres only: project them, fit the dense map
-    // to the trusted projections, move the centres (and their normals, by the
-    // map's Jacobian) and repeat. The full surface is warped once at the end.
-    // Landmark centres are pinned to the job's target landmarks (the source's
-    // other landmarks follow the warp).
+    // Non-rigid ICP on the dense centres only: project the free ones (the
+    // farthest-point samples, and the source landmarks the target does not
+    // use), fit the dense map to the trusted projections, move the free
+    // centres (and their normals, by the map's Jacobian) and repeat. The full
+    // surface is warped once at the end. The job's landmarks stay pinned.
     const Eigen::Index nl = source.landmark_positions.rows();
-    const Eigen::Index nc = source.dense_centres.rows();
     const double trust = options.refine_max_distance * report.target_diagonal;
-    Eigen::MatrixX3d centre_positions(nc, 3), centre_normals(nc, 3);
-    centre_positions.topRows(nl) = result.landmark_warp.apply(source.landmark_positions);
-    for (std::size_t k = 0; k < source.dense_vertices.size(); ++k) {
-      const int v = source.dense_vertices[k];
-      centre_positions.row(nl + static_cast<Eigen::Index>(k)) = result.warped_positions.row(v);
-      centre_normals.row(nl + static_cast<Eigen::Index>(k)) = warped_normals.row(v);
+    std::vector<int> rows, vertices;  // per free centre: its row of the centres, its (nearest) source vertex
+    for (Eigen::Index l = 0; l < nl; ++l) {
+      if (landmark_used[static_cast<std::size_t>(l)]) continue;
+      rows.push_back(static_cast<int>(l));
+      vertices.push_back(source.landmark_vertices[static_cast<std::size_t>(l)]);
     }
+    for (std::size_t k = 0; k < source.dense_vertices.size(); ++k) {
+      rows.push_back(static_cast<int>(nl + static_cast<Eigen::Index>(k)));
+      vertices.push_back(source.dense_vertices[k]);
+    }
+    const Eigen::MatrixX3d free_sources = selectRows(source.dense_centres, rows);
+    const Eigen::MatrixX3d free_source_normals = selectRows(source.mesh.normals, vertices);
+    const std::vector<std::uint64_t> free_masks = selectMasks(source_masks, vertices);
+    Eigen::MatrixX3d free_positions = result.landmark_warp.apply(free_sources);
+    Eigen::MatrixX3d free_normals = selectRows(warped_normals, vertices);
     const Eigen::Matrix3d rim_frame = result.landmark_warp.affine().topRows<3>();
-    const Eigen::MatrixX3d sample_normals = selectRows(source.mesh.normals, source.dense_vertices);
+    Eigen::MatrixX3d centre_targets(source.dense_centres.rows(), 3);
     TpsWarp dense;
     for (int it = 0; it < options.refine_iterations; ++it) {
-      const Eigen::MatrixX3d samples = centre_positions.bottomRows(nc - nl);
-      GuideModel projected = projectToTarget(samples, centre_normals.bottomRows(nc - nl), target_index,
-                                             report.target_diagonal, projection,
-                                             selectMasks(source_masks, source.dense_vertices));
-      projectRimCentres(projected, samples, source.dense_vertices, source, rim_frame, rim_match, target_rims, *matched);
-      Eigen::MatrixX3d centre_targets(nc, 3);
-      centre_targets.topRows(nl) = pinned;
-      std::vector<int> sliding;  // rows of centre_targets
-      for (Eigen::Index k = 0; k < nc - nl; ++k) {
-        const bool trusted = projected.on_target[static_cast<std::size_t>(k)].found() && projected.distance(k) <= trust;
-        if (trusted) {
-          centre_targets.row(nl + k) = projected.positions.row(k);
-          if (!onMatchedRim(source, source.dense_vertices[static_cast<std::size_t>(k)], rim_match)) {
-            sliding.push_back(static_cast<int>(nl + k));
-          }
-        } else {
-          centre_targets.row(nl + k) = samples.row(k);
-        }
+      GuideModel projected = projectToTarget(free_positions, free_normals, target_index, report.target_diagonal,
+                                             projection, free_masks);
+      projectRimCentres(projected, free_positions, vertices, source, rim_frame, rim_match, target_rims, *matched);
+      centre_targets.topRows(nl) = landmark_targets;
+      std::vector<int> sliding;  // free centres
+      for (std::size_t k = 0; k < rows.size(); ++k) {
+        const auto i = static_cast<Eigen::Index>(k);
+        const bool trusted = projected.on_target[k].found() && projected.distance(i) <= trust;
+        centre_targets.row(rows[k]) = trusted ? projected.positions.row(i) : free_positions.row(i);
+        if (trusted && !onMatchedRim(source, vertices[k], rim_match)) sliding.push_back(static_cast<int>(k));
       }
       if (options.slide_centres && it + 1 == options.refine_iterations && source.dense_bending.size() > 0) {
-        centre_targets = slideOnTarget(source, centre_targets, sliding, projected, centre_normals.bottomRows(nc - nl),
-                                       *matched, target_index, report.target_diagonal, projection, source_masks,
+        centre_targets = slideOnTarget(source.dense_bending, centre_targets, rows, sliding, projected, free_normals,
+                                       free_masks, *matched, target_index, report.target_diagonal, projection,
                                        report);
       }
       dense = source.dense_factorization->fit(centre_targets);
-      // Centres and their normals through the new map (normals by J^-T).
-      const Eigen::MatrixX3d source_samples = source.dense_centres.bottomRows(nc - nl);
-      centre_positions.bottomRows(nc - nl) = dense.apply(source_samples);
-      centre_normals.bottomRows(nc - nl) = normalsThroughWarp(dense, source_samples, sample_normals);
+      // Free centres and their normals through the new map (normals by J^-T).
+      free_positions = dense.apply(free_sources);
+      free_normals = normalsThroughWarp(dense, free_sources, free_source_normals);
       report.refine_iterations = it + 1;
     }
+    for (std::size_t k = 0; k < rows.size() && rows[k] < nl; ++k) landmark_targets.row(rows[k]) = centre_targets.row(rows[k]);
     result.warped_positions = dense.apply(source.mesh.positions);
     warped_normals = computeVertexNormals(result.warped_positions, tris);
   }
@@ -685,7 +690,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   if (source.dense_factorization) {
     const Eigen::Index nl = source.landmark_positions.rows();
     Eigen::MatrixX3d centre_targets(source.dense_centres.rows(), 3);
-    centre_targets.topRows(nl) = pinned;
+    centre_targets.topRows(nl) = landmark_targets;
     for (std::size_t k = 0; k < source.dense_vertices.size(); ++k) {
       centre_targets.row(nl + static_cast<Eigen::Index>(k)) = result.guide.positions.row(source.dense_vertices[k]);
     }

@@ -34,6 +34,7 @@ struct PreparedSource {
   std::string label;                   // file or rig name, for messages
   LandmarkSet landmarks;
   Eigen::MatrixX3d landmark_positions; // #L by 3 on the source mesh
+  std::vector<int> landmark_vertices;  // #L: the source vertex nearest each landmark (its normal, region, rim)
   double diagonal = 0.0;               // source bbox diagonal
   std::vector<int> dense_vertices;     // source vertices used as dense-map centres (after the landmarks)
   Eigen::MatrixX3d dense_centres;      // #L + #dense_vertices by 3: landmark positions, then samples
@@ -75,7 +76,8 @@ struct WarpOptions {
   // In the last refinement round the projected dense centres slide along the
   // target surface to where the dense map bends least
   // (slideInTangentPlanes): projection alone leaves them where the landmark
-  // warp put them along the surface. Landmarks and rim centres stay.
+  // warp put them along the surface. The job's landmarks and centres on
+  // matched rims stay.
   bool slide_centres = true;
   // Projections farther than this (fraction of the target diagonal) do not
   // pull their dense centre during refinement.
