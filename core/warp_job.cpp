@@ -130,12 +130,17 @@ void projectRimCentres(GuideModel& projected, const Eigen::MatrixX3d& queries, c
 // empty); those listed in `sliding` slide in the plane of the target face
 // they were projected to and are projected again the same way. One that then
 // finds no compatible face keeps its projection.
-Eigen::MatrixX3d slideOnTarget(const Eigen::MatrixXd& bending, const Eigen::MatrixX3d& centre_targets,
+struct SlideResult {
+  Eigen::MatrixX3d centre_targets;
+  int slid = 0;             // centres that slid
+  double mean_slide = 0.0;  // their mean slide
+};
+SlideResult slideOnTarget(const Eigen::MatrixXd& bending, const Eigen::MatrixX3d& centre_targets,
                                const std::vector<int>& rows, const std::vector<int>& sliding,
                                const GuideModel& projected, const Eigen::MatrixX3d& query_normals,
                                const std::vector<std::uint64_t>& query_masks, const Mesh& target,
                                const ClosestPointIndex& target_index, double target_diagonal,
-                               const ProjectionOptions& projection, WarpReport& report) {
+                               const ProjectionOptions& projection) {
   std::vector<int> sliding_rows(sliding.size());
   Eigen::MatrixX3d face_normals(static_cast<Eigen::Index>(sliding.size()), 3);
   for (std::size_t i = 0; i < sliding.size(); ++i) {
@@ -149,16 +154,16 @@ Eigen::MatrixX3d slideOnTarget(const Eigen::MatrixXd& bending, const Eigen::Matr
   const Eigen::MatrixX3d slid = slideInTangentPlanes(bending, centre_targets, sliding_rows, face_normals);
   const GuideModel again = projectToTarget(selectRows(slid, sliding_rows), selectRows(query_normals, sliding),
                                            target_index, target_diagonal, projection, selectMasks(query_masks, sliding));
-  Eigen::MatrixX3d out = centre_targets;
+  SlideResult out{centre_targets};
   double total = 0.0;
   for (std::size_t i = 0; i < sliding.size(); ++i) {
     const auto row = static_cast<Eigen::Index>(sliding_rows[i]);
     if (!again.on_target[i].found()) continue;
-    out.row(row) = again.positions.row(static_cast<Eigen::Index>(i));
-    total += (out.row(row) - centre_targets.row(row)).norm();
-    ++report.slid_centres;
+    out.centre_targets.row(row) = again.positions.row(static_cast<Eigen::Index>(i));
+    total += (out.centre_targets.row(row) - centre_targets.row(row)).norm();
+    ++out.slid;
   }
-  report.mean_slide = report.slid_centres > 0 ? total / report.slid_centres : 0.0;
+  out.mean_slide = out.slid > 0 ? total / out.slid : 0.0;
   return out;
 }
 
@@ -288,10 +293,17 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
   if (!positions) return positions.error();
   prepared.landmarks = std::move(landmarks);
   prepared.landmark_positions = std::move(*positions);
-  prepared.landmark_vertices.resize(static_cast<std::size_t>(prepared.landmark_positions.rows()));
   for (Eigen::Index l = 0; l < prepared.landmark_positions.rows(); ++l) {
-    (prepared.mesh.positions.rowwise() - prepared.landmark_positions.row(l))
-        .rowwise().squaredNorm().minCoeff(&prepared.landmark_vertices[static_cast<std::size_t>(l)]);
+    const Landmark& landmark = prepared.landmarks.landmarks[static_cast<std::size_t>(l)];
+    int v = landmark.vertex;
+    if (landmark.kind == LandmarkKind::kFace) {
+      Eigen::Index corner = 0;
+      landmark.barycentric.maxCoeff(&corner);
+      v = prepared.mesh.triangles(landmark.face, corner);
+    } else if (landmark.kind == LandmarkKind::kPosition) {
+      (prepared.mesh.positions.rowwise() - prepared.landmark_positions.row(l)).rowwise().squaredNorm().minCoeff(&v);
+    }
+    prepared.landmark_vertices.push_back(v);
   }
   {
     // The full landmark set must span 3D on its own (names in errors).
@@ -657,10 +669,13 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
         centre_targets.row(rows[k]) = trusted ? projected.positions.row(i) : free_positions.row(i);
         if (trusted && !onMatchedRim(source, vertices[k], rim_match)) sliding.push_back(static_cast<int>(k));
       }
-      if (options.slide_centres && it + 1 == options.refine_iterations && source.dense_bending.size() > 0) {
-        centre_targets = slideOnTarget(source.dense_bending, centre_targets, rows, sliding, projected, free_normals,
-                                       free_masks, *matched, target_index, report.target_diagonal, projection,
-                                       report);
+      if (options.slide_centres && source.dense_bending.size() > 0) {
+        SlideResult slide = slideOnTarget(source.dense_bending, centre_targets, rows, sliding, projected,
+                                          free_normals, free_masks, *matched, target_index, report.target_diagonal,
+                                          projection);
+        centre_targets = std::move(slide.centre_targets);
+        report.slid_centres = slide.slid;
+        if (it == 0) report.mean_slide = slide.mean_slide;
       }
       dense = source.dense_factorization->fit(centre_targets);
       // Free centres and their normals through the new map (normals by J^-T).

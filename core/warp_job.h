@@ -73,7 +73,7 @@ struct WarpOptions {
   // Non-rigid ICP rounds: fit the dense map to the current guide, re-warp the
   // source through it and re-project. 0 = the papers' plain warp + projection.
   int refine_iterations = 2;
-  // In the last refinement round the projected dense centres slide along the
+  // In each refinement round the projected dense centres slide along the
   // target surface to where the dense map bends least
   // (slideInTangentPlanes): projection alone leaves them where the landmark
   // warp put them along the surface. The job's landmarks and centres on
@@ -143,8 +143,8 @@ struct WarpReport {
   int matched_rims = 0;               // source rims matched to a target rim (matchRims)
   int rims_in_warp = 0;               // of those, rims whose paired points joined the landmark warp
   int refine_iterations = 0;
-  int slid_centres = 0;               // dense centres slid along the target in the last round
-  double mean_slide = 0.0;            // their mean slide, target units
+  int slid_centres = 0;               // dense centres slid along the target in the last refinement round
+  double mean_slide = 0.0;            // mean slide in the first round (the largest), target units
   bool region_matching = false;       // matches were region-constrained
   // faceOrientationAgreement of the target after the landmark warp (+1: its
   // faces face as the source's); below 0 the target was matched with its
