@@ -11,6 +11,7 @@
 #include "api/error_codes.h"
 #include "api/json.h"
 #include "api/openapi_document.h"
+#include "core/error.h"
 #include "core/mesh_io.h"
 #include "server/convert.h"
 #include "server/uploads.h"
@@ -96,11 +97,10 @@ std::variant<LoadedParts, api::Problem> loadParts(const SpooledUpload& upload, c
   LoadedParts loaded;
   for (const auto& [field, part] : upload.parts) {
     if (!required.count(field) && !optional.count(field)) {
-      std::string known;
-      for (const auto& n : required) known += (known.empty() ? "" : ", ") + n;
-      for (const auto& n : optional) known += ", " + n;
-      return api::makeProblem(api::WireError::kMalformedRequest,
-                              "multipart field '" + field + "' is not known here (expected " + known + ")", path);
+      std::vector<std::string> known(required.begin(), required.end());
+      known.insert(known.end(), optional.begin(), optional.end());
+      return api::makeProblem(api::WireError::kMalformedRequest, "multipart field '" + field +
+                              "' is not known here (expected " + core::joinNames(known) + ")", path);
     }
     auto bytes = core::readFileBytes(part.path);
     if (!bytes) return api::makeProblem(api::WireError::kInternal, "reading the spooled upload failed", path);
@@ -242,10 +242,10 @@ void postJob(const Request& req, Response& res, const httplib::ContentReader& re
   const api::JobSpec& spec = std::get<api::JobSpec>(parsed_spec);
   const api::JobKind* kind = api::findJobKind(spec.kind);
   if (!kind) {
-    std::string known;
-    for (const auto& k : api::jobKinds()) known += (known.empty() ? "" : ", ") + k.name;
-    return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest,
-                                             "spec.kind: unknown kind '" + spec.kind + "' (known: " + known + ")", req.path), ctx);
+    std::vector<std::string> known;
+    for (const auto& k : api::jobKinds()) known.push_back(k.name);
+    return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest, "spec.kind: unknown kind '" + spec.kind +
+                                             "' (known: " + core::joinNames(known) + ")", req.path), ctx);
   }
   if (kind->needs_rig) {
     if (!isHexId(spec.rig, 64)) {
