@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <cmath>
 #include <cstdio>
+#include <numeric>
 #include <random>
 #include <set>
 
@@ -274,6 +275,54 @@ TEST(Correspondence, MatchedRimsPullTheNeckCutOntoTheTargets) {
   EXPECT_LT(on->report.low_confidence_vertices, off->report.low_confidence_vertices);
 }
 
+// Same topology: target vertex v's true source point is source vertex v.
+// The mean distance of the located points of `vertices` from theirs; a
+// vertex located nowhere counts `miss`.
+double meanDistanceFromTrueSource(const core::WarpResult& r, const core::Mesh& source,
+                                  const std::vector<Eigen::Index>& vertices, double miss) {
+  double sum = 0.0;
+  for (Eigen::Index v : vertices) {
+    const core::SurfacePoint& at = r.locations.on_source[static_cast<std::size_t>(v)];
+    if (!at.found()) {
+      sum += miss;
+      continue;
+    }
+    Eigen::RowVector3d p = Eigen::RowVector3d::Zero();
+    for (int c = 0; c < 3; ++c) p += at.barycentric(c) * source.positions.row(source.triangles(at.face, c));
+    sum += (p - source.positions.row(v)).norm();
+  }
+  return sum / static_cast<double>(vertices.size());
+}
+
+// The generated head bent by a smooth space warp (same topology), and the 10
+// landmarks a sparse target would name (eye and mouth corners, nose tip and
+// wings, chin); `others` gets the indices of the rest.
+core::SyntheticHead bentHead(const core::SyntheticHead& source) {
+  const double h = source.mesh.positions.col(1).maxCoeff() - source.mesh.positions.col(1).minCoeff();
+  core::SyntheticHead target = source;
+  for (Eigen::Index v = 0; v < target.mesh.positions.rows(); ++v) {
+    const double y = target.mesh.positions(v, 1) / h, x = target.mesh.positions(v, 0) / h;
+    target.mesh.positions(v, 2) *= 1.0 + 0.4 * y * y;
+    target.mesh.positions(v, 1) += 0.06 * h * std::sin(5.0 * x);
+  }
+  target.mesh.normals = core::computeVertexNormals(target.mesh.positions, target.mesh.triangles);
+  return target;
+}
+
+core::LandmarkSet sparseLandmarks(const core::LandmarkSet& all, std::vector<Eigen::Index>* others = nullptr) {
+  const std::set<std::string> named = {"eye_right_0", "eye_right_3", "eye_left_0", "eye_left_3", "nose_bridge_3",
+                                       "nose_base_0", "nose_base_4", "mouth_outer_0", "mouth_outer_6", "jaw_08"};
+  core::LandmarkSet sparse;
+  for (std::size_t l = 0; l < all.landmarks.size(); ++l) {
+    if (named.count(all.landmarks[l].name)) {
+      sparse.landmarks.push_back(all.landmarks[l]);
+    } else if (others) {
+      others->push_back(static_cast<Eigen::Index>(l));
+    }
+  }
+  return sparse;
+}
+
 // A neck pushed far forward below the chin (as on a strongly exaggerated
 // identity): the face's landmarks say nothing of it, so the landmark warp
 // leaves the source's neck on the wrong side of the target's, where closest
@@ -301,21 +350,8 @@ TEST(Correspondence, NeckCutJoinsTheWarpWhenNoLandmarkPinsIt) {
   ASSERT_TRUE(off && on);
   EXPECT_EQ(off->report.rims_in_warp, 0);
   EXPECT_EQ(on->report.rims_in_warp, 1);  // the outer rim; the mouth and eyes carry landmarks
-  auto neckSlide = [&](const core::WarpResult& r) {
-    double sum = 0.0;
-    for (Eigen::Index v : neck) {
-      const core::SurfacePoint& at = r.locations.on_source[static_cast<std::size_t>(v)];
-      if (!at.found()) {
-        sum += depth;
-        continue;
-      }
-      Eigen::RowVector3d p = Eigen::RowVector3d::Zero();
-      for (int c = 0; c < 3; ++c) p += at.barycentric(c) * source.mesh.positions.row(source.mesh.triangles(at.face, c));
-      sum += (p - source.mesh.positions.row(v)).norm();
-    }
-    return sum / static_cast<double>(neck.size());
-  };
-  const double slide_off = neckSlide(*off), slide_on = neckSlide(*on);
+  const double slide_off = meanDistanceFromTrueSource(*off, source.mesh, neck, depth);
+  const double slide_on = meanDistanceFromTrueSource(*on, source.mesh, neck, depth);
   std::printf("[ neck forward ] %zu neck vertices, mean distance from their true source point %.4f -> %.4f "
               "(head depth %.3f)\n", neck.size(), slide_off, slide_on, depth);
   EXPECT_LT(slide_on, 0.5 * slide_off);
@@ -358,27 +394,12 @@ TEST(Correspondence, SlidingInTangentPlanesRestoresAnAffineMap) {
   }
 }
 
-// A head bent by a smooth space warp (same topology, so target vertex v's
-// true source point is source vertex v), matched with 10 landmarks as a
-// sparse target would be: sliding the dense centres locates the target
-// closer to the truth than projection alone.
+// Matched with 10 landmarks, as a sparse target would be: sliding the dense
+// centres locates the bent head closer to the truth than projection alone.
 TEST(Correspondence, SlidingCentresLocateASparselyLandmarkedTargetCloser) {
   const auto source = core::generateHead();
-  const double h = source.mesh.positions.col(1).maxCoeff() - source.mesh.positions.col(1).minCoeff();
-  core::SyntheticHead target = source;
-  for (Eigen::Index v = 0; v < target.mesh.positions.rows(); ++v) {
-    const double y = target.mesh.positions(v, 1) / h;
-    target.mesh.positions(v, 2) *= 1.0 + 0.3 * y * y;
-    target.mesh.positions(v, 0) += 0.04 * h * std::cos(3.0 * y);
-  }
-  target.mesh.normals = core::computeVertexNormals(target.mesh.positions, target.mesh.triangles);
-  core::LandmarkSet sparse;
-  for (const auto& l : target.landmarks.landmarks) {
-    for (const char* name : {"eye_right_0", "eye_right_3", "eye_left_0", "eye_left_3", "nose_bridge_3", "nose_base_0",
-                             "nose_base_4", "mouth_outer_0", "mouth_outer_6", "jaw_08"}) {
-      if (l.name == name) sparse.landmarks.push_back(l);
-    }
-  }
+  const core::SyntheticHead target = bentHead(source);
+  const core::LandmarkSet sparse = sparseLandmarks(target.landmarks);
   ASSERT_EQ(sparse.landmarks.size(), 10u);
   auto prepared = core::prepareSource(source.mesh, source.landmarks, "source");
   ASSERT_TRUE(prepared);
@@ -390,21 +411,11 @@ TEST(Correspondence, SlidingCentresLocateASparselyLandmarkedTargetCloser) {
   EXPECT_EQ(off->report.slid_centres, 0);
   EXPECT_GT(on->report.slid_centres, 200);
   EXPECT_GT(on->report.mean_slide, 0.0);
-  auto locationError = [&](const core::WarpResult& r) {
-    double sum = 0.0;
-    for (Eigen::Index v = 0; v < target.mesh.positions.rows(); ++v) {
-      const core::SurfacePoint& at = r.locations.on_source[static_cast<std::size_t>(v)];
-      if (!at.found()) {
-        sum += h;
-        continue;
-      }
-      Eigen::RowVector3d p = Eigen::RowVector3d::Zero();
-      for (int c = 0; c < 3; ++c) p += at.barycentric(c) * source.mesh.positions.row(source.mesh.triangles(at.face, c));
-      sum += (p - source.mesh.positions.row(v)).norm();
-    }
-    return sum / static_cast<double>(target.mesh.positions.rows());
-  };
-  const double error_off = locationError(*off), error_on = locationError(*on);
+  std::vector<Eigen::Index> every(static_cast<std::size_t>(target.mesh.vertexCount()));
+  std::iota(every.begin(), every.end(), Eigen::Index{0});
+  const double h = source.mesh.positions.col(1).maxCoeff() - source.mesh.positions.col(1).minCoeff();
+  const double error_off = meanDistanceFromTrueSource(*off, source.mesh, every, h);
+  const double error_on = meanDistanceFromTrueSource(*on, source.mesh, every, h);
   std::printf("[ bent head, 10 landmarks ] mean distance from the true source point %.5f -> %.5f (head height %.3f), "
               "%d centres slid %.5f on average\n", error_off, error_on, h, on->report.slid_centres, on->report.mean_slide);
   EXPECT_LT(error_on, 0.95 * error_off);
@@ -415,33 +426,17 @@ TEST(Correspondence, SlidingCentresLocateASparselyLandmarkedTargetCloser) {
 // final dense map carries them closer to their true places on the target.
 TEST(Correspondence, LandmarksTheTargetDoesNotNameFollowTheRefinement) {
   const auto source = core::generateHead();
-  const double h = source.mesh.positions.col(1).maxCoeff() - source.mesh.positions.col(1).minCoeff();
-  core::SyntheticHead target = source;
-  for (Eigen::Index v = 0; v < target.mesh.positions.rows(); ++v) {
-    const double y = target.mesh.positions(v, 1) / h, x = target.mesh.positions(v, 0) / h;
-    target.mesh.positions(v, 2) *= 1.0 + 0.4 * y * y;
-    target.mesh.positions(v, 1) += 0.06 * h * std::sin(5.0 * x);
-  }
-  target.mesh.normals = core::computeVertexNormals(target.mesh.positions, target.mesh.triangles);
+  const core::SyntheticHead target = bentHead(source);
   auto truth = core::resolveLandmarks(target.landmarks, target.mesh, "bent");  // same topology: the true places
   ASSERT_TRUE(truth);
-  core::LandmarkSet sparse;
   std::vector<Eigen::Index> unnamed;
-  const std::set<std::string> named = {"eye_right_0", "eye_right_3", "eye_left_0", "eye_left_3", "nose_bridge_3",
-                                       "nose_base_0", "nose_base_4", "mouth_outer_0", "mouth_outer_6", "jaw_08"};
-  for (std::size_t l = 0; l < target.landmarks.landmarks.size(); ++l) {
-    if (named.count(target.landmarks.landmarks[l].name)) {
-      sparse.landmarks.push_back(target.landmarks.landmarks[l]);
-    } else {
-      unnamed.push_back(static_cast<Eigen::Index>(l));
-    }
-  }
+  const core::LandmarkSet sparse = sparseLandmarks(target.landmarks, &unnamed);
   auto prepared = core::prepareSource(source.mesh, source.landmarks, "source");
   ASSERT_TRUE(prepared);
   auto r = core::runWarp(*prepared, target.mesh, sparse, "bent");
   ASSERT_TRUE(r) << r.error().message;
-  const Eigen::MatrixX3d by_warp = r->landmark_warp.apply(prepared->landmark_positions);
   ASSERT_TRUE(r->dense_map);
+  const Eigen::MatrixX3d by_warp = r->landmark_warp.apply(prepared->landmark_positions);
   const Eigen::MatrixX3d by_map = r->dense_map->apply(prepared->landmark_positions);
   const core::ClosestPointIndex surface(target.mesh.positions, target.mesh.triangles);
   double warp_error = 0.0, map_error = 0.0, warp_off = 0.0, map_off = 0.0;
