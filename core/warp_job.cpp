@@ -136,11 +136,10 @@ struct SlideResult {
   double mean_slide = 0.0;  // their mean slide
 };
 SlideResult slideOnTarget(const Eigen::MatrixXd& bending, const Eigen::MatrixX3d& centre_targets,
-                               const std::vector<int>& rows, const std::vector<int>& sliding,
-                               const GuideModel& projected, const Eigen::MatrixX3d& query_normals,
-                               const std::vector<std::uint64_t>& query_masks, const Mesh& target,
-                               const ClosestPointIndex& target_index, double target_diagonal,
-                               const ProjectionOptions& projection) {
+                          const std::vector<int>& rows, const std::vector<int>& sliding, const GuideModel& projected,
+                          const Eigen::MatrixX3d& query_normals, const std::vector<std::uint64_t>& query_masks,
+                          const Mesh& target, const ClosestPointIndex& target_index, double target_diagonal,
+                          const ProjectionOptions& projection) {
   std::vector<int> sliding_rows(sliding.size());
   Eigen::MatrixX3d face_normals(static_cast<Eigen::Index>(sliding.size()), 3);
   for (std::size_t i = 0; i < sliding.size(); ++i) {
