@@ -239,9 +239,14 @@ Eigen::MatrixX3d slideInTangentPlanes(const Eigen::MatrixXd& bending, const Eige
   std::vector<Eigen::Matrix<double, 3, 2>> tangent(static_cast<std::size_t>(m));
   Eigen::MatrixXd b_ss(m, m);
   for (Eigen::Index i = 0; i < m; ++i) {
-    const Eigen::Vector3d n = normals.row(i).normalized();
-    const Eigen::Vector3d u = n.unitOrthogonal();
-    tangent[static_cast<std::size_t>(i)] << u, n.cross(u);
+    const double length = normals.row(i).norm();
+    if (length > 0.0 && std::isfinite(length)) {
+      const Eigen::Vector3d n = normals.row(i).transpose() / length;
+      const Eigen::Vector3d u = n.unitOrthogonal();
+      tangent[static_cast<std::size_t>(i)] << u, n.cross(u);
+    } else {
+      tangent[static_cast<std::size_t>(i)].setZero();  // no plane to slide in: the point stays
+    }
     for (Eigen::Index j = 0; j < m; ++j) b_ss(i, j) = bending(sliding[static_cast<std::size_t>(i)], sliding[static_cast<std::size_t>(j)]);
   }
   auto toPoints = [&](const Eigen::VectorXd& t) {

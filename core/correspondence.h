@@ -69,8 +69,9 @@ double faceOrientationAgreement(const Eigen::MatrixX3d& warped_points, const Eig
 // (plane normal: the matching row of `normals`), the other rows stay, so that
 // the bending energy tr(Y^T B Y) of the spline through the result is least
 // (`bending`: TpsFactorization::bendingEnergyMatrix of the centres).
-// Conjugate gradients, at most `iterations`. The moved points leave a curved
-// surface by the curvature over the slide: project them back.
+// Conjugate gradients, at most `iterations`. A row with a zero or non-finite
+// normal stays. The moved points leave a curved surface by the curvature over
+// the slide: project them back.
 Eigen::MatrixX3d slideInTangentPlanes(const Eigen::MatrixXd& bending, const Eigen::MatrixX3d& targets,
                                       const std::vector<int>& sliding, const Eigen::MatrixX3d& normals,
                                       int iterations = 30);

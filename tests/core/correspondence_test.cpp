@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <numeric>
 #include <random>
 #include <set>
@@ -392,6 +393,14 @@ TEST(Correspondence, SlidingInTangentPlanesRestoresAnAffineMap) {
   for (int i = 0; i < 25; ++i) {
     EXPECT_NEAR((slid.row(15 + i) - displaced.row(15 + i)).dot(normals.row(i).normalized()), 0.0, 1e-12);
   }
+  // A point without a plane (zero or NaN normal) stays; the others still slide.
+  normals.row(0).setZero();
+  normals.row(1).setConstant(std::numeric_limits<double>::quiet_NaN());
+  const Eigen::MatrixX3d planeless = core::slideInTangentPlanes(bending, displaced, sliding, normals, 200);
+  ASSERT_TRUE(planeless.allFinite());
+  EXPECT_EQ(planeless.row(15), displaced.row(15));
+  EXPECT_EQ(planeless.row(16), displaced.row(16));
+  EXPECT_LT((planeless.transpose() * bending * planeless).trace(), 0.5 * before);
 }
 
 // Matched with 10 landmarks, as a sparse target would be: sliding the dense
