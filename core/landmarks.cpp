@@ -139,6 +139,32 @@ std::string formatLandmarks(const LandmarkSet& set) {
   return doc.dump(1) + "\n";
 }
 
+std::vector<int> landmarkVertices(const LandmarkSet& set, const Mesh& mesh, const Eigen::MatrixX3d& positions,
+                                  const ClosestPointIndex* index) {
+  auto largestCorner = [&](int face, const Eigen::Vector3d& barycentric) {
+    Eigen::Index corner = 0;
+    barycentric.maxCoeff(&corner);
+    return mesh.triangles(face, corner);
+  };
+  std::vector<int> vertices;
+  vertices.reserve(set.landmarks.size());
+  for (std::size_t l = 0; l < set.landmarks.size(); ++l) {
+    const Landmark& landmark = set.landmarks[l];
+    const Eigen::RowVector3d at = positions.row(static_cast<Eigen::Index>(l));
+    int v = landmark.vertex;
+    if (landmark.kind == LandmarkKind::kFace) {
+      v = largestCorner(landmark.face, landmark.barycentric);
+    } else if (landmark.kind == LandmarkKind::kPosition && index) {
+      const SurfacePoint sp = index->closestPoint(at.transpose());
+      v = sp.found() ? largestCorner(sp.face, sp.barycentric) : -1;
+    } else if (landmark.kind == LandmarkKind::kPosition) {
+      (mesh.positions.rowwise() - at).rowwise().squaredNorm().minCoeff(&v);
+    }
+    vertices.push_back(v);
+  }
+  return vertices;
+}
+
 Result<Eigen::MatrixX3d> resolveLandmarks(const LandmarkSet& set, const Mesh& mesh, const std::string& label,
                                           const ClosestPointIndex* index, const ResolveLandmarksOptions& options) {
   Eigen::MatrixX3d out(static_cast<Eigen::Index>(set.landmarks.size()), 3);

@@ -54,6 +54,14 @@ Result<Eigen::MatrixX3d> resolveLandmarks(const LandmarkSet& set, const Mesh& me
                                           const ClosestPointIndex* index = nullptr,
                                           const ResolveLandmarksOptions& options = {});
 
+// The mesh vertex standing for each landmark of a resolved set (`positions`
+// from resolveLandmarks): its own vertex, its face's corner of largest
+// barycentric, or for a `position` the corner of largest barycentric of its
+// closest face on `index` (without an index: the nearest vertex, brute force).
+// -1 when a `position` finds no face.
+std::vector<int> landmarkVertices(const LandmarkSet& set, const Mesh& mesh, const Eigen::MatrixX3d& positions,
+                                  const ClosestPointIndex* index = nullptr);
+
 // Source and target landmarks paired by name.
 struct LandmarkPairs {
   std::vector<std::string> names;  // in source order

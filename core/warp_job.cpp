@@ -216,17 +216,8 @@ std::vector<int> detachedPieces(const Mesh& target, const std::vector<int>& repr
   const MeshPieces pieces = meshPieces(target, representative);
   if (pieces.count < 2) return {};
   std::vector<char> skin(static_cast<std::size_t>(pieces.count), 0);
-  for (std::size_t i = 0; i < landmarks.landmarks.size(); ++i) {
-    const Landmark& l = landmarks.landmarks[i];
-    int piece = -1;
-    if (l.kind == LandmarkKind::kVertex) {
-      piece = pieces.vertex_piece[static_cast<std::size_t>(l.vertex)];
-    } else if (l.kind == LandmarkKind::kFace) {
-      piece = pieces.face_piece[static_cast<std::size_t>(l.face)];
-    } else {
-      const SurfacePoint at = index.closestPoint(landmark_positions.row(static_cast<Eigen::Index>(i)).transpose());
-      if (at.found()) piece = pieces.face_piece[static_cast<std::size_t>(at.face)];
-    }
+  for (const int v : landmarkVertices(landmarks, target, landmark_positions, &index)) {
+    const int piece = v >= 0 ? pieces.vertex_piece[static_cast<std::size_t>(v)] : -1;
     if (piece >= 0) skin[static_cast<std::size_t>(piece)] = 1;
   }
   for (const BoundaryLoop& loop : boundaryLoops(weldedTopology(target, representative))) {
@@ -292,18 +283,7 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
   if (!positions) return positions.error();
   prepared.landmarks = std::move(landmarks);
   prepared.landmark_positions = std::move(*positions);
-  for (Eigen::Index l = 0; l < prepared.landmark_positions.rows(); ++l) {
-    const Landmark& landmark = prepared.landmarks.landmarks[static_cast<std::size_t>(l)];
-    int v = landmark.vertex;
-    if (landmark.kind == LandmarkKind::kFace) {
-      Eigen::Index corner = 0;
-      landmark.barycentric.maxCoeff(&corner);
-      v = prepared.mesh.triangles(landmark.face, corner);
-    } else if (landmark.kind == LandmarkKind::kPosition) {
-      (prepared.mesh.positions.rowwise() - prepared.landmark_positions.row(l)).rowwise().squaredNorm().minCoeff(&v);
-    }
-    prepared.landmark_vertices.push_back(v);
-  }
+  prepared.landmark_vertices = landmarkVertices(prepared.landmarks, prepared.mesh, prepared.landmark_positions);
   {
     // The full landmark set must span 3D on its own (names in errors).
     std::vector<std::string> names;

@@ -34,7 +34,7 @@ struct PreparedSource {
   std::string label;                   // file or rig name, for messages
   LandmarkSet landmarks;
   Eigen::MatrixX3d landmark_positions; // #L by 3 on the source mesh
-  std::vector<int> landmark_vertices;  // #L: the source vertex nearest each landmark (its normal, region, rim)
+  std::vector<int> landmark_vertices;  // #L: landmarkVertices (for each landmark's normal, region, rim)
   double diagonal = 0.0;               // source bbox diagonal
   std::vector<int> dense_vertices;     // source vertices used as dense-map centres (after the landmarks)
   Eigen::MatrixX3d dense_centres;      // #L + #dense_vertices by 3: landmark positions, then samples

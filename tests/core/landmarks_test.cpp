@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include "core/closest_point.h"
 #include "core/synthetic_head.h"
 #include "tests/test_support.h"
 
@@ -88,6 +89,21 @@ TEST(Landmarks, ResolvesOnTheMeshAndRejectsOutOfRangeOrOffMesh) {
   auto r2 = core::resolveLandmarks(*off, mesh, "t.json");
   ASSERT_FALSE(r2);
   EXPECT_NE(r2.error().message.find("off the mesh"), std::string::npos) << r2.error().message;
+}
+
+TEST(Landmarks, EachLandmarkHasAVertexStandingForIt) {
+  const core::Mesh mesh = unitTetrahedron();
+  auto set = core::parseLandmarks(R"({"landmarks":[{"name":"a","vertex":3},{"name":"b","face":0,
+      "barycentric":[0.5,0.25,0.25]},{"name":"c","position":[0.2,0.6,0.0]}]})", "t.json");
+  ASSERT_TRUE(set);
+  auto p = core::resolveLandmarks(*set, mesh, "t.json");
+  ASSERT_TRUE(p) << p.error().message;
+  // Vertex 3; face 0's corner of weight 0.5 (vertex 0); the position's closest
+  // face is face 0, where it is nearest vertex 2 (weights 0.2 / 0.6 / 0.2).
+  const std::vector<int> expected = {3, 0, 2};
+  EXPECT_EQ(core::landmarkVertices(*set, mesh, *p), expected);
+  const core::ClosestPointIndex index(mesh.positions, mesh.triangles);
+  EXPECT_EQ(core::landmarkVertices(*set, mesh, *p, &index), expected);
 }
 
 TEST(Landmarks, PairsByNameAndRejectsUnknownOrTooFewShared) {
