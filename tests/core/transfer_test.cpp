@@ -115,6 +115,50 @@ TEST(TransferRig, IsEquivariantUnderRotationTranslationAndUniformScale) {
   EXPECT_TRUE(matricesNear(core::poseMesh(out, po), expected_posed, 1e-4 * diag));
 }
 
+// `adaptation: local` carries each delta by the local Jacobian of the dense
+// map: on a face twice as wide, a shape moves twice as far sideways, and so
+// do the animated joints. The default leaves the deltas as they are (an
+// identity's deltas do not follow its proportions; docs/ACCURACY.md).
+TEST(TransferRig, LocalAdaptationFollowsTheTargetsProportions) {
+  const core::Rig& src = sourceRig().rig;
+  const Eigen::Matrix3d wide = Eigen::Vector3d(2.0, 1.0, 1.0).asDiagonal();
+  core::Mesh target = src.mesh;
+  target.positions = (src.mesh.positions * wide).eval();
+  target.normals = core::computeVertexNormals(target.positions, target.triangles);
+  core::TransferOptions local;
+  local.adaptation = core::ShapeAdaptation::kLocal;
+  auto adapted = core::transferRig(preparedSource(), target, sourceRig().landmarks, "wide", local);
+  auto raw = core::transferRig(preparedSource(), target, sourceRig().landmarks, "wide");
+  ASSERT_TRUE(adapted) << adapted.error().message;
+  ASSERT_TRUE(raw) << raw.error().message;
+  const double diag = core::boundingBoxDiagonal(target.positions);
+  ASSERT_EQ(adapted->rig.morph_targets.size(), src.morph_targets.size());
+  int sideways = 0;
+  for (std::size_t k = 0; k < src.morph_targets.size(); ++k) {
+    const Eigen::MatrixX3d& d = src.morph_targets[k].position_deltas;
+    if (d.col(0).cwiseAbs().maxCoeff() > 1e-3 * diag) ++sideways;
+    EXPECT_TRUE(matricesNear(adapted->rig.morph_targets[k].position_deltas, d * wide, 1e-4 * diag))
+        << src.morph_targets[k].name;
+    EXPECT_TRUE(matricesNear(raw->rig.morph_targets[k].position_deltas, d, 1e-4 * diag)) << src.morph_targets[k].name;
+  }
+  EXPECT_GT(sideways, 0) << "no shape of the rig moves sideways: the test would prove nothing";
+  // Joint translation keys: the delta from rest, in the parent's frame
+  // (unrotated in this rig), scaled sideways too.
+  int translation_channels = 0;
+  for (std::size_t c = 0; c < src.animations[0].channels.size(); ++c) {
+    const auto& sc = src.animations[0].channels[c];
+    if (sc.path != core::AnimationPath::kTranslation) continue;
+    ++translation_channels;
+    const auto& oc = adapted->rig.animations[0].channels[c];
+    const Eigen::RowVector3d rest = src.nodes[static_cast<std::size_t>(sc.node)].translation.transpose();
+    const Eigen::RowVector3d rest_out = adapted->rig.nodes[static_cast<std::size_t>(sc.node)].translation.transpose();
+    for (Eigen::Index k = 0; k < sc.values.rows(); ++k) {
+      EXPECT_TRUE(matricesNear(oc.values.row(k) - rest_out, (sc.values.row(k) - rest) * wide, 1e-6 * diag)) << "key " << k;
+    }
+  }
+  EXPECT_GT(translation_channels, 0);
+}
+
 TEST(TransferRig, WeightsAreNormalisedPrunedAndShapesSparseOnAnotherFace) {
   const core::HeadResolution res{.columns = 70, .rows = 66, .alternate_diagonals = true, .jitter = 0.25, .seed = 9};
   const core::SyntheticRig target = core::generateRig(core::randomHeadShape(9, 0.2), res);
