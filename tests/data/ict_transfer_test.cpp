@@ -6,6 +6,7 @@
 // the data is absent.
 #include <algorithm>
 #include <cstdio>
+#include <numbers>
 
 #include <gtest/gtest.h>
 
@@ -144,6 +145,69 @@ INSTANTIATE_TEST_SUITE_P(Targets, IctTransfer,
                          ::testing::Values("id_s01", "id_s02", "id_s03", "stylized_s01_cartoon", "id_s01_remesh",
                                            "id_s02_remesh", "id_s03_remesh", "stylized_s01_cartoon_remesh",
                                            "sparse10_s01"));
+
+// Identities the data does not hold, made from the ones it does. ICT
+// identities are neutral + sum_m c_m (identity_m - neutral) with c ~ N(0, 1)
+// per mode (MANIFEST.md), and the source is that neutral, so
+// source + sum_k a_k (id_k - source) with |a| = 1 is another identity of the
+// same distribution (coefficients sum_k a_k c_k), and k (id - source) one
+// exaggerated k times. ICT deltas are identity independent, so the ground
+// truth is the source's own deltas. A check that the pipeline is right in
+// general, not for the three targets it was measured on.
+struct MadeIdentity {
+  const char* name;
+  double a[3];  // weights of id_s01..03 - source
+};
+
+TEST(IctOtherIdentities, ShapesBeatThePlainMethod) {
+  RIGPORT_REQUIRE_SHARED_DATA(data);
+  const core::PreparedRig* source = ictRig(data);
+  ASSERT_NE(source, nullptr) << "ICT rig failed to load";
+  const core::Mesh& src = source->surface.mesh;
+  std::vector<Eigen::MatrixX3d> offsets;
+  for (int k = 1; k <= 3; ++k) {
+    auto identity = core::readMesh(data / "ict" / "targets" / ("id_s0" + std::to_string(k) + ".glb"));
+    ASSERT_TRUE(identity) << identity.error().message;
+    ASSERT_EQ(identity->mesh.vertexCount(), src.vertexCount());
+    offsets.push_back(identity->mesh.positions - src.positions);
+  }
+  const double r2 = 1.0 / std::numbers::sqrt2, r3 = std::numbers::inv_sqrt3;
+  const MadeIdentity made[] = {{"minus_s01", {-1, 0, 0}},     {"minus_s02", {0, -1, 0}},      {"minus_s03", {0, 0, -1}},
+                               {"s01_plus_s02", {r2, r2, 0}}, {"s01_minus_s02", {r2, -r2, 0}}, {"s02_plus_s03", {0, r2, r2}},
+                               {"s01_minus_s03", {r2, 0, -r2}}, {"s03_minus_s01_s02", {-r3, -r3, r3}},
+                               {"s01_x3", {3, 0, 0}},         {"s02_x3", {0, 3, 0}},          {"s03_x3", {0, 0, 3}}};
+  core::TransferOptions plain_options;
+  plain_options.warp.refine_iterations = 0;
+  plain_options.warp.local_rounds = 0;
+  plain_options.warp.rim_matching = false;
+  plain_options.warp.locate.max_relative_distance = 0.0;
+  plain_options.warp.locate.max_normal_angle_deg = 180.0;
+  plain_options.warp.projection.max_normal_angle_deg = 180.0;
+  plain_options.adaptation = core::ShapeAdaptation::kNone;
+  core::Rig truth;  // ICT deltas are identity independent
+  truth.morph_targets = source->rig.morph_targets;
+  double worst_sum = 0.0, plain_worst_sum = 0.0;
+  for (const MadeIdentity& identity : made) {
+    core::Mesh mesh = src;
+    mesh.normals.resize(0, 3);  // computed by the pipeline, as for a scan without normals
+    for (int k = 0; k < 3; ++k) mesh.positions += identity.a[k] * offsets[static_cast<std::size_t>(k)];
+    const core::LandmarkSet& landmarks = source->surface.landmarks;  // same topology: the same vertices
+    auto ours = core::transferRig(*source, mesh, landmarks, identity.name);
+    auto plain = core::transferRig(*source, mesh, landmarks, identity.name, plain_options);
+    ASSERT_TRUE(ours) << ours.error().message;
+    ASSERT_TRUE(plain) << plain.error().message;
+    const Errors e = shapeErrors(ours->rig, truth), p = shapeErrors(plain->rig, truth);
+    std::printf("[ %-24s ] E median %.4f worst %.4f | plain %.4f / %.4f | inpainted %d\n", identity.name, e.median(),
+                e.worst(), p.median(), p.worst(), ours->report.inpainted_vertices);
+    EXPECT_LT(e.median(), p.median()) << identity.name;
+    worst_sum += e.worst();
+    plain_worst_sum += p.worst();
+  }
+  // The worst shape is better on average, not on every identity: on
+  // s02_plus_s03 eyeBlink_L is 0.137 against the plain method's 0.121
+  // (measured 2026-11-22; docs/ACCURACY.md, "Other identities").
+  EXPECT_LT(worst_sum, plain_worst_sum);
+}
 
 // What limits E (printed; summarised in docs/ACCURACY.md). On the
 // same-topology targets the true correspondence is known (target vertex i is
