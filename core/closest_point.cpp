@@ -40,12 +40,12 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
-#include <numbers>
 #include <utility>
 #include <vector>
 
 #include "core/mesh.h"
 #include "core/parallel.h"
+#include "core/point_triangle.h"
 
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wshadow"
@@ -57,154 +57,8 @@
 namespace core {
 namespace {
 
-using Vec3 = Eigen::Vector3d;
+using namespace point_triangle;
 
-// Plain 3-vector for the hot path: fixed-size Eigen 3-vectors compile to
-// shuffle-heavy SSE code here; plain scalars take fewer instructions.
-struct P3 {
-  double x, y, z;
-};
-inline P3 operator-(const P3& a, const P3& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-inline P3 operator+(const P3& a, const P3& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-inline P3 operator*(double s, const P3& a) { return {s * a.x, s * a.y, s * a.z}; }
-inline double dot(const P3& a, const P3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-inline P3 cross(const P3& a, const P3& b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
-inline P3 toP3(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
-inline bool isFinite(const P3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
-inline Vec3 toVec3(const P3& v) { return {v.x, v.y, v.z}; }
-
-// Closest point of p on one triangle: squared distance, barycentrics, point.
-struct TriHit {
-  double sq_distance = std::numeric_limits<double>::infinity();
-  double bary[3] = {0.0, 0.0, 0.0};
-  P3 point{0.0, 0.0, 0.0};
-};
-
-inline void setHit(TriHit& h, const P3& p, const P3& point, double u, double v, double w) {
-  h.point = point;
-  h.bary[0] = u;
-  h.bary[1] = v;
-  h.bary[2] = w;
-  const P3 d = p - point;
-  h.sq_distance = dot(d, d);
-}
-
-// Below this ratio |ab x ac|^2 / (max edge)^4 (sin^2 of the flattest angle,
-// roughly) Ericson's interior barycentrics lose digits to cancellation; the
-// edge fallback is then evaluated too and the closer answer kept.
-constexpr double kSliverRatio = 1e-6;
-
-// Closest point over the three edges as segments: the answer for collinear
-// triangles (zero-length edges allowed).
-inline TriHit closestOnEdges(const P3& p, const P3& a, const P3& b, const P3& c) {
-  TriHit best;
-  const P3* corners[3] = {&a, &b, &c};
-  for (int i = 0; i < 3; ++i) {
-    const int j = (i + 1) % 3;
-    const P3 e = *corners[j] - *corners[i];
-    const double len2 = dot(e, e);
-    const double t = len2 > 0.0 ? std::clamp(dot(p - *corners[i], e) / len2, 0.0, 1.0) : 0.0;
-    TriHit h;
-    double bary[3] = {0.0, 0.0, 0.0};
-    bary[i] = 1.0 - t;
-    bary[j] = t;
-    setHit(h, p, *corners[i] + t * e, bary[0], bary[1], bary[2]);
-    if (i == 0 || h.sq_distance < best.sq_distance) best = h;
-  }
-  return best;
-}
-
-// True when Ericson's region method is accurate for (a, b, c). A pure function
-// of the corners, so the index can precompute it and stay bit-identical to
-// closestPointOnTriangle().
-inline bool isWellShaped(const P3& a, const P3& b, const P3& c) {
-  const P3 ab = b - a;
-  const P3 ac = c - a;
-  const P3 bc = c - b;
-  const P3 n = cross(ab, ac);
-  const double e2 = std::max({dot(ab, ab), dot(ac, ac), dot(bc, bc)});
-  return dot(n, n) > kSliverRatio * e2 * e2;  // false for NaN and for zero-length edges
-}
-
-// Ericson 2005, 5.1.5 (Voronoi regions of corners, edges, face).
-inline TriHit closestOnTriangle(const P3& p, const P3& a, const P3& b, const P3& c, bool well_shaped) {
-  TriHit r;
-  const P3 ab = b - a;
-  const P3 ac = c - a;
-  const P3 ap = p - a;
-  const double d1 = dot(ab, ap);
-  const double d2 = dot(ac, ap);
-  // Divisions are guarded: their denominators are squared edge lengths
-  // mathematically, but may round to 0 on degenerate input.
-  auto ratio = [](double num, double den) { return den > 0.0 ? std::clamp(num / den, 0.0, 1.0) : 0.0; };
-  do {
-    if (d1 <= 0.0 && d2 <= 0.0) {
-      setHit(r, p, a, 1.0, 0.0, 0.0);
-      break;
-    }
-    const P3 bp = p - b;
-    const double d3 = dot(ab, bp);
-    const double d4 = dot(ac, bp);
-    if (d3 >= 0.0 && d4 <= d3) {
-      setHit(r, p, b, 0.0, 1.0, 0.0);
-      break;
-    }
-    const double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
-      const double v = ratio(d1, d1 - d3);
-      setHit(r, p, a + v * ab, 1.0 - v, v, 0.0);
-      break;
-    }
-    const P3 cp = p - c;
-    const double d5 = dot(ab, cp);
-    const double d6 = dot(ac, cp);
-    if (d6 >= 0.0 && d5 <= d6) {
-      setHit(r, p, c, 0.0, 0.0, 1.0);
-      break;
-    }
-    const double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
-      const double w = ratio(d2, d2 - d6);
-      setHit(r, p, a + w * ac, 1.0 - w, 0.0, w);
-      break;
-    }
-    const double va = d3 * d6 - d5 * d4;
-    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
-      const double w = ratio(d4 - d3, (d4 - d3) + (d5 - d6));
-      setHit(r, p, b + w * (c - b), 0.0, 1.0 - w, w);
-      break;
-    }
-    // Face interior. Rounding can leave one of va, vb, vc slightly negative;
-    // clamping keeps the barycentrics a convex combination.
-    const double ua = std::max(va, 0.0);
-    const double ub = std::max(vb, 0.0);
-    const double uc = std::max(vc, 0.0);
-    const double sum = ua + ub + uc;
-    if (!(sum > 0.0 && sum < std::numeric_limits<double>::infinity())) {
-      well_shaped = false;  // collinear: only the edge answer is meaningful
-      break;              // r stays at infinite distance
-    }
-    const double v = ub / sum;
-    const double w = uc / sum;
-    setHit(r, p, a + v * ab + w * ac, std::max(0.0, 1.0 - v - w), v, w);
-  } while (false);
-  if (well_shaped) return r;
-  const TriHit e = closestOnEdges(p, a, b, c);
-  return r.sq_distance <= e.sq_distance ? r : e;  // NaN in r selects the edges
-}
-
-inline SurfacePoint toSurfacePoint(const TriHit& h, int face) {
-  SurfacePoint s;
-  s.face = face;
-  s.barycentric = Vec3(h.bary[0], h.bary[1], h.bary[2]);
-  s.point = toVec3(h.point);
-  s.sq_distance = h.sq_distance;
-  return s;
-}
-
-inline Vec3 row(const Eigen::MatrixX3d& m, Eigen::Index i) { return Vec3(m(i, 0), m(i, 1), m(i, 2)); }
 
 // ---------------------------------------------------------------------------
 // Sampling
@@ -348,12 +202,6 @@ struct ClosestPointIndex::Impl {
   // Indexed (non-degenerate) faces, stored in the order their first sample
   // appears in the trees so that the faces of one leaf share cache lines.
   // Samples refer to these slots; `id` is the caller's face index.
-  struct Face {
-    P3 a, b, c;
-    P3 n;  // unit normal
-    std::int32_t id = -1;
-    bool well_shaped = false;
-  };
   std::vector<Face> faces;
   std::vector<std::uint64_t> labels;  // label bit set per slot; empty: no labels given
   std::uint64_t present_labels = 0;   // union of the indexed faces' label sets
@@ -365,16 +213,6 @@ struct ClosestPointIndex::Impl {
   std::size_t tree_bytes = 0;
 
   struct Search;
-  // ClosestPointOptions as the search uses them, converted once per batch
-  // (the cosine is not free per query).
-  struct Limits {
-    explicit Limits(const ClosestPointOptions& options)
-        : max_distance(options.max_distance),
-          min_cos(options.max_normal_angle_deg < 180.0 ? std::cos(options.max_normal_angle_deg * (std::numbers::pi / 180.0))
-                                                       : -2.0) {}
-    double max_distance;
-    double min_cos;  // -2: no normal filter
-  };
   SurfacePoint query(const Vec3& q, const Vec3* normal, std::uint64_t label_mask, const Limits& limits) const;
 };
 
@@ -562,26 +400,13 @@ ClosestPointIndex::ClosestPointIndex(const Eigen::MatrixX3d& positions, const Ei
   // Degeneracy and normal as isDegenerateTriangle() and computeFaceNormals()
   // (same operations, same bits), from one cross product.
   const double degenerate_eps = 1e-10 * diagonal;
-  std::vector<Impl::Face> faces;
+  std::vector<Face> faces;
   faces.reserve(static_cast<std::size_t>(nf));
   std::vector<double> sq_edge_lengths;
   sq_edge_lengths.reserve(3 * static_cast<std::size_t>(nf));
   for (Eigen::Index f = 0; f < nf; ++f) {
-    const int i0 = triangles(f, 0), i1 = triangles(f, 1), i2 = triangles(f, 2);
-    if (i0 == i1 || i1 == i2 || i0 == i2) continue;
-    Impl::Face face;
-    face.a = toP3(row(positions, i0));
-    face.b = toP3(row(positions, i1));
-    face.c = toP3(row(positions, i2));
-    if (!(isFinite(face.a) && isFinite(face.b) && isFinite(face.c))) {
-      continue;  // NaN/Inf corners: no usable geometry (validateMesh rejects these upstream)
-    }
-    const P3 n = cross(face.b - face.a, face.c - face.a);
-    const double len = std::sqrt(dot(n, n));
-    if (len <= degenerate_eps * degenerate_eps) continue;
-    face.n = {n.x / len, n.y / len, n.z / len};
-    face.id = static_cast<std::int32_t>(f);
-    face.well_shaped = isWellShaped(face.a, face.b, face.c);
+    Face face;
+    if (!makeFace(positions, triangles, f, degenerate_eps, face)) continue;
     faces.push_back(face);
     const P3 e0 = face.b - face.a, e1 = face.c - face.b, e2 = face.a - face.c;
     sq_edge_lengths.push_back(dot(e0, e0));
@@ -615,7 +440,7 @@ ClosestPointIndex::ClosestPointIndex(const Eigen::MatrixX3d& positions, const Ei
     level->samples.reserve(pending.size() + pending.size() / 4);
     std::vector<int> rest;
     for (const int f : pending) {
-      const Impl::Face& face = faces[f];
+      const Face& face = faces[f];
       if (!sampleTriangle(toVec3(face.a) - m.origin, toVec3(face.b) - m.origin, toVec3(face.c) - m.origin, f, h_target,
                           kCap, slack, level->samples)) {
         rest.push_back(f);
@@ -669,13 +494,13 @@ ClosestPointIndex& ClosestPointIndex::operator=(ClosestPointIndex&&) noexcept = 
 
 SurfacePoint ClosestPointIndex::closestPoint(const Eigen::Vector3d& query) const {
   if (!impl_) return {};  // moved-from
-  return impl_->query(query, nullptr, ~std::uint64_t{0}, Impl::Limits(ClosestPointOptions{}));
+  return impl_->query(query, nullptr, ~std::uint64_t{0}, Limits(ClosestPointOptions{}));
 }
 
 SurfacePoint ClosestPointIndex::closestPoint(const Eigen::Vector3d& query, const Eigen::Vector3d* normal,
                                              std::uint64_t label_mask, const ClosestPointOptions& options) const {
   if (!impl_) return {};
-  return impl_->query(query, normal, label_mask, Impl::Limits(options));
+  return impl_->query(query, normal, label_mask, Limits(options));
 }
 
 std::vector<SurfacePoint> ClosestPointIndex::closestPoints(const Eigen::MatrixX3d& queries,
@@ -688,7 +513,7 @@ std::vector<SurfacePoint> ClosestPointIndex::closestPoints(const Eigen::MatrixX3
   const bool use_normals = filters.normals.rows() == nq && nq > 0;
   const bool use_masks = static_cast<Eigen::Index>(filters.label_masks.size()) == nq;
   std::vector<SurfacePoint> out(static_cast<std::size_t>(nq));
-  const Impl::Limits limits(options);
+  const Limits limits(options);
   parallelFor(nq, options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     for (std::ptrdiff_t i = begin; i < end; ++i) {
       const Vec3 q = row(queries, i);
@@ -705,7 +530,7 @@ std::size_t ClosestPointIndex::memoryBytes() const {
   if (!impl_) return 0;
   const Impl& m = *impl_;
   std::size_t bytes = sizeof(Impl) + m.tree_bytes;
-  bytes += m.faces.capacity() * sizeof(Impl::Face) + m.labels.capacity() * sizeof(std::uint64_t);
+  bytes += m.faces.capacity() * sizeof(Face) + m.labels.capacity() * sizeof(std::uint64_t);
   for (const auto& level : m.levels) bytes += sizeof(Impl::Level) + level->samples.capacity() * sizeof(Sample);
   return bytes;
 }
