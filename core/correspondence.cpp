@@ -87,10 +87,11 @@ FoldReport countFolds(const Eigen::MatrixX3d& warped_positions, const Eigen::Mat
 }
 
 TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_positions,
-                              const Eigen::MatrixX3i& source_triangles, const LocateOptions& options,
-                              std::vector<std::uint64_t> source_face_regions) {
+                              const MovingMeshIndex& guide_faces, const LocateOptions& options,
+                              const std::vector<std::uint64_t>& source_face_regions) {
   const bool by_region = !source_face_regions.empty();
-  const ClosestPointIndex guide_index(guide_positions, source_triangles, std::move(source_face_regions));
+  const Eigen::MatrixX3i& source_triangles = guide_faces.triangles();
+  const MovingMeshIndex::Fitted guide_index = guide_faces.fit(guide_positions, source_face_regions);
   const Eigen::MatrixX3d normals =
       target.normals.rows() == target.positions.rows() ? target.normals
                                                         : computeSeamlessVertexNormals(target.positions, target.triangles);

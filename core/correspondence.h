@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 
 #include "core/closest_point.h"
+#include "core/moving_mesh_index.h"
 #include "core/mesh.h"
 
 namespace core {
@@ -119,12 +120,13 @@ struct TargetLocations {
   std::vector<int> detached_piece;
 };
 
-// source_face_regions: empty, or faceRegionSets of the source (then
-// target.regions must be set): each target vertex is located only on guide
-// faces touching its region.
+// guide_faces: the source's faces (MovingMeshIndex, built once per rig), whose
+// vertices are at guide_positions. source_face_regions: empty, or
+// faceRegionSets of the source (then target.regions must be set): each target
+// vertex is located only on guide faces touching its region.
 TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_positions,
-                              const Eigen::MatrixX3i& source_triangles, const LocateOptions& options,
-                              std::vector<std::uint64_t> source_face_regions = {});
+                              const MovingMeshIndex& guide_faces, const LocateOptions& options,
+                              const std::vector<std::uint64_t>& source_face_regions = {});
 
 // Farthest-point sample of `count` vertices (deterministic, starting from the
 // vertex nearest the centroid). Used for the dense-map centres.

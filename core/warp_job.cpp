@@ -256,6 +256,7 @@ std::size_t PreparedSource::memoryBytes() const {
   bytes += static_cast<std::size_t>(mesh.regions.size()) * sizeof(int);
   if (dense_factorization) bytes += dense_factorization->memoryBytes();
   bytes += static_cast<std::size_t>(dense_bending.size()) * sizeof(double);
+  if (guide_index) bytes += guide_index->memoryBytes();
   return bytes;
 }
 
@@ -377,6 +378,7 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
     prepared.face_regions = faceRegionSets(prepared.mesh.regions, prepared.mesh.triangles);
     prepared.region_bits = vertexRegionBits(prepared.mesh.regions);
   }
+  prepared.guide_index.emplace(prepared.mesh.positions, prepared.mesh.triangles);
   prepared.prepare_ms = msSince(t0);
   return prepared;
 }
@@ -692,7 +694,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   }
   LocateOptions locate = options.locate;
   locate.threads = options.threads;
-  result.locations = locateOnGuide(*matched, result.guide.positions, tris, locate,
+  result.locations = locateOnGuide(*matched, result.guide.positions, *source.guide_index, locate,
                                    report.region_matching ? source.face_regions : std::vector<std::uint64_t>());
   for (Eigen::Index v = 0; v < target.vertexCount() && !detached.empty(); ++v) {
     if (detached[static_cast<std::size_t>(v)] < 0) continue;

@@ -13,6 +13,7 @@
 #include "core/correspondence.h"
 #include "core/landmarks.h"
 #include "core/mesh.h"
+#include "core/moving_mesh_index.h"
 #include "core/rims.h"
 #include "core/tps.h"
 
@@ -41,6 +42,9 @@ struct PreparedSource {
   std::optional<TpsFactorization> dense_factorization;
   // Its bendingEnergyMatrix (#centres squared), for sliding the centres.
   Eigen::MatrixXd dense_bending;
+  // The source faces grouped for closest-point queries at any positions:
+  // fitted to each job's guide to locate the target's vertices on it.
+  std::optional<MovingMeshIndex> guide_index;
   // Vertex adjacency of the source (CSR): neighbours of v are
   // neighbor_indices[neighbor_offsets[v] .. neighbor_offsets[v+1]).
   std::vector<int> neighbor_offsets;

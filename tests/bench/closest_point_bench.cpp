@@ -1,6 +1,8 @@
 // ClosestPointIndex throughput: index build and single-threaded queries on
 // procedural bumpy UV spheres of radius ~1 (~10k and ~100k triangles; no
-// external files).
+// external files). MovingMeshIndex: fit to the sphere moved by a smooth map
+// (built at rest once), and batches of near-surface queries on the moved
+// sphere against a ClosestPointIndex built for it.
 //   closest_point_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 // Query kinds (65,536 queries cycled, random order):
 //   0 near: uniform surface samples moved along the face normal by up to
@@ -19,6 +21,7 @@
 
 #include "core/closest_point.h"
 #include "core/mesh.h"
+#include "core/moving_mesh_index.h"
 
 namespace {
 
@@ -156,7 +159,58 @@ void BM_Query(benchmark::State& state) {
   state.counters["not_found"] = static_cast<double>(misses);
 }
 
+// The sphere moved by a smooth, non-rigid map (stretched, sheared, bent), as
+// a warp carries the rig's surface onto a target.
+BenchMesh moved(const BenchMesh& m) {
+  BenchMesh out = m;
+  for (Eigen::Index v = 0; v < m.positions.rows(); ++v) {
+    const double x = m.positions(v, 0), y = m.positions(v, 1), z = m.positions(v, 2);
+    out.positions.row(v) << 1.3 * x + 0.2 * std::sin(3.0 * y), y + 0.1 * z * z, 0.8 * z + 0.1 * x;
+  }
+  return out;
+}
+
+void BM_MovingFit(benchmark::State& state) {
+  const BenchMesh& m = meshForSize(static_cast<int>(state.range(0)));
+  const BenchMesh target = moved(m);
+  const core::MovingMeshIndex hierarchy(m.positions, m.triangles);
+  for (auto _ : state) {
+    const auto fitted = hierarchy.fit(target.positions);
+    benchmark::DoNotOptimize(fitted.faceCount());
+  }
+  state.SetItemsProcessed(state.iterations() * m.triangles.rows());
+}
+
+// 4,096 near-surface queries (with the 60-degree normal filter) per
+// iteration on the moved sphere; index = 0 ClosestPointIndex, 1 MovingMeshIndex.
+void BM_MovedBatch(benchmark::State& state) {
+  const BenchMesh& m = meshForSize(static_cast<int>(state.range(0)));
+  const BenchMesh target = moved(m);
+  const Workload w = nearSurfaceQueries(target, 4096, 3);
+  Eigen::MatrixX3d queries(4096, 3);
+  core::ClosestPointFilters filters;
+  filters.normals.resize(4096, 3);
+  for (int i = 0; i < 4096; ++i) {
+    queries.row(i) = w.points[static_cast<std::size_t>(i)].transpose();
+    filters.normals.row(i) = w.normals[static_cast<std::size_t>(i)].transpose();
+  }
+  core::ClosestPointOptions options;
+  options.max_normal_angle_deg = 60.0;
+  options.threads = 1;
+  const core::ClosestPointIndex index(target.positions, target.triangles);
+  const core::MovingMeshIndex hierarchy(m.positions, m.triangles);
+  const auto fitted = hierarchy.fit(target.positions);
+  for (auto _ : state) {
+    const auto found = state.range(1) == 0 ? index.closestPoints(queries, options, filters)
+                                           : fitted.closestPoints(queries, options, filters);
+    benchmark::DoNotOptimize(found.data());
+  }
+  state.SetItemsProcessed(state.iterations() * 4096);
+}
+
 BENCHMARK(BM_Build)->Arg(10)->Arg(100)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_MovingFit)->Arg(10)->Arg(100)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_MovedBatch)->ArgNames({"ktris", "moving"})->ArgsProduct({{10, 100}, {0, 1}})->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Query)
     ->ArgNames({"ktris", "kind"})
     ->ArgsProduct({{10, 100}, {kNear, kBox, kNearNormal60}})

@@ -1,6 +1,8 @@
 // Rig transfer (prepared rig, per stage; and end to end), ICT rig onto a remeshed
 // ICT target when ../shared/data is present, else generated rigs.
 //   transfer_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+#include <malloc.h>
+
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
@@ -17,6 +19,17 @@
 #include "tests/test_support.h"
 
 namespace {
+
+// The process keeps the heap it frees (no trimming, large blocks from the
+// heap): otherwise whether glibc hands the ~15 MB freed with an iteration's
+// rig back to the OS, to fault it in again in the next one, depends on the
+// order of frees, and moved the end-to-end time by 3-6 ms between builds
+// with the same work (docs/BENCHMARKS.md, 2026-11-22 night).
+const bool kHeapKept = [] {
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
+  return true;
+}();
 
 struct Case {
   core::Rig rig;

@@ -1,6 +1,7 @@
-// Tests core/closest_point.cpp: the point-triangle routine against the
-// projection optimality condition, and ClosestPointIndex against a brute-force
-// scan over all triangles (with and without filters) on meshes built here.
+// Tests core/closest_point.cpp and core/moving_mesh_index.cpp: the
+// point-triangle routine against the projection optimality condition, and
+// both indices against a brute-force scan over all triangles (with and
+// without filters) on meshes built here.
 #include "core/closest_point.h"
 
 #include <algorithm>
@@ -16,6 +17,7 @@
 #include <gtest/gtest.h>
 
 #include "core/mesh.h"
+#include "core/moving_mesh_index.h"
 #include "tests/test_support.h"
 
 namespace {
@@ -561,6 +563,124 @@ TEST(ClosestPointIndex, NonFiniteQueryFindsNothing) {
   const ClosestPointIndex index(m.positions, m.triangles);
   EXPECT_FALSE(index.closestPoint(Vector3d(std::nan(""), 0, 0)).found());
   EXPECT_FALSE(index.closestPoint(Vector3d(std::numeric_limits<double>::infinity(), 0, 0)).found());
+}
+
+// ---------------------------------------------------------------------------
+// MovingMeshIndex: built at rest, fitted to moved positions
+
+// The rest mesh moved smoothly but far (twisted, stretched 3x along x, bent),
+// plus per-vertex noise of a quarter edge that folds some triangles over:
+// the groups built at rest are no longer tight.
+TestMesh moved(const TestMesh& rest, unsigned seed) {
+  TestMesh m = rest;
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  const double edge = (rest.positions.row(rest.triangles(0, 0)) - rest.positions.row(rest.triangles(0, 1))).norm();
+  for (Eigen::Index v = 0; v < m.positions.rows(); ++v) {
+    const Vector3d p = rest.positions.row(v);
+    const double twist = 1.2 * p.z();
+    Vector3d q(std::cos(twist) * p.x() - std::sin(twist) * p.y(), std::sin(twist) * p.x() + std::cos(twist) * p.y(), p.z());
+    q.x() *= 3.0;
+    q.z() += 0.4 * q.x() * q.x();
+    m.positions.row(v) = (q + 0.25 * edge * Vector3d(gauss(rng), gauss(rng), gauss(rng))).transpose();
+  }
+  return m;
+}
+
+// Bit-identical to ClosestPointIndex on the same positions (and so to the
+// brute force, which ClosestPointIndex matches above).
+::testing::AssertionResult identical(const SurfacePoint& got, const SurfacePoint& ref) {
+  if (got.face == ref.face && got.sq_distance == ref.sq_distance && got.barycentric == ref.barycentric &&
+      got.point == ref.point) {
+    return ::testing::AssertionSuccess();
+  }
+  return ::testing::AssertionFailure() << "face " << got.face << " d2 " << got.sq_distance << " vs ClosestPointIndex face "
+                                       << ref.face << " d2 " << ref.sq_distance;
+}
+
+Eigen::MatrixX3d rowsOf(const std::vector<Vector3d>& list) {
+  Eigen::MatrixX3d m(static_cast<Eigen::Index>(list.size()), 3);
+  for (std::size_t i = 0; i < list.size(); ++i) m.row(static_cast<Eigen::Index>(i)) = list[i].transpose();
+  return m;
+}
+
+TEST(MovingMeshIndex, MatchesBruteForceAfterTheVerticesMoveFar) {
+  const TestMesh rest = makeBumpySphere(3, 0.05, 31);
+  const core::MovingMeshIndex hierarchy(rest.positions, rest.triangles);
+  for (const unsigned seed : {32u, 33u}) {
+    const TestMesh m = moved(rest, seed);
+    const auto fitted = hierarchy.fit(m.positions);
+    EXPECT_EQ(fitted.faceCount(), ClosestPointIndex(m.positions, m.triangles).faceCount());
+    const BruteForce brute(m);
+    const auto queries = makeQueries(m, 2000, seed + 10);
+    const auto got = fitted.closestPoints(rowsOf(queries));
+    for (std::size_t i = 0; i < queries.size(); ++i) {
+      ASSERT_TRUE(sameAnswer(m, got[i], brute(queries[i]), queries[i])) << "query " << i;
+    }
+  }
+  // Fitted at rest it answers as at rest.
+  const auto queries = makeQueries(rest, 500, 34);
+  const auto got = hierarchy.fit(rest.positions).closestPoints(rowsOf(queries));
+  const ClosestPointIndex index(rest.positions, rest.triangles);
+  for (std::size_t i = 0; i < queries.size(); ++i) ASSERT_TRUE(identical(got[i], index.closestPoint(queries[i]))) << i;
+}
+
+TEST(MovingMeshIndex, EqualsClosestPointIndexWithFiltersAndDegenerateFaces) {
+  const TestMesh rest = makeSliverSoup(35);
+  const core::MovingMeshIndex hierarchy(rest.positions, rest.triangles);
+  // Moved: scaled and sheared, and every tenth triangle collapsed to a point
+  // (degenerate there though not at rest).
+  TestMesh m = rest;
+  Eigen::Matrix3d shear;
+  shear << 2.0, 0.5, 0.0, 0.0, 0.7, 0.3, 0.1, 0.0, 1.5;
+  m.positions = (rest.positions * shear.transpose()).eval();
+  for (Eigen::Index f = 0; f < m.triangles.rows(); f += 10) {
+    for (int k = 1; k < 3; ++k) m.positions.row(m.triangles(f, k)) = m.positions.row(m.triangles(f, 0));
+  }
+  std::vector<std::uint64_t> labels(static_cast<std::size_t>(m.triangles.rows()));
+  for (std::size_t f = 0; f < labels.size(); ++f) labels[f] = std::uint64_t{1} << ((f * 5) % 64);
+  const ClosestPointIndex index(m.positions, m.triangles, labels);
+  const auto fitted = hierarchy.fit(m.positions, labels);
+  EXPECT_EQ(fitted.faceCount(), index.faceCount());
+  const auto list = makeQueries(m, 3000, 36);
+  core::ClosestPointFilters filters;
+  filters.normals = Eigen::MatrixX3d::Random(static_cast<Eigen::Index>(list.size()), 3).rowwise().normalized();
+  std::mt19937_64 rng(37);
+  for (std::size_t i = 0; i < list.size(); ++i) filters.label_masks.push_back(rng() | rng());
+  for (const double max_distance : {std::numeric_limits<double>::infinity(), 0.4}) {
+    ClosestPointOptions options;
+    options.max_normal_angle_deg = 75.0;
+    options.max_distance = max_distance;
+    options.threads = 2;
+    for (const bool filtered : {false, true}) {
+      const auto got = fitted.closestPoints(rowsOf(list), options, filtered ? filters : core::ClosestPointFilters{});
+      const auto ref = index.closestPoints(rowsOf(list), options, filtered ? filters : core::ClosestPointFilters{});
+      int found = 0;
+      for (std::size_t i = 0; i < list.size(); ++i) {
+        ASSERT_TRUE(identical(got[i], ref[i])) << "query " << i << (filtered ? " filtered" : "");
+        found += got[i].found() ? 1 : 0;
+      }
+      EXPECT_GT(found, 100);
+    }
+  }
+}
+
+TEST(MovingMeshIndex, TiesNonFiniteQueriesAndEmptyMeshes) {
+  // Two copies of one triangle: ties go to the lower face index.
+  const TestMesh twin = fromLists({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}}, {{3, 4, 5}, {0, 1, 2}});
+  const core::MovingMeshIndex hierarchy(twin.positions, twin.triangles);
+  const auto fitted = hierarchy.fit(twin.positions);
+  for (const auto& r : fitted.closestPoints(rowsOf(makeQueries(twin, 100, 38)))) EXPECT_EQ(r.face, 0);
+  Eigen::MatrixX3d odd(2, 3);
+  odd << std::nan(""), 0, 0, std::numeric_limits<double>::infinity(), 0, 0;
+  for (const auto& r : fitted.closestPoints(odd)) EXPECT_FALSE(r.found());
+  EXPECT_GT(hierarchy.memoryBytes(), 0u);
+  EXPECT_EQ(hierarchy.triangles(), twin.triangles);
+
+  const core::MovingMeshIndex empty(Eigen::MatrixX3d(0, 3), Eigen::MatrixX3i(0, 3));
+  const auto nothing = empty.fit(Eigen::MatrixX3d(0, 3));
+  EXPECT_EQ(nothing.faceCount(), 0);
+  EXPECT_FALSE(nothing.closestPoints(Eigen::MatrixX3d::Zero(3, 3))[0].found());
 }
 
 }  // namespace

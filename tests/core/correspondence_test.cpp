@@ -83,8 +83,9 @@ TEST(Correspondence, RegionLabelsKeepCloseSheetsApart) {
 
   // Location of the probe's vertices on the sheets (the guide).
   core::LocateOptions locate;
-  const auto plain = core::locateOnGuide(probe, sheets.positions, sheets.triangles, locate);
-  const auto constrained = core::locateOnGuide(probe, sheets.positions, sheets.triangles, locate,
+  const core::MovingMeshIndex sheet_faces(sheets.positions, sheets.triangles);
+  const auto plain = core::locateOnGuide(probe, sheets.positions, sheet_faces, locate);
+  const auto constrained = core::locateOnGuide(probe, sheets.positions, sheet_faces, locate,
                                                core::faceRegionSets(sheets.regions, sheets.triangles));
   for (int v = 0; v < 3; ++v) {
     EXPECT_EQ(sheet(plain.on_source[static_cast<std::size_t>(v)].face), 1) << "vertex " << v;

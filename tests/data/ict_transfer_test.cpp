@@ -269,7 +269,8 @@ TEST(IctTransferLimits, TrueCorrespondenceAndTrueDenseCentres) {
     const core::GuideModel guide = core::projectToTarget(warped, core::computeVertexNormals(warped, src.triangles),
                                                          index, diagonal, core::ProjectionOptions{});
     const Errors centres =
-        errors(core::locateOnGuide(mesh, guide.positions, src.triangles, core::LocateOptions{}), {Eigen::Matrix3d::Identity()});
+        errors(core::locateOnGuide(mesh, guide.positions, *source->surface.guide_index, core::LocateOptions{}),
+               {Eigen::Matrix3d::Identity()});
     // The true correspondence with deltas adapted by the local Jacobian of the
     // true map (smoothed as ShapeAdaptation::kLocal does).
     core::TpsOptions smooth;
