@@ -44,7 +44,6 @@
 #include <vector>
 
 #include "core/mesh.h"
-#include "core/parallel.h"
 #include "core/point_triangle.h"
 
 #pragma GCC diagnostic push
@@ -507,23 +506,12 @@ std::vector<SurfacePoint> ClosestPointIndex::closestPoints(const Eigen::MatrixX3
                                                            const ClosestPointOptions& options,
                                                            const ClosestPointFilters& filters) const {
   if (!impl_) return std::vector<SurfacePoint>(static_cast<std::size_t>(queries.rows()));
-  const Eigen::Index nq = queries.rows();
-  assert(filters.normals.rows() == 0 || filters.normals.rows() == nq);
-  assert(filters.label_masks.empty() || static_cast<Eigen::Index>(filters.label_masks.size()) == nq);
-  const bool use_normals = filters.normals.rows() == nq && nq > 0;
-  const bool use_masks = static_cast<Eigen::Index>(filters.label_masks.size()) == nq;
-  std::vector<SurfacePoint> out(static_cast<std::size_t>(nq));
-  const Limits limits(options);
-  parallelFor(nq, options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
-    for (std::ptrdiff_t i = begin; i < end; ++i) {
-      const Vec3 q = row(queries, i);
-      Vec3 n;
-      if (use_normals) n = row(filters.normals, i);
-      const std::uint64_t mask = use_masks ? filters.label_masks[i] : ~std::uint64_t{0};
-      out[i] = impl_->query(q, use_normals ? &n : nullptr, mask, limits);
-    }
-  });
-  return out;
+  assert(filters.normals.rows() == 0 || filters.normals.rows() == queries.rows());
+  assert(filters.label_masks.empty() || static_cast<Eigen::Index>(filters.label_masks.size()) == queries.rows());
+  return queryRows(queries, options, filters,
+                   [this](const Vec3& q, const Vec3* normal, std::uint64_t mask, const Limits& limits) {
+                     return impl_->query(q, normal, mask, limits);
+                   });
 }
 
 std::size_t ClosestPointIndex::memoryBytes() const {

@@ -24,7 +24,6 @@
 #include <utility>
 
 #include "core/mesh.h"
-#include "core/parallel.h"
 #include "core/point_triangle.h"
 
 namespace core {
@@ -300,22 +299,11 @@ int MovingMeshIndex::Fitted::faceCount() const { return impl_ ? impl_->usable_fa
 std::vector<SurfacePoint> MovingMeshIndex::Fitted::closestPoints(const Eigen::MatrixX3d& queries,
                                                                  const ClosestPointOptions& options,
                                                                  const ClosestPointFilters& filters) const {
-  const Eigen::Index nq = queries.rows();
-  std::vector<SurfacePoint> out(static_cast<std::size_t>(nq));
-  if (!impl_) return out;
-  const bool use_normals = filters.normals.rows() == nq && nq > 0;
-  const bool use_masks = static_cast<Eigen::Index>(filters.label_masks.size()) == nq;
-  const Limits limits(options);
-  parallelFor(nq, options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
-    for (std::ptrdiff_t i = begin; i < end; ++i) {
-      const Vec3 q = row(queries, i);
-      Vec3 n;
-      if (use_normals) n = row(filters.normals, i);
-      const std::uint64_t mask = use_masks ? filters.label_masks[static_cast<std::size_t>(i)] : ~std::uint64_t{0};
-      out[static_cast<std::size_t>(i)] = impl_->query(q, use_normals ? &n : nullptr, mask, limits);
-    }
-  });
-  return out;
+  if (!impl_) return std::vector<SurfacePoint>(static_cast<std::size_t>(queries.rows()));
+  return queryRows(queries, options, filters,
+                   [this](const Vec3& q, const Vec3* normal, std::uint64_t mask, const Limits& limits) {
+                     return impl_->query(q, normal, mask, limits);
+                   });
 }
 
 }  // namespace core

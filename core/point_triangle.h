@@ -9,10 +9,12 @@
 #include <cstdint>
 #include <limits>
 #include <numbers>
+#include <vector>
 
 #include <Eigen/Core>
 
 #include "core/closest_point.h"
+#include "core/parallel.h"
 
 namespace core::point_triangle {
 
@@ -203,6 +205,29 @@ inline bool makeFace(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& 
   face.id = static_cast<std::int32_t>(f);
   face.well_shaped = isWellShaped(face.a, face.b, face.c);
   return true;
+}
+
+// A batch as both indices run it: row i of `queries` with the normal and
+// label mask of row i of `filters` (each used when given for every row), in
+// parallel chunks; query(q, normal or nullptr, mask, limits) answers one.
+template <class Query>
+std::vector<SurfacePoint> queryRows(const Eigen::MatrixX3d& queries, const ClosestPointOptions& options,
+                                    const ClosestPointFilters& filters, const Query& query) {
+  const Eigen::Index nq = queries.rows();
+  const bool use_normals = filters.normals.rows() == nq && nq > 0;
+  const bool use_masks = static_cast<Eigen::Index>(filters.label_masks.size()) == nq;
+  std::vector<SurfacePoint> out(static_cast<std::size_t>(nq));
+  const Limits limits(options);
+  parallelFor(nq, options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
+    for (std::ptrdiff_t i = begin; i < end; ++i) {
+      const Vec3 q = row(queries, i);
+      Vec3 n;
+      if (use_normals) n = row(filters.normals, i);
+      const std::uint64_t mask = use_masks ? filters.label_masks[static_cast<std::size_t>(i)] : ~std::uint64_t{0};
+      out[static_cast<std::size_t>(i)] = query(q, use_normals ? &n : nullptr, mask, limits);
+    }
+  });
+  return out;
 }
 
 }  // namespace core::point_triangle

@@ -89,6 +89,20 @@ double stillnessError(const core::Rig& out, const core::Rig& gt, const std::stri
   return still_errors[static_cast<std::size_t>(0.95 * static_cast<double>(still_errors.size() - 1))] / mean_motion;
 }
 
+// The papers' method done plainly: landmark TPS, closest point without
+// filters, barycentric copy of raw deltas.
+core::TransferOptions plainMethod() {
+  core::TransferOptions plain;
+  plain.warp.refine_iterations = 0;
+  plain.warp.local_rounds = 0;
+  plain.warp.rim_matching = false;
+  plain.warp.locate.max_relative_distance = 0.0;
+  plain.warp.locate.max_normal_angle_deg = 180.0;
+  plain.warp.projection.max_normal_angle_deg = 180.0;
+  plain.adaptation = core::ShapeAdaptation::kNone;
+  return plain;
+}
+
 class IctTransfer : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(IctTransfer, ShapesBeatThePlainMethodAndOutputIsValid) {
@@ -103,14 +117,7 @@ TEST_P(IctTransfer, ShapesBeatThePlainMethodAndOutputIsValid) {
 
   auto ours = core::transferRig(*source, target->mesh, *landmarks, name);
   ASSERT_TRUE(ours) << ours.error().message;
-  core::TransferOptions plain_options;
-  plain_options.warp.refine_iterations = 0;
-  plain_options.warp.local_rounds = 0;
-  plain_options.warp.rim_matching = false;
-  plain_options.warp.locate.max_relative_distance = 0.0;
-  plain_options.warp.locate.max_normal_angle_deg = 180.0;
-  plain_options.warp.projection.max_normal_angle_deg = 180.0;
-  plain_options.adaptation = core::ShapeAdaptation::kNone;
+  const core::TransferOptions plain_options = plainMethod();
   auto plain = core::transferRig(*source, target->mesh, *landmarks, name, plain_options);
   ASSERT_TRUE(plain) << plain.error().message;
 
@@ -176,14 +183,7 @@ TEST(IctOtherIdentities, ShapesBeatThePlainMethod) {
                                {"s01_plus_s02", {r2, r2, 0}}, {"s01_minus_s02", {r2, -r2, 0}}, {"s02_plus_s03", {0, r2, r2}},
                                {"s01_minus_s03", {r2, 0, -r2}}, {"s03_minus_s01_s02", {-r3, -r3, r3}},
                                {"s01_x3", {3, 0, 0}},         {"s02_x3", {0, 3, 0}},          {"s03_x3", {0, 0, 3}}};
-  core::TransferOptions plain_options;
-  plain_options.warp.refine_iterations = 0;
-  plain_options.warp.local_rounds = 0;
-  plain_options.warp.rim_matching = false;
-  plain_options.warp.locate.max_relative_distance = 0.0;
-  plain_options.warp.locate.max_normal_angle_deg = 180.0;
-  plain_options.warp.projection.max_normal_angle_deg = 180.0;
-  plain_options.adaptation = core::ShapeAdaptation::kNone;
+  const core::TransferOptions plain_options = plainMethod();
   core::Rig truth;  // ICT deltas are identity independent
   truth.morph_targets = source->rig.morph_targets;
   double worst_sum = 0.0, plain_worst_sum = 0.0;
