@@ -88,7 +88,9 @@ int runWarp(const WarpArgs& args) {
   if (!prepared) return fail(prepared.error());
 
   core::WarpOptions options;
-  options.refine_iterations = args.refine_iterations;
+  options.refine_iterations = args.plain ? 0 : args.refine_iterations;
+  options.local_rounds = args.plain ? 0 : args.local_rounds;
+  options.rim_matching = !args.plain;
   options.landmark_tps.regularization = args.landmark_regularization;
   options.threads = args.threads;
   auto result = core::runWarp(*prepared, target->mesh, *target_landmarks, args.target.filename().string(), options);

@@ -12,6 +12,8 @@ struct WarpArgs {
   std::filesystem::path output;       // guide GLB (source topology on the target)
   std::filesystem::path diagnostics;  // JSON; empty = none
   int refine_iterations = 2;         // core::WarpOptions default
+  int local_rounds = 3;               // core::WarpOptions default
+  bool plain = false;                 // no refinement, local rounds or rims (the papers' pipeline)
   double landmark_regularization = 0.0;
   int threads = 0;
   bool print_diagnostics = false;     // also print the diagnostics JSON on stdout

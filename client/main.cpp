@@ -25,8 +25,15 @@ int main(int argc, char** argv) {
   warp_cmd->add_option("--target-landmarks", warp.target_landmarks, "Target landmarks JSON")->required()->check(CLI::ExistingFile);
   warp_cmd->add_option("-o,--output", warp.output, "Guide model GLB (source topology on the target)")->required();
   warp_cmd->add_option("--diagnostics", warp.diagnostics, "Diagnostics JSON");
-  warp_cmd->add_option("--refine", warp.refine_iterations, "Non-rigid refinement rounds (0 = plain projection)")
-      ->check(CLI::Range(0, 20))->capture_default_str();
+  auto* refine = warp_cmd->add_option("--refine", warp.refine_iterations, "Dense-map refinement rounds (0 = none)")
+                     ->check(CLI::Range(0, 20))->capture_default_str();
+  auto* local_rounds = warp_cmd->add_option("--local-rounds", warp.local_rounds,
+                                            "Local rounds after the dense map (projection of a sample, smoothed)")
+                           ->check(CLI::Range(0, 20))->capture_default_str();
+  warp_cmd->add_flag("--plain", warp.plain,
+                     "The papers' method as written: landmark TPS, projection, location (no dense-map refinement, "
+                     "local rounds or rim matching)")
+      ->excludes(refine)->excludes(local_rounds);
   warp_cmd->add_option("--landmark-regularization", warp.landmark_regularization,
                        "Approximating TPS: kernel diagonal (model units), 0 = exact")
       ->check(CLI::NonNegativeNumber)->capture_default_str();

@@ -75,6 +75,16 @@ void BM_WarpCorrespondPlain(benchmark::State& state) {
 }
 BENCHMARK(BM_WarpCorrespondPlain)->Unit(benchmark::kMillisecond);
 
+// No dense-map rounds, one local round: [1]'s accuracy limits hold
+// (ict_warp_test runs them on this pipeline too) at about the plain cost.
+void BM_WarpCorrespondLight(benchmark::State& state) {
+  core::WarpOptions options;
+  options.refine_iterations = 0;
+  options.local_rounds = 1;
+  runCase(state, options);
+}
+BENCHMARK(BM_WarpCorrespondLight)->Unit(benchmark::kMillisecond);
+
 void BM_WarpCorrespondDefault(benchmark::State& state) { runCase(state, core::WarpOptions{}); }
 BENCHMARK(BM_WarpCorrespondDefault)->Unit(benchmark::kMillisecond);
 

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cstdio>
 #include <map>
+#include <string>
+#include <tuple>
 
 #include <gtest/gtest.h>
 
@@ -45,21 +47,45 @@ double quantile(std::vector<double> v, double q) {
   return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
 }
 
-class IctWarp : public ::testing::TestWithParam<std::string> {};
+// The pipelines [1]'s accuracy limits must hold for: the default one (with
+// the dense-map refinement the rig transfer needs), and the light one that
+// meets [1]'s 20 ms (no dense-map rounds, one local round; `rigport warp
+// --refine 0 --local-rounds 1`; docs/BENCHMARKS.md).
+enum class Pipeline { kDefault, kLight };
+
+core::WarpOptions optionsFor(Pipeline pipeline) {
+  core::WarpOptions options;
+  if (pipeline == Pipeline::kLight) {
+    options.refine_iterations = 0;
+    options.local_rounds = 1;
+  }
+  return options;
+}
+
+std::string pipelineName(Pipeline pipeline) { return pipeline == Pipeline::kLight ? "light" : "default"; }
+
+using TargetAndPipeline = std::tuple<std::string, Pipeline>;
+
+std::string caseName(const ::testing::TestParamInfo<TargetAndPipeline>& param) {
+  return std::get<0>(param.param) + "_" + pipelineName(std::get<1>(param.param));
+}
+
+class IctWarp : public ::testing::TestWithParam<TargetAndPipeline> {};
 
 TEST_P(IctWarp, RemeshedTargetLandmarksExactProjectionCloseFoldsReported) {
   RIGPORT_REQUIRE_SHARED_DATA(data);
   const core::PreparedSource* source = ictSource(data);
   ASSERT_NE(source, nullptr) << "ICT source failed to load";
-  auto target = loadTarget(data, GetParam());
-  ASSERT_TRUE(target) << GetParam();
-  auto result = core::runWarp(*source, target->mesh.mesh, target->landmarks, GetParam());
+  const auto& [name, pipeline] = GetParam();
+  auto target = loadTarget(data, name);
+  ASSERT_TRUE(target) << name;
+  auto result = core::runWarp(*source, target->mesh.mesh, target->landmarks, name, optionsFor(pipeline));
   ASSERT_TRUE(result) << result.error().message;
   const core::WarpReport& r = result->report;
   const double diag = r.target_diagonal;
-  std::printf("[ %s ] landmarks %d rms %.2e (%.1e diag) p95 %.3f%% mean %.3f%% max %.3f%% of diag, flipped %d, "
+  std::printf("[ %s, %s ] landmarks %d rms %.2e (%.1e diag) p95 %.3f%% mean %.3f%% max %.3f%% of diag, flipped %d, "
               "collapsed %d, unmatched %d, low-confidence %d, suspicious %zu\n",
-              GetParam().c_str(), r.landmark_count, r.landmark_rms_residual, r.landmark_rms_residual / diag,
+              name.c_str(), pipelineName(pipeline).c_str(), r.landmark_count, r.landmark_rms_residual, r.landmark_rms_residual / diag,
               100 * r.p95_distance / diag, 100 * r.mean_distance / diag, 100 * r.max_distance / diag,
               r.flipped_triangles, r.collapsed_triangles, r.unmatched_source_vertices, r.low_confidence_vertices,
               r.suspicious_landmarks.size());
@@ -75,19 +101,22 @@ TEST_P(IctWarp, RemeshedTargetLandmarksExactProjectionCloseFoldsReported) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Remeshed, IctWarp,
-                         ::testing::Values("id_s01_remesh", "id_s02_remesh", "id_s03_remesh",
-                                           "stylized_s01_cartoon_remesh", "sparse10_s01"));
+                         ::testing::Combine(::testing::Values("id_s01_remesh", "id_s02_remesh", "id_s03_remesh",
+                                                              "stylized_s01_cartoon_remesh", "sparse10_s01"),
+                                            ::testing::Values(Pipeline::kDefault, Pipeline::kLight)),
+                         caseName);
 
-class IctSameTopology : public ::testing::TestWithParam<std::string> {};
+class IctSameTopology : public ::testing::TestWithParam<TargetAndPipeline> {};
 
 // Same topology: vertex v of the target is the true counterpart of source v.
 TEST_P(IctSameTopology, GuideVerticesLandNearTheirTrueCounterparts) {
   RIGPORT_REQUIRE_SHARED_DATA(data);
   const core::PreparedSource* source = ictSource(data);
   ASSERT_NE(source, nullptr);
-  auto target = loadTarget(data, GetParam());
+  const auto& [name, pipeline] = GetParam();
+  auto target = loadTarget(data, name);
   ASSERT_TRUE(target);
-  auto result = core::runWarp(*source, target->mesh.mesh, target->landmarks, GetParam());
+  auto result = core::runWarp(*source, target->mesh.mesh, target->landmarks, name, optionsFor(pipeline));
   ASSERT_TRUE(result) << result.error().message;
   const double diag = result->report.target_diagonal;
   std::vector<double> error(static_cast<std::size_t>(source->mesh.vertexCount()));
@@ -103,9 +132,9 @@ TEST_P(IctSameTopology, GuideVerticesLandNearTheirTrueCounterparts) {
   double mean = 0;
   for (double e : error) mean += e;
   mean /= static_cast<double>(error.size());
-  std::printf("[ %s ] guide vs true vertex, %% of diagonal: all mean %.3f median %.3f p95 %.3f; face (%zu vertices) "
+  std::printf("[ %s, %s ] guide vs true vertex, %% of diagonal: all mean %.3f median %.3f p95 %.3f; face (%zu vertices) "
               "median %.3f p95 %.3f\n",
-              GetParam().c_str(), 100 * mean, 100 * quantile(error, 0.5), 100 * quantile(error, 0.95),
+              name.c_str(), pipelineName(pipeline).c_str(), 100 * mean, 100 * quantile(error, 0.5), 100 * quantile(error, 0.95),
               face_error.size(), 100 * quantile(face_error, 0.5), 100 * quantile(face_error, 0.95));
   EXPECT_LE(mean, 0.01);
   EXPECT_LE(quantile(error, 0.5), 0.01);
@@ -113,7 +142,9 @@ TEST_P(IctSameTopology, GuideVerticesLandNearTheirTrueCounterparts) {
 }
 
 INSTANTIATE_TEST_SUITE_P(SameTopology, IctSameTopology,
-                         ::testing::Values("id_s01", "id_s02", "id_s03", "stylized_s01_cartoon"));
+                         ::testing::Combine(::testing::Values("id_s01", "id_s02", "id_s03", "stylized_s01_cartoon"),
+                                            ::testing::Values(Pipeline::kDefault, Pipeline::kLight)),
+                         caseName);
 
 TEST(IctWarpLandmarks, SwappedMouthCornersAreNamed) {
   RIGPORT_REQUIRE_SHARED_DATA(data);
