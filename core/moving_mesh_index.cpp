@@ -9,12 +9,13 @@
 // is what lets it be built once per rig: the guide is the source warped by a
 // smooth map, so its faces stay grouped about as well as at rest. Measured on
 // the ICT guide (22k faces; 1 thread, medians of 15): built once 1.3 ms, fit
-// 0.7 ms, 5.9k located target vertices 5.0 ms, against 4.2 ms to build a
+// 0.7 ms, 5.9k located target vertices 4.7 ms, against 4.2 ms to build a
 // ClosestPointIndex on the guide and 4.0 ms for the same queries on it.
 // Tried: median splits (queries 0.8 ms faster on the 5.9k, build 3.1 ms),
 // Morton-order splits (build 1.1 ms, queries 20% slower), float boxes in the
 // nodes (slower), a bounding ball per face before the plane test (no gain),
-// leaves of 2 or 8 faces (slower).
+// leaves of 2 or 8 faces (slower), both children's boxes stored in the
+// parent (3% faster queries: not worth a second layout).
 #include "core/moving_mesh_index.h"
 
 #include <algorithm>
@@ -33,6 +34,9 @@ using namespace point_triangle;
 
 // Faces per leaf (2 and 8 are slower on the ICT guide).
 constexpr int kLeafFaces = 4;
+// Levels split at the middle of the extent before median splits take over
+// (which bounds the depth, and so a query's stack).
+constexpr int kMidpointDepth = 32;
 // Box bounds are compared with this much slack (relative, on squared
 // distances) so that rounding in the box distance never prunes a face that
 // ties the best.
@@ -123,13 +127,14 @@ MovingMeshIndex::MovingMeshIndex(const Eigen::MatrixX3d& rest_positions, const E
     for (int k = 0; k < 3; ++k) {
       const double c = (rest_positions(triangles(f, 0), k) + rest_positions(triangles(f, 1), k) +
                         rest_positions(triangles(f, 2), k)) / 3.0;
-      item.centroid[static_cast<std::size_t>(k)] = std::isfinite(c) ? static_cast<float>(c) : 0.0f;
+      constexpr double kFloatMax = std::numeric_limits<float>::max();
+      item.centroid[static_cast<std::size_t>(k)] = std::isfinite(c) ? static_cast<float>(std::clamp(c, -kFloatMax, kFloatMax)) : 0.0f;
     }
   }
   struct Range {
-    std::int32_t node, begin, end;
+    std::int32_t node, begin, end, depth;
   };
-  std::vector<Range> pending{{0, 0, nf}};
+  std::vector<Range> pending{{0, 0, nf, 0}};
   while (!pending.empty()) {
     const Range r = pending.back();
     pending.pop_back();
@@ -152,18 +157,30 @@ MovingMeshIndex::MovingMeshIndex(const Eigen::MatrixX3d& rest_positions, const E
     }
     // Split at the middle of the centroids' extent (one partition pass: as
     // good for queries as a median split here, and a third of its build
-    // time); all on one side (equal centroids) splits the range in the middle.
-    const float cut = 0.5f * (lo[axis] + hi[axis]);
-    const auto split = std::partition(items.begin() + r.begin, items.begin() + r.end,
-                                      [axis, cut](const Item& item) { return item.centroid[axis] < cut; });
-    auto mid = static_cast<std::int32_t>(split - items.begin());
-    if (mid == r.begin || mid == r.end) mid = r.begin + (r.end - r.begin) / 2;
+    // time). Below kMidpointDepth levels (centroids spread so unevenly that
+    // each cut peels off a few faces), and when all fall on one side, split
+    // at the median instead: the depth stays below kMidpointDepth + log2(faces).
+    std::int32_t mid = r.begin;
+    if (r.depth < kMidpointDepth) {
+      const float cut = 0.5f * (lo[axis] + hi[axis]);
+      const auto split = std::partition(items.begin() + r.begin, items.begin() + r.end,
+                                        [axis, cut](const Item& item) { return item.centroid[axis] < cut; });
+      mid = static_cast<std::int32_t>(split - items.begin());
+    }
+    if (mid == r.begin || mid == r.end) {
+      mid = r.begin + (r.end - r.begin) / 2;
+      std::nth_element(items.begin() + r.begin, items.begin() + mid, items.begin() + r.end,
+                       [axis](const Item& a, const Item& b) {
+                         return a.centroid[axis] < b.centroid[axis] ||
+                                (a.centroid[axis] == b.centroid[axis] && a.face < b.face);
+                       });
+    }
     const auto child = static_cast<std::int32_t>(m.nodes.size());
     m.nodes[static_cast<std::size_t>(r.node)].child = child;
     m.nodes.emplace_back();
     m.nodes.emplace_back();
-    pending.push_back({child + 1, mid, r.end});
-    pending.push_back({child, r.begin, mid});
+    pending.push_back({child + 1, mid, r.end, r.depth + 1});
+    pending.push_back({child, r.begin, mid, r.depth + 1});
   }
   for (std::size_t i = 0; i < items.size(); ++i) m.order[i] = items[i].face;
 }
@@ -238,8 +255,8 @@ SurfacePoint MovingMeshIndex::Fitted::Impl::query(const Vec3& qv, const Vec3* no
   if (std::isfinite(limits.max_distance)) best_sq = limits.max_distance * limits.max_distance;
   TriHit best;
   int best_face = -1;
-  // Depth <= log2(faces) + 1 (median splits), and each visit pops one entry
-  // and pushes at most two.
+  // Depth < kMidpointDepth + log2(faces) + 1 <= 64, and each visit pops one
+  // entry and pushes at most two.
   struct Entry {
     std::int32_t node;
     double sq_distance;

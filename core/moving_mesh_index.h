@@ -4,9 +4,10 @@
 // rest positions, so that hierarchy is built once per rig; each job fits its
 // bounding boxes to the new positions in one pass and queries it (0.7 ms for
 // the ICT face's 22k faces, against ~4.2 ms to build a ClosestPointIndex on
-// them; its queries are ~25% slower). Answers equal a brute-force scan with closestPointOnTriangle() and
-// ClosestPointIndex's on the same positions: same faces, barycentrics and
-// distances, ties to the lower face index, the same filters.
+// them; its queries are ~15% slower). Answers equal a brute-force scan with
+// closestPointOnTriangle() and ClosestPointIndex's on the same positions: same
+// faces, barycentrics and distances, ties to the lower face index, the same
+// filters.
 #pragma once
 
 #include <cstdint>

@@ -386,6 +386,9 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
 Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, const LandmarkSet& target_landmarks,
                            const std::string& target_label, const WarpOptions& options) {
   const auto t_start = Clock::now();
+  if (!source.guide_index) {
+    return makeError(ErrorCode::kInvalidArgument, "the source was not prepared (prepareSource) before the warp");
+  }
   if (auto ok = validateMesh(target, target_label); !ok) return ok.error();
   if (target.triangleCount() == 0) {
     return makeError(ErrorCode::kInvalidMesh, target_label + ": the target must be a triangle mesh (it has no faces)");

@@ -665,6 +665,41 @@ TEST(MovingMeshIndex, EqualsClosestPointIndexWithFiltersAndDegenerateFaces) {
   }
 }
 
+// Faces spread so unevenly (at x = 2^k) that every cut at the middle of their
+// extent peels off one: the hierarchy must stay shallow (median splits take
+// over; a query's stack is bounded by the depth) and answer exactly. Faces
+// far smaller than the diagonal are degenerate by the indices' rule, as in
+// the brute force.
+TEST(MovingMeshIndex, ExtremelyUnevenFacesStayExact) {
+  std::vector<Vector3d> v;
+  std::vector<Eigen::Vector3i> f;
+  for (int k = 0; k < 300; ++k) {
+    const double x = std::ldexp(1.0, k);
+    const int i = static_cast<int>(v.size());
+    v.push_back({x, 0.0, 0.0});
+    v.push_back({1.5 * x, 0.0, 0.3 * x});
+    v.push_back({x, 0.7 * x, 0.1 * x});
+    f.push_back({i, i + 1, i + 2});
+  }
+  const TestMesh m = fromLists(v, f);
+  const core::MovingMeshIndex hierarchy(m.positions, m.triangles);
+  const auto fitted = hierarchy.fit(m.positions);
+  EXPECT_GT(fitted.faceCount(), 20);
+  const BruteForce brute(m);
+  std::vector<Vector3d> queries;
+  for (int k = 0; k < 300; k += 3) {
+    const double x = std::ldexp(1.0, k);
+    queries.push_back({1.2 * x, 0.3 * x, 0.5 * x});
+    queries.push_back({x, -0.2 * x, 0.0});
+  }
+  const auto got = fitted.closestPoints(rowsOf(queries));
+  for (std::size_t i = 0; i < queries.size(); ++i) {
+    const SurfacePoint ref = brute(queries[i]);
+    EXPECT_EQ(got[i].face, ref.face) << "query " << i;
+    EXPECT_EQ(got[i].sq_distance, ref.sq_distance) << "query " << i;
+  }
+}
+
 TEST(MovingMeshIndex, TiesNonFiniteQueriesAndEmptyMeshes) {
   // Two copies of one triangle: ties go to the lower face index.
   const TestMesh twin = fromLists({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}}, {{3, 4, 5}, {0, 1, 2}});

@@ -218,6 +218,15 @@ TEST(Correspondence, MirroringWarpAndInconsistentWindingAreWarned) {
   EXPECT_FALSE(contains(x->report.warnings, "mirrors"));
 }
 
+TEST(Correspondence, AnUnpreparedSourceIsAnErrorNotACrash) {
+  const auto head = core::generateHead();
+  const core::PreparedSource unprepared;  // as a default-constructed cache slot would be
+  auto result = core::runWarp(unprepared, head.mesh, head.landmarks, "head.glb");
+  ASSERT_FALSE(result);
+  EXPECT_EQ(result.error().code, core::ErrorCode::kInvalidArgument);
+  EXPECT_NE(result.error().message.find("prepareSource"), std::string::npos) << result.error().message;
+}
+
 TEST(Correspondence, RefinementBringsTheSurfaceCloserThanThePlainWarp) {
   const auto source = core::generateHead();
   const auto target = core::generateHead(core::randomHeadShape(11, 0.25), core::HeadResolution{90, 80, true, 0.2, 11});
