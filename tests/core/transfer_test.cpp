@@ -824,28 +824,26 @@ TEST(TransferRig, AnimationStrainFollowsTheSource) {
   EXPECT_NEAR(amplitude, 1.0, 0.1);
 }
 
-TEST(TransferOptions, SlidingCentresCanBeSwitchedOff) {
+// A warp switch in the options JSON: on by default, off with false, and a
+// value of another type is an error that names the key.
+void expectWarpSwitch(const std::string& key, bool core::WarpOptions::*member, const std::string& bad_value) {
   auto defaults = core::parseTransferOptions("{}", "opts.json");
   ASSERT_TRUE(defaults) << defaults.error().message;
-  EXPECT_TRUE(defaults->transfer.warp.slide_centres);
-  auto off = core::parseTransferOptions(R"({"slide_centres": false})", "opts.json");
+  EXPECT_TRUE(defaults->transfer.warp.*member) << key;
+  auto off = core::parseTransferOptions("{\"" + key + "\": false}", "opts.json");
   ASSERT_TRUE(off) << off.error().message;
-  EXPECT_FALSE(off->transfer.warp.slide_centres);
-  auto bad = core::parseTransferOptions(R"({"slide_centres": 1})", "opts.json");
-  ASSERT_FALSE(bad);
-  EXPECT_NE(bad.error().message.find("slide_centres"), std::string::npos) << bad.error().message;
+  EXPECT_FALSE(off->transfer.warp.*member) << key;
+  auto bad = core::parseTransferOptions("{\"" + key + "\": " + bad_value + "}", "opts.json");
+  ASSERT_FALSE(bad) << key;
+  EXPECT_NE(bad.error().message.find(key), std::string::npos) << bad.error().message;
+}
+
+TEST(TransferOptions, SlidingCentresCanBeSwitchedOff) {
+  expectWarpSwitch("slide_centres", &core::WarpOptions::slide_centres, "1");
 }
 
 TEST(TransferOptions, RimMatchingCanBeSwitchedOff) {
-  auto defaults = core::parseTransferOptions("{}", "opts.json");
-  ASSERT_TRUE(defaults) << defaults.error().message;
-  EXPECT_TRUE(defaults->transfer.warp.rim_matching);
-  auto off = core::parseTransferOptions(R"({"rim_matching": false})", "opts.json");
-  ASSERT_TRUE(off) << off.error().message;
-  EXPECT_FALSE(off->transfer.warp.rim_matching);
-  auto bad = core::parseTransferOptions(R"({"rim_matching": "no"})", "opts.json");
-  ASSERT_FALSE(bad);
-  EXPECT_NE(bad.error().message.find("rim_matching"), std::string::npos) << bad.error().message;
+  expectWarpSwitch("rim_matching", &core::WarpOptions::rim_matching, "\"no\"");
 }
 
 }  // namespace
