@@ -1,6 +1,8 @@
 #include "core/blendshapes.h"
 
 #include <algorithm>
+#include <bit>
+#include <cstdint>
 
 #include "core/parallel.h"
 
@@ -81,11 +83,17 @@ Eigen::MatrixX3d gatherDeltas(const MorphTarget& s, const std::vector<Corners>& 
   Eigen::MatrixX3d out = Eigen::MatrixX3d::Zero(nt, 3);
   // Shapes are sparse: one sequential pass marks the source vertices that
   // move, so target vertices located among still ones skip the gather.
+  // A delta is non-zero when any coordinate's bits other than the sign are
+  // set (as `!= 0.0`, NaN included): integer tests, which vectorise.
   const Eigen::Index ns = s.position_deltas.rows();
-  moving.assign(static_cast<std::size_t>(ns), 0);
-  for (int c = 0; c < 3; ++c) {
-    const double* col = s.position_deltas.col(c).data();
-    for (Eigen::Index i = 0; i < ns; ++i) moving[static_cast<std::size_t>(i)] |= col[i] != 0.0 ? 1 : 0;
+  moving.resize(static_cast<std::size_t>(ns));
+  const double* x = s.position_deltas.col(0).data();
+  const double* y = s.position_deltas.col(1).data();
+  const double* z = s.position_deltas.col(2).data();
+  for (Eigen::Index i = 0; i < ns; ++i) {
+    const std::uint64_t bits =
+        std::bit_cast<std::uint64_t>(x[i]) | std::bit_cast<std::uint64_t>(y[i]) | std::bit_cast<std::uint64_t>(z[i]);
+    moving[static_cast<std::size_t>(i)] = (bits << 1) != 0 ? 1 : 0;
   }
   for (Eigen::Index v = 0; v < nt; ++v) {
     const Corners& at = corners[static_cast<std::size_t>(v)];
