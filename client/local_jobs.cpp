@@ -87,10 +87,11 @@ int runWarp(const WarpArgs& args) {
   auto prepared = core::prepareSource(source->mesh, *source_landmarks, args.source.filename().string(), prepare_options);
   if (!prepared) return fail(prepared.error());
 
-  core::WarpOptions options;
-  options.refine_iterations = args.plain ? 0 : args.refine_iterations;
-  options.local_rounds = args.plain ? 0 : args.local_rounds;
-  options.rim_matching = !args.plain;
+  core::WarpOptions options = args.plain ? core::plainWarpOptions() : args.light ? core::lightWarpOptions() : core::WarpOptions{};
+  if (!args.plain && !args.light) {
+    options.refine_iterations = args.refine_iterations;
+    options.local_rounds = args.local_rounds;
+  }
   options.landmark_tps.regularization = args.landmark_regularization;
   options.threads = args.threads;
   auto result = core::runWarp(*prepared, target->mesh, *target_landmarks, args.target.filename().string(), options);

@@ -12,8 +12,9 @@ struct WarpArgs {
   std::filesystem::path output;       // guide GLB (source topology on the target)
   std::filesystem::path diagnostics;  // JSON; empty = none
   int refine_iterations = 2;         // core::WarpOptions default
-  int local_rounds = 3;               // core::WarpOptions default
+  int local_rounds = 2;               // core::WarpOptions default
   bool plain = false;                 // no refinement, local rounds or rims (the papers' pipeline)
+  bool light = false;                 // one local round; no refinement, target pulls or smoothed guide
   double landmark_regularization = 0.0;
   int threads = 0;
   bool print_diagnostics = false;     // also print the diagnostics JSON on stdout

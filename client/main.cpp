@@ -30,10 +30,14 @@ int main(int argc, char** argv) {
   auto* local_rounds = warp_cmd->add_option("--local-rounds", warp.local_rounds,
                                             "Local rounds after the dense map (projection of a sample, smoothed)")
                            ->check(CLI::Range(0, 20))->capture_default_str();
-  warp_cmd->add_flag("--plain", warp.plain,
-                     "The papers' method as written: landmark TPS, projection, location (no dense-map refinement, "
-                     "local rounds or rim matching)")
-      ->excludes(refine)->excludes(local_rounds);
+  auto* plain = warp_cmd->add_flag("--plain", warp.plain,
+                                   "The papers' method as written: landmark TPS, projection, location (no dense-map "
+                                   "refinement, local rounds or rim matching)")
+                    ->excludes(refine)->excludes(local_rounds);
+  warp_cmd->add_flag("--light", warp.light,
+                     "The fast pipeline: one local round with rims matched (no dense-map refinement, target pulls "
+                     "or smoothed guide)")
+      ->excludes(refine)->excludes(local_rounds)->excludes(plain);
   warp_cmd->add_option("--landmark-regularization", warp.landmark_regularization,
                        "Approximating TPS: kernel diagonal (model units), 0 = exact")
       ->check(CLI::NonNegativeNumber)->capture_default_str();

@@ -119,6 +119,68 @@ Eigen::VectorXd computeDoubleAreas(const Eigen::MatrixX3d& positions, const Eige
   return areas;
 }
 
+VertexAdjacency vertexAdjacency(const Eigen::MatrixX3i& triangles, Eigen::Index vertex_count) {
+  // Directed edges bucketed twice (a counting sort by the neighbour, then
+  // stably by the vertex), so each vertex's neighbours come out ascending
+  // and de-duplicate in one pass.
+  using Index = std::size_t;
+  const auto n = static_cast<Index>(vertex_count);
+  auto bucketStarts = [n](const std::vector<int>& keys) {
+    std::vector<int> start(n + 1, 0);
+    for (int k : keys) ++start[static_cast<Index>(k) + 1];
+    for (Index v = 0; v < n; ++v) start[v + 1] += start[v];
+    return start;
+  };
+  std::vector<int> from, to;
+  from.reserve(static_cast<Index>(triangles.size()) * 2);
+  to.reserve(from.capacity());
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int a = triangles(f, k), b = triangles(f, (k + 1) % 3);
+      if (a == b) continue;
+      from.push_back(a), to.push_back(b);
+      from.push_back(b), to.push_back(a);
+    }
+  }
+  std::vector<Index> by_neighbour(from.size());
+  std::vector<int> fill = bucketStarts(to);
+  for (Index e = 0; e < to.size(); ++e) by_neighbour[static_cast<Index>(fill[static_cast<Index>(to[e])]++)] = e;
+  const std::vector<int> start = bucketStarts(from);
+  fill.assign(start.begin(), start.end() - 1);
+  std::vector<int> sorted(from.size());
+  for (Index e : by_neighbour) sorted[static_cast<Index>(fill[static_cast<Index>(from[e])]++)] = to[e];
+  VertexAdjacency out;
+  out.offsets.assign(n + 1, 0);
+  out.indices.reserve(sorted.size() / 2);
+  for (Index v = 0; v < n; ++v) {
+    const auto first = sorted.begin() + start[v], last = sorted.begin() + start[v + 1];
+    out.indices.insert(out.indices.end(), first, std::unique(first, last));
+    out.offsets[v + 1] = static_cast<int>(out.indices.size());
+  }
+  return out;
+}
+
+VertexSample independentVertexSample(const VertexAdjacency& adjacency) {
+  const std::size_t n = adjacency.offsets.empty() ? 0 : adjacency.offsets.size() - 1;
+  VertexSample out;
+  std::vector<char> covered(n, 0);
+  for (std::size_t v = 0; v < n; ++v) {
+    if (covered[v]) continue;
+    int weight = 1;
+    for (int k = adjacency.offsets[v]; k < adjacency.offsets[v + 1]; ++k) {
+      const auto u = static_cast<std::size_t>(adjacency.indices[static_cast<std::size_t>(k)]);
+      // Neighbours before v are sampled or covered already.
+      if (u > v && !covered[u]) {
+        covered[u] = 1;
+        ++weight;
+      }
+    }
+    out.vertices.push_back(static_cast<int>(v));
+    out.weight.push_back(weight);
+  }
+  return out;
+}
+
 double boundingBoxDiagonal(const Eigen::MatrixX3d& positions) {
   if (positions.rows() == 0) return 0.0;
   return (positions.colwise().maxCoeff() - positions.colwise().minCoeff()).norm();

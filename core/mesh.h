@@ -93,6 +93,24 @@ struct WindingNormals {
 WindingNormals normalsAgreeingWithWinding(const Eigen::MatrixX3d& normals, const Eigen::MatrixX3d& positions,
                                           const Eigen::MatrixX3i& triangles);
 
+// Vertex adjacency (CSR): the neighbours of v, ascending and unique, are
+// indices[offsets[v] .. offsets[v + 1]).
+struct VertexAdjacency {
+  std::vector<int> offsets;  // #V + 1
+  std::vector<int> indices;
+};
+VertexAdjacency vertexAdjacency(const Eigen::MatrixX3i& triangles, Eigen::Index vertex_count);
+
+// A maximal independent set of the adjacency, greedy in index order
+// (deterministic): every vertex is in it or next to one that is. weight[k]:
+// how many vertices vertices[k] stands for (itself and the neighbours it was
+// the first to cover).
+struct VertexSample {
+  std::vector<int> vertices;
+  std::vector<int> weight;
+};
+VertexSample independentVertexSample(const VertexAdjacency& adjacency);
+
 // #F twice-areas (|cross product|); 0 for degenerate triangles.
 Eigen::VectorXd computeDoubleAreas(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles);
 

@@ -1,5 +1,6 @@
 #include "core/transfer_options.h"
 
+#include <map>
 #include <set>
 
 #include <nlohmann/json.hpp>
@@ -43,6 +44,11 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
     return makeError(ErrorCode::kParse, label + ": not valid JSON (" + e.what() + ")");
   }
   if (!doc.is_object()) return makeError(ErrorCode::kInvalidArgument, label + ": expected a JSON object");
+  // The warp's on/off switches, by their JSON key.
+  static const std::map<std::string, bool WarpOptions::*> kWarpSwitches = {
+      {"region_matching", &WarpOptions::region_matching}, {"rim_matching", &WarpOptions::rim_matching},
+      {"slide_centres", &WarpOptions::slide_centres},     {"target_pulls", &WarpOptions::target_pulls},
+      {"smooth_guide", &WarpOptions::smooth_guide}};
   TransferSettings s;
   TransferOptions& t = s.transfer;
   for (const auto& [key, value] : doc.items()) {
@@ -101,18 +107,10 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
       ok = gains(value, where, t.shape_exaggeration);
     } else if (key == "joint_exaggeration") {
       ok = gains(value, where, t.joint_exaggeration);
-    } else if (key == "region_matching") {
+    } else if (const auto it = kWarpSwitches.find(key); it != kWarpSwitches.end()) {
       auto b = boolean(value, where);
       if (!b) return b.error();
-      t.warp.region_matching = *b;
-    } else if (key == "rim_matching") {
-      auto b = boolean(value, where);
-      if (!b) return b.error();
-      t.warp.rim_matching = *b;
-    } else if (key == "slide_centres") {
-      auto b = boolean(value, where);
-      if (!b) return b.error();
-      t.warp.slide_centres = *b;
+      t.warp.*(it->second) = *b;
     } else if (key == "refine_iterations") {
       auto x = number(value, where, 0, 20);
       if (!x) return x.error();

@@ -1,7 +1,7 @@
 // The warp job, read top to bottom: prepare (once per source, cacheable) ->
-// landmark TPS warp -> project onto the target (guide model) -> optional
-// non-rigid refinement through the dense map -> locate target vertices on the
-// guide. Each stage is a function of plain data; the report carries what a TD
+// landmark TPS warp -> optional non-rigid refinement through the dense map
+// and local rounds -> project onto the target (guide model) -> locate target
+// vertices on the (smoothed) guide. Each stage is a function of plain data; the report carries what a TD
 // needs to trust (or not) the correspondence.
 #pragma once
 
@@ -45,10 +45,7 @@ struct PreparedSource {
   // The source faces grouped for closest-point queries at any positions:
   // fitted to each job's guide to locate the target's vertices on it.
   std::optional<MovingMeshIndex> guide_index;
-  // Vertex adjacency of the source (CSR): neighbours of v are
-  // neighbor_indices[neighbor_offsets[v] .. neighbor_offsets[v+1]).
-  std::vector<int> neighbor_offsets;
-  std::vector<int> neighbor_indices;
+  VertexAdjacency adjacency;  // of the source's vertices
   // Source vertices projected in the local rounds (a maximal independent set
   // of the adjacency, ~1/4 of the vertices): the rounds' smoothed steps need
   // only this density, and the guide itself is projected in full.
@@ -91,8 +88,25 @@ struct WarpOptions {
   // (`smoothing_passes` Jacobi passes of normalised convolution) and applied;
   // the surface is projected again after the last round.
   // Corrects misfit finer than the dense centres' spacing.
-  int local_rounds = 3;
+  int local_rounds = 2;
   int smoothing_passes = 10;
+  // In the local rounds the target's vertices pull too: a sample of them (an
+  // independent set, each standing for the neighbours it covers) is matched
+  // once, after the dense map, to the closest points on the warped source
+  // (within target_pull_max_distance of the target diagonal, normals within
+  // target_pull_max_angle_deg), and each pulls its point onto itself.
+  // Projection from the source alone never reaches the parts of the target
+  // the source does not already cover (a fuller lip, a deeper fold).
+  bool target_pulls = true;
+  double target_pull_max_distance = 0.015;
+  double target_pull_max_angle_deg = 60.0;
+  // After local rounds the target's vertices are located on the smoothed
+  // guide: the warped source moved by the guide's displacement smoothed as in
+  // the rounds. The guide's own triangles fold where projection crowds
+  // vertices together, and locations on them scatter. Without local rounds
+  // (the warped source may be far from the target) or with false: located
+  // on the guide itself, as in the papers.
+  bool smooth_guide = true;
   // When source and target both carry region labels (Mesh::regions), every
   // match (projection, refinement, location) stays within compatible regions;
   // see faceRegionSets. false: labels are ignored.
@@ -119,6 +133,14 @@ struct WarpOptions {
   LocateOptions locate;
   int threads = 0;                     // 0 = hardware threads (stages that run in parallel)
 };
+
+// The papers' pipeline as written: landmark TPS, projection (the guide),
+// location on the guide; no dense-map refinement, local rounds or rims
+// (`rigport warp --plain`).
+WarpOptions plainWarpOptions();
+// The fast pipeline (`rigport warp --light`): one local round with rims
+// matched; no dense-map refinement, target pulls or smoothed guide.
+WarpOptions lightWarpOptions();
 
 struct LandmarkResidual {
   std::string name;
@@ -147,6 +169,7 @@ struct WarpReport {
   int matched_rims = 0;               // source rims matched to a target rim (matchRims)
   int rims_in_warp = 0;               // of those, rims whose paired points joined the landmark warp
   int refine_iterations = 0;
+  int target_pulls = 0;               // target vertices that pulled the warped source in the local rounds
   int slid_centres = 0;               // dense centres slid along the target in the last refinement round
   double mean_slide = 0.0;            // mean slide in the first round (the largest), target units
   bool region_matching = false;       // matches were region-constrained

@@ -66,23 +66,12 @@ void runCase(benchmark::State& state, core::WarpOptions options) {
   state.SetLabel(c.name);
 }
 
-void BM_WarpCorrespondPlain(benchmark::State& state) {
-  core::WarpOptions options;
-  options.refine_iterations = 0;
-  options.local_rounds = 0;
-  options.rim_matching = false;
-  runCase(state, options);
-}
+void BM_WarpCorrespondPlain(benchmark::State& state) { runCase(state, core::plainWarpOptions()); }
 BENCHMARK(BM_WarpCorrespondPlain)->Unit(benchmark::kMillisecond);
 
 // No dense-map rounds, one local round: [1]'s accuracy limits hold
 // (ict_warp_test runs them on this pipeline too) at about the plain cost.
-void BM_WarpCorrespondLight(benchmark::State& state) {
-  core::WarpOptions options;
-  options.refine_iterations = 0;
-  options.local_rounds = 1;
-  runCase(state, options);
-}
+void BM_WarpCorrespondLight(benchmark::State& state) { runCase(state, core::lightWarpOptions()); }
 BENCHMARK(BM_WarpCorrespondLight)->Unit(benchmark::kMillisecond);
 
 void BM_WarpCorrespondDefault(benchmark::State& state) { runCase(state, core::WarpOptions{}); }

@@ -334,6 +334,82 @@ core::LandmarkSet sparseLandmarks(const core::LandmarkSet& all, std::vector<Eige
   return sparse;
 }
 
+// The generated head with its lips pushed out along the normals by a
+// Gaussian bump (amplitude and width relative to the head height) well beyond
+// what the landmarks say, as on an exaggerated identity. Same topology:
+// target vertex v is source vertex v; `lips` gets the vertices within two
+// widths of the mouth's centre.
+core::SyntheticHead fullerLips(const core::SyntheticHead& source, double amplitude, double width,
+                               std::vector<Eigen::Index>& lips) {
+  const double h = source.mesh.positions.col(1).maxCoeff() - source.mesh.positions.col(1).minCoeff();
+  auto landmarks = core::resolveLandmarks(source.landmarks, source.mesh, "source");
+  EXPECT_TRUE(landmarks);
+  const Eigen::RowVector3d mouth = 0.5 * (landmarks->row(source.landmarks.indexOf("mouth_outer_3")) +
+                                          landmarks->row(source.landmarks.indexOf("mouth_outer_9")));
+  core::SyntheticHead target = source;
+  const double sigma = width * h;
+  for (Eigen::Index v = 0; v < source.mesh.vertexCount(); ++v) {
+    const double r2 = (source.mesh.positions.row(v) - mouth).squaredNorm() / (sigma * sigma);
+    if (r2 > 9.0) continue;
+    target.mesh.positions.row(v) += amplitude * h * std::exp(-0.5 * r2) * source.mesh.normals.row(v);
+    if (r2 < 4.0) lips.push_back(v);
+  }
+  target.mesh.normals = core::computeVertexNormals(target.mesh.positions, target.mesh.triangles);
+  return target;
+}
+
+// The target warped with a WarpOptions switch off, and with the defaults (on).
+struct OffAndOn {
+  core::Result<core::WarpResult> off, on;
+};
+OffAndOn warpOffAndOn(bool core::WarpOptions::*member, const core::SyntheticHead& source, const core::Mesh& target,
+                      const core::LandmarkSet& landmarks) {
+  auto prepared = core::prepareSource(source.mesh, source.landmarks, "source");
+  if (!prepared) return {prepared.error(), prepared.error()};
+  core::WarpOptions off;
+  off.*member = false;
+  return {core::runWarp(*prepared, target, landmarks, "off", off), core::runWarp(*prepared, target, landmarks, "on")};
+}
+
+// Projection from the warped source lands on the front of the fuller lips
+// and never reaches the parts of the target it does not already cover; the
+// target's own vertices pulling the surface do.
+TEST(Correspondence, TargetPullsReachWhatProjectionDoesNot) {
+  const auto source = core::generateHead();
+  std::vector<Eigen::Index> lips;
+  const core::SyntheticHead target = fullerLips(source, 0.06, 0.05, lips);
+  auto [off, on] = warpOffAndOn(&core::WarpOptions::target_pulls, source, target.mesh, target.landmarks);
+  ASSERT_TRUE(off && on);
+  EXPECT_EQ(off->report.target_pulls, 0);
+  // About a quarter of the vertices are sampled; nearly all of them match.
+  EXPECT_GT(on->report.target_pulls, target.mesh.vertexCount() / 6);
+  const double h = source.mesh.positions.col(1).maxCoeff() - source.mesh.positions.col(1).minCoeff();
+  const double error_off = meanDistanceFromTrueSource(*off, source.mesh, lips, h);
+  const double error_on = meanDistanceFromTrueSource(*on, source.mesh, lips, h);
+  std::printf("[ fuller lips ] %zu vertices, mean distance from their true source point %.5f -> %.5f (head height "
+              "%.3f, %d target pulls)\n", lips.size(), error_off, error_on, h, on->report.target_pulls);
+  EXPECT_LT(error_on, 0.9 * error_off);
+}
+
+// Where projection crowds the guide's vertices (around much fuller lips,
+// matched with 10 landmarks), its triangles fold and locations on them
+// scatter; on the smoothed guide the lips land closer to their true points.
+TEST(Correspondence, SmoothedGuideLocatesCloserThanTheGuide) {
+  const auto source = core::generateHead();
+  std::vector<Eigen::Index> lips;
+  const core::SyntheticHead target = fullerLips(source, 0.10, 0.03, lips);
+  auto [off, on] =
+      warpOffAndOn(&core::WarpOptions::smooth_guide, source, target.mesh, sparseLandmarks(target.landmarks));
+  ASSERT_TRUE(off && on);
+  EXPECT_TRUE(off->guide.positions == on->guide.positions);  // the guide itself is the same
+  const double h = source.mesh.positions.col(1).maxCoeff() - source.mesh.positions.col(1).minCoeff();
+  const double error_off = meanDistanceFromTrueSource(*off, source.mesh, lips, h);
+  const double error_on = meanDistanceFromTrueSource(*on, source.mesh, lips, h);
+  std::printf("[ much fuller lips, 10 landmarks ] %zu vertices located on the guide / the smoothed guide: mean "
+              "distance from their true source point %.5f -> %.5f\n", lips.size(), error_off, error_on);
+  EXPECT_LT(error_on, 0.95 * error_off);
+}
+
 // A neck pushed far forward below the chin (as on a strongly exaggerated
 // identity): the face's landmarks say nothing of it, so the landmark warp
 // leaves the source's neck on the wrong side of the target's, where closest

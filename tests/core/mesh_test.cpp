@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <numeric>
 #include <random>
 #include <vector>
 
@@ -144,6 +145,56 @@ TEST(Mesh, NormalsPointingAgainstTheirFacesAreReplacedByTheFaceNormal) {
   core::Mesh reversed = mesh;
   reversed.triangles.col(1).swap(reversed.triangles.col(2));
   EXPECT_EQ(core::normalsAgreeingWithWinding(faces, reversed.positions, reversed.triangles).replaced, 4);
+}
+
+// Two triangles sharing an edge (0-1-2, 2-1-3), a repeated-corner sliver
+// (3, 3, 4) and a vertex on no face (5).
+TEST(Mesh, VertexAdjacencyIsSortedUniqueAndSkipsRepeatedCorners) {
+  Eigen::MatrixX3i tris(3, 3);
+  tris << 0, 1, 2, 2, 1, 3, 3, 3, 4;
+  const core::VertexAdjacency a = core::vertexAdjacency(tris, 6);
+  ASSERT_EQ(a.offsets.size(), 7u);
+  auto neighbours = [&](int v) {
+    return std::vector<int>(a.indices.begin() + a.offsets[v], a.indices.begin() + a.offsets[v + 1]);
+  };
+  EXPECT_EQ(neighbours(0), (std::vector<int>{1, 2}));
+  EXPECT_EQ(neighbours(1), (std::vector<int>{0, 2, 3}));
+  EXPECT_EQ(neighbours(2), (std::vector<int>{0, 1, 3}));
+  EXPECT_EQ(neighbours(3), (std::vector<int>{1, 2, 4}));
+  EXPECT_EQ(neighbours(4), (std::vector<int>{3}));
+  EXPECT_TRUE(neighbours(5).empty());
+}
+
+// On a grid: no two sampled vertices are neighbours, every other vertex has a
+// sampled neighbour, and the weights count every vertex once.
+TEST(Mesh, IndependentVertexSampleCoversEveryVertexOnce) {
+  constexpr int kSide = 9;
+  Eigen::MatrixX3i tris(2 * (kSide - 1) * (kSide - 1), 3);
+  int f = 0;
+  for (int r = 0; r + 1 < kSide; ++r) {
+    for (int c = 0; c + 1 < kSide; ++c) {
+      const int v = r * kSide + c;
+      tris.row(f++) << v, v + 1, v + kSide + 1;
+      tris.row(f++) << v, v + kSide + 1, v + kSide;
+    }
+  }
+  const core::VertexAdjacency a = core::vertexAdjacency(tris, kSide * kSide);
+  const core::VertexSample sample = core::independentVertexSample(a);
+  ASSERT_EQ(sample.vertices.size(), sample.weight.size());
+  std::vector<char> in(kSide * kSide, 0);
+  for (int v : sample.vertices) in[static_cast<std::size_t>(v)] = 1;
+  for (int v = 0; v < kSide * kSide; ++v) {
+    bool sampled_neighbour = false;
+    for (int k = a.offsets[v]; k < a.offsets[v + 1]; ++k) sampled_neighbour |= in[static_cast<std::size_t>(a.indices[k])] != 0;
+    if (in[static_cast<std::size_t>(v)]) {
+      EXPECT_FALSE(sampled_neighbour) << "vertex " << v;
+    } else {
+      EXPECT_TRUE(sampled_neighbour) << "vertex " << v;
+    }
+  }
+  EXPECT_EQ(std::accumulate(sample.weight.begin(), sample.weight.end(), 0), kSide * kSide);
+  EXPECT_LT(sample.vertices.size(), static_cast<std::size_t>(kSide * kSide / 2));
+  EXPECT_EQ(sample.vertices.front(), 0);  // greedy in index order
 }
 
 TEST(Mesh, DoubleAreasAndBoundingBoxDiagonal) {

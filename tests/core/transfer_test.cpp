@@ -846,4 +846,9 @@ TEST(TransferOptions, RimMatchingCanBeSwitchedOff) {
   expectWarpSwitch("rim_matching", &core::WarpOptions::rim_matching, "\"no\"");
 }
 
+TEST(TransferOptions, TargetPullsAndTheSmoothedGuideCanBeSwitchedOff) {
+  expectWarpSwitch("target_pulls", &core::WarpOptions::target_pulls, "0");
+  expectWarpSwitch("smooth_guide", &core::WarpOptions::smooth_guide, "null");
+}
+
 }  // namespace

@@ -93,9 +93,7 @@ double stillnessError(const core::Rig& out, const core::Rig& gt, const std::stri
 // filters, barycentric copy of raw deltas.
 core::TransferOptions plainMethod() {
   core::TransferOptions plain;
-  plain.warp.refine_iterations = 0;
-  plain.warp.local_rounds = 0;
-  plain.warp.rim_matching = false;
+  plain.warp = core::plainWarpOptions();
   plain.warp.locate.max_relative_distance = 0.0;
   plain.warp.locate.max_normal_angle_deg = 180.0;
   plain.warp.projection.max_normal_angle_deg = 180.0;

@@ -49,17 +49,12 @@ double quantile(std::vector<double> v, double q) {
 
 // The pipelines [1]'s accuracy limits must hold for: the default one (with
 // the dense-map refinement the rig transfer needs), and the light one that
-// meets [1]'s 20 ms (no dense-map rounds, one local round; `rigport warp
-// --refine 0 --local-rounds 1`; docs/BENCHMARKS.md).
+// meets [1]'s 20 ms (core::lightWarpOptions, `rigport warp --light`;
+// docs/BENCHMARKS.md).
 enum class Pipeline { kDefault, kLight };
 
 core::WarpOptions optionsFor(Pipeline pipeline) {
-  core::WarpOptions options;
-  if (pipeline == Pipeline::kLight) {
-    options.refine_iterations = 0;
-    options.local_rounds = 1;
-  }
-  return options;
+  return pipeline == Pipeline::kLight ? core::lightWarpOptions() : core::WarpOptions{};
 }
 
 std::string pipelineName(Pipeline pipeline) { return pipeline == Pipeline::kLight ? "light" : "default"; }

@@ -1,0 +1,73 @@
+// `rigport warp` as a studio tool runs it: the pipeline flags (--light,
+// --plain, --refine, --local-rounds) reach the warp, shown by the diagnostics
+// it writes, and contradictory flags are refused.
+#include <cstdlib>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "core/mesh_io.h"
+#include "tests/server/service_fixture.h"
+#include "tests/test_support.h"
+
+namespace {
+
+struct WarpRun {
+  int exit_code = -1;
+  nlohmann::json diagnostics;
+};
+
+WarpRun runWarp(const rigport_test::TransferFiles& files, const std::filesystem::path& dir, const std::string& flags) {
+  const std::filesystem::path guide = dir / "guide.glb", diagnostics = dir / "d.json";
+  std::filesystem::remove(diagnostics);
+  const std::string cmd = std::string("'") + RIGPORT_CLI_PATH + "' -q warp --source '" + files.rig.string() +
+                          "' --source-landmarks '" + files.landmarks.string() + "' --target '" +
+                          files.target.string() + "' --target-landmarks '" + files.target_landmarks.string() +
+                          "' -o '" + guide.string() + "' --diagnostics '" + diagnostics.string() + "' " + flags +
+                          " 2>/dev/null";
+  WarpRun run;
+  const int status = std::system(cmd.c_str());
+  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  if (run.exit_code == 0) {
+    auto bytes = core::readFileBytes(diagnostics);
+    EXPECT_TRUE(bytes.ok()) << cmd;
+    if (bytes) run.diagnostics = nlohmann::json::parse(bytes->begin(), bytes->end(), nullptr, false);
+  }
+  return run;
+}
+
+TEST(CliWarp, PipelineFlagsReachTheWarp) {
+  const auto dir = rigport_test::makeTempDir("cli_warp");
+  const rigport_test::TransferFiles files = rigport_test::writeTransferFiles(dir, 40);
+
+  const WarpRun standard = runWarp(files, dir, "");
+  ASSERT_EQ(standard.exit_code, 0);
+  const auto& c = standard.diagnostics["correspondence"];
+  EXPECT_EQ(c["refine_iterations"].get<int>(), 2);
+  EXPECT_GT(c["target_pulls"].get<int>(), 0);
+  EXPECT_GT(c["matched_rims"].get<int>(), 0);
+
+  const WarpRun light = runWarp(files, dir, "--light");
+  ASSERT_EQ(light.exit_code, 0);
+  EXPECT_EQ(light.diagnostics["correspondence"]["refine_iterations"].get<int>(), 0);
+  EXPECT_EQ(light.diagnostics["correspondence"]["target_pulls"].get<int>(), 0);
+  EXPECT_GT(light.diagnostics["correspondence"]["matched_rims"].get<int>(), 0);
+
+  const WarpRun plain = runWarp(files, dir, "--plain");
+  ASSERT_EQ(plain.exit_code, 0);
+  EXPECT_EQ(plain.diagnostics["correspondence"]["refine_iterations"].get<int>(), 0);
+  EXPECT_EQ(plain.diagnostics["correspondence"]["target_pulls"].get<int>(), 0);
+  EXPECT_EQ(plain.diagnostics["correspondence"]["matched_rims"].get<int>(), 0);
+
+  const WarpRun one_round = runWarp(files, dir, "--refine 1 --local-rounds 0");
+  ASSERT_EQ(one_round.exit_code, 0);
+  EXPECT_EQ(one_round.diagnostics["correspondence"]["refine_iterations"].get<int>(), 1);
+  EXPECT_EQ(one_round.diagnostics["correspondence"]["target_pulls"].get<int>(), 0);  // pulls act in local rounds
+
+  EXPECT_NE(runWarp(files, dir, "--light --plain").exit_code, 0);
+  EXPECT_NE(runWarp(files, dir, "--light --refine 1").exit_code, 0);
+  EXPECT_NE(runWarp(files, dir, "--plain --local-rounds 2").exit_code, 0);
+}
+
+}  // namespace
