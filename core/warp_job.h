@@ -1,8 +1,8 @@
 // The warp job, read top to bottom: prepare (once per source, cacheable) ->
 // landmark TPS warp -> optional non-rigid refinement through the dense map
 // and local rounds -> project onto the target (guide model) -> locate target
-// vertices on the (smoothed) guide. Each stage is a function of plain data; the report carries what a TD
-// needs to trust (or not) the correspondence.
+// vertices on the (smoothed) guide. Each stage is a function of plain data;
+// the report carries what a TD needs to trust (or not) the correspondence.
 #pragma once
 
 #include <cstdint>
@@ -43,7 +43,8 @@ struct PreparedSource {
   // Its bendingEnergyMatrix (#centres squared), for sliding the centres.
   Eigen::MatrixXd dense_bending;
   // The source faces grouped for closest-point queries at any positions:
-  // fitted to each job's guide to locate the target's vertices on it.
+  // fitted to each job's warped source (for the target pulls) and (smoothed)
+  // guide (to locate the target's vertices on it).
   std::optional<MovingMeshIndex> guide_index;
   VertexAdjacency adjacency;  // of the source's vertices
   // Source vertices projected in the local rounds (a maximal independent set
