@@ -126,7 +126,8 @@ Eigen::MatrixX3d smoothedPulls(const PreparedSource& source, std::vector<Pull> a
 // itself and the neighbours it covers; none on detached pieces) matched to
 // their closest points on the warped source, within target_pull_max_distance
 // and with normals within target_pull_max_angle_deg (region-constrained like
-// every match). About a quarter of the queries of the whole target (mean of
+// every match); `target` carries vertex normals (runWarp's target as
+// matched). About a quarter of the queries of the whole target (mean of
 // the nine ICT targets' E medians 0.0685 against 0.0676 with every vertex).
 TargetPulls matchTargetPulls(const PreparedSource& source, const Eigen::MatrixX3d& warped, const Mesh& target,
                              const std::vector<int>& detached, const WarpReport& report, const WarpOptions& options) {
@@ -145,10 +146,7 @@ TargetPulls matchTargetPulls(const PreparedSource& source, const Eigen::MatrixX3
   cp.max_distance = options.target_pull_max_distance * report.target_diagonal;
   cp.threads = options.threads;
   ClosestPointFilters filters;
-  filters.normals = selectRows(target.normals.rows() == target.vertexCount()
-                                   ? target.normals
-                                   : computeSeamlessVertexNormals(target.positions, target.triangles),
-                               out.vertices);
+  filters.normals = selectRows(target.normals, out.vertices);
   if (report.region_matching) filters.label_masks = selectMasks(vertexRegionBits(target.regions), out.vertices);
   const std::vector<SurfacePoint> hits = on_warped.closestPoints(selectRows(target.positions, out.vertices), cp, filters);
   std::size_t kept = 0;
@@ -584,6 +582,14 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
       report.warnings.push_back(target_label + ": " + against(checked.replaced, target.vertexCount()) +
                                 ": matched by their face normals there; the output keeps its normals as they are");
     }
+  } else {
+    // A file without normals: computed once here for every match below
+    // (target pulls and location).
+    if (matched != &adjusted) {
+      adjusted = target;
+      matched = &adjusted;
+    }
+    adjusted.normals = computeSeamlessVertexNormals(adjusted.positions, adjusted.triangles);
   }
   report.source_normals_against_winding = source.normals_against_winding;
   if (source.normals_against_winding > 0) {
