@@ -55,6 +55,7 @@ Json warpJson(const WarpReport& r, const DiagnosticsContext& context) {
   c["detached_vertices"] = r.detached_vertices;
   c["refine_iterations"] = r.refine_iterations;
   c["target_pulls"] = r.target_pulls;
+  c["rim_located_vertices"] = r.rim_located_vertices;
   c["slid_centres"] = r.slid_centres;
   c["mean_slide"] = r.mean_slide;
   c["region_matching"] = r.region_matching;

@@ -199,9 +199,9 @@ RimPairs pairRimPoints(const Rim& source_rim, const Eigen::MatrixX3d& source_pos
 }
 
 SurfacePoint closestPointOnRim(const Eigen::Vector3d& p, const Eigen::Vector3d& tangent, const Rim& rim,
-                               const Mesh& mesh) {
+                               const Eigen::MatrixX3d& positions) {
   const LoopPoint q =
-      closestOnLoop(p, mesh.positions, rim.vertices, [&](const Eigen::Vector3d& edge) { return edge.dot(tangent) > 0.0; });
+      closestOnLoop(p, positions, rim.vertices, [&](const Eigen::Vector3d& edge) { return edge.dot(tangent) > 0.0; });
   SurfacePoint best;
   if (q.edge < 0) return best;
   const auto i = static_cast<std::size_t>(q.edge);

@@ -61,8 +61,9 @@ RimVertices rimVertices(const std::vector<Rim>& rims, const Mesh& mesh, const st
 // (barycentrics on the edge's two corners); not found when no edge does.
 // Both sides of a slit (the lips of a closed mouth) are on one loop, running
 // opposite ways: the direction keeps a point of one side off the other.
+// `positions`: the rim's mesh's vertices (or the same mesh moved, a guide).
 SurfacePoint closestPointOnRim(const Eigen::Vector3d& p, const Eigen::Vector3d& tangent, const Rim& rim,
-                               const Mesh& mesh);
+                               const Eigen::MatrixX3d& positions);
 
 // Points paired along a source rim and its matched target rim: `count`
 // points at equal arc-length steps of the source rim as warped

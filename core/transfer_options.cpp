@@ -48,7 +48,7 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
   static const std::map<std::string, bool WarpOptions::*> kWarpSwitches = {
       {"region_matching", &WarpOptions::region_matching}, {"rim_matching", &WarpOptions::rim_matching},
       {"slide_centres", &WarpOptions::slide_centres},     {"target_pulls", &WarpOptions::target_pulls},
-      {"smooth_guide", &WarpOptions::smooth_guide}};
+      {"smooth_guide", &WarpOptions::smooth_guide},       {"rim_location", &WarpOptions::rim_location}};
   TransferSettings s;
   TransferOptions& t = s.transfer;
   for (const auto& [key, value] : doc.items()) {

@@ -184,7 +184,7 @@ void projectRimCentres(GuideModel& projected, const Eigen::MatrixX3d& queries, c
     const Eigen::Vector3d tangent = (source.rim_vertices.tangent.row(v) * frame).transpose();
     const int r = source.rim_vertices.rim[static_cast<std::size_t>(v)];
     const Rim& rim = target_rims[static_cast<std::size_t>(rim_match[static_cast<std::size_t>(r)])];
-    const SurfacePoint sp = closestPointOnRim(queries.row(k).transpose(), tangent, rim, target);
+    const SurfacePoint sp = closestPointOnRim(queries.row(k).transpose(), tangent, rim, target.positions);
     if (!sp.found()) continue;
     if (!projected.on_target[static_cast<std::size_t>(k)].found()) --projected.unmatched;
     projected.on_target[static_cast<std::size_t>(k)] = sp;
@@ -310,6 +310,60 @@ std::vector<int> detachedPieces(const Mesh& target, const std::vector<int>& repr
   return detached;
 }
 
+// Target vertices on a rim located on a source rim of the guide
+// (`guide_positions`) instead of its surface (WarpOptions::rim_location): the
+// rim point, among edges running the vertex's way, closest to its surface
+// location. The surface location says which side (lip, lid) the vertex is
+// on; from the vertex itself, near a slit's corner, a staircase rim's step
+// of the other side can be nearer. `target_masks`: per target vertex region
+// bits, or empty (no region matching). Confidence there is the distance
+// term alone: a rim vertex's normal averages the faces of one side only
+// (normal_cosine keeps the surface location's). Returns how many moved.
+int locateRimVertices(TargetLocations& locations, const Mesh& target, const std::vector<Rim>& target_rims,
+                      const std::vector<int>& target_representative, const PreparedSource& source,
+                      const Eigen::MatrixX3d& guide_positions, const std::vector<std::uint64_t>& target_masks,
+                      double target_diagonal, const WarpOptions& options) {
+  const RimVertices on_rim = rimVertices(target_rims, target, target_representative);
+  const Eigen::MatrixX3i& triangles = source.mesh.triangles;
+  const double max_distance = options.rim_location_max_distance * target_diagonal;
+  // A hair's breadth, so that a vertex on both the rim and the surface (a
+  // target of the source's own topology) is not refused by the ratio.
+  const double tie = 1e-4 * target_diagonal;
+  const double confidence_distance = options.locate.low_confidence_distance * target_diagonal;
+  int moved = 0;
+  for (Eigen::Index v = 0; v < target.vertexCount(); ++v) {
+    // A vertex the location refused (no compatible face, or matched across a
+    // thin gap: the other lip) stays refused; its values are inpainted.
+    if (on_rim.rim[static_cast<std::size_t>(v)] < 0 || locations.mismatched(v) != 0) continue;
+    SurfacePoint& located = locations.on_source[static_cast<std::size_t>(v)];
+    Eigen::Vector3d on_guide = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) on_guide += located.barycentric(k) * guide_positions.row(triangles(located.face, k)).transpose();
+    const Eigen::Vector3d p = target.positions.row(v).transpose();
+    const Eigen::Vector3d tangent = on_rim.tangent.row(v).transpose();
+    SurfacePoint best;
+    for (const Rim& rim : source.rims) {
+      const SurfacePoint sp = closestPointOnRim(on_guide, tangent, rim, guide_positions);
+      if (!sp.found() || sp.sq_distance >= best.sq_distance) continue;
+      if (!target_masks.empty() && (source.face_regions[static_cast<std::size_t>(sp.face)] &
+                                    target_masks[static_cast<std::size_t>(v)]) == 0) {
+        continue;
+      }
+      best = sp;
+    }
+    if (!best.found()) continue;
+    const double d = (best.point - p).norm();
+    if (d > max_distance || d > options.rim_location_max_ratio * std::sqrt(located.sq_distance) + tie) continue;
+    const bool was_low = locations.confidence(v) == 0.0;
+    located = best;
+    located.sq_distance = d * d;
+    locations.distance(v) = d;
+    locations.confidence(v) = confidence_distance > 0.0 ? std::max(0.0, 1.0 - d / confidence_distance) : 1.0;
+    locations.low_confidence += (locations.confidence(v) == 0.0 ? 1 : 0) - (was_low ? 1 : 0);
+    ++moved;
+  }
+  return moved;
+}
+
 }  // namespace
 
 WarpOptions plainWarpOptions() {
@@ -317,6 +371,7 @@ WarpOptions plainWarpOptions() {
   options.refine_iterations = 0;
   options.local_rounds = 0;
   options.rim_matching = false;
+  options.rim_location = false;
   return options;
 }
 
@@ -326,6 +381,7 @@ WarpOptions lightWarpOptions() {
   options.local_rounds = 1;
   options.target_pulls = false;
   options.smooth_guide = false;
+  options.rim_location = false;
   return options;
 }
 
@@ -603,6 +659,9 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   // rounds every matched rim's centres are put on the target's rim (the slide
   // along a tube that projection cannot see).
   std::vector<Rim> target_rims;
+  if ((options.rim_matching || options.rim_location) && !source.rims.empty()) {
+    target_rims = meshRims(*matched, target_representative);
+  }
   std::vector<int> rim_match(source.rims.size(), -1);
   if (options.rim_matching && !source.rims.empty()) {
     // The source's rim vertices as the landmarks warp them (the only rows
@@ -614,7 +673,6 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
       const Eigen::MatrixX3d warped = result.landmark_warp.apply(selectRows(source.mesh.positions, rows));
       for (std::size_t k = 0; k < rows.size(); ++k) rims_warped.row(rows[k]) = warped.row(static_cast<Eigen::Index>(k));
     }
-    target_rims = meshRims(*matched, target_representative);
     rim_match = matchRims(source.rims, rims_warped, target_rims, matched->positions, options.rims);
     report.matched_rims =
         static_cast<int>(std::count_if(rim_match.begin(), rim_match.end(), [](int t) { return t >= 0; }));
@@ -765,6 +823,12 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   locate.threads = options.threads;
   result.locations = locateOnGuide(*matched, located_on, *source.guide_index, locate,
                                    report.region_matching ? source.face_regions : std::vector<std::uint64_t>());
+  if (options.rim_location && !target_rims.empty()) {
+    report.rim_located_vertices = locateRimVertices(
+        result.locations, *matched, target_rims, target_representative, source, located_on,
+        report.region_matching ? vertexRegionBits(matched->regions) : std::vector<std::uint64_t>(),
+        report.target_diagonal, options);
+  }
   for (Eigen::Index v = 0; v < target.vertexCount() && !detached.empty(); ++v) {
     if (detached[static_cast<std::size_t>(v)] < 0) continue;
     if (result.locations.confidence(v) > 0.0) ++result.locations.low_confidence;

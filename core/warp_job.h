@@ -130,6 +130,21 @@ struct WarpOptions {
   // exact target would bend the warp between them. 0: rims only act in the
   // refinement.
   int rim_warp_points = 24;
+  // Target vertices on a rim, once located on the guide's surface, move to
+  // the guide's rim: the rim point nearest their surface location among rim
+  // edges running their way (closestPointOnRim). A border corresponds to a
+  // border, and the surface location of a rim vertex falls short of the
+  // source's rim, inside the lid (remeshed ICT identities: eye-hole vertices
+  // 1-4 mm off). Only when that rim point is within
+  // rim_location_max_distance (fraction of the target diagonal) of the
+  // vertex and at most rim_location_max_ratio times as far from it as the
+  // surface point: a coarse remesh's hole can cut across the lid, and a
+  // vertex of it far from any source rim keeps its surface point. Vertices
+  // the location refused (across a thin gap) stay refused. Independent of
+  // rim_matching.
+  bool rim_location = true;
+  double rim_location_max_distance = 0.015;
+  double rim_location_max_ratio = 2.0;
   ProjectionOptions projection;
   LocateOptions locate;
   int threads = 0;                     // 0 = hardware threads (stages that run in parallel)
@@ -171,6 +186,7 @@ struct WarpReport {
   int rims_in_warp = 0;               // of those, rims whose paired points joined the landmark warp
   int refine_iterations = 0;
   int target_pulls = 0;               // target vertices that pulled the warped source in the local rounds
+  int rim_located_vertices = 0;       // target rim vertices located on a source rim (WarpOptions::rim_location)
   int slid_centres = 0;               // dense centres slid along the target in the last refinement round
   double mean_slide = 0.0;            // mean slide in the first round (the largest), target units
   bool region_matching = false;       // matches were region-constrained

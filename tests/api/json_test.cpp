@@ -397,7 +397,8 @@ TEST(ApiOpenApi, TransferOptionsSchemaListsEveryOptionKey) {
   for (const char* key : {"components", "uvs", "max_influences", "weight_encoding", "low_confidence_distance",
                           "low_confidence_angle_deg", "adaptation", "exaggeration", "shape_exaggeration",
                           "joint_exaggeration", "diagnostic_attributes", "refine_iterations",
-                          "region_matching", "rim_matching", "slide_centres", "target_pulls", "smooth_guide"}) {
+                          "region_matching", "rim_matching", "slide_centres", "target_pulls", "smooth_guide",
+                          "rim_location"}) {
     EXPECT_TRUE(props.contains(key)) << key;
   }
 }

@@ -47,18 +47,21 @@ TEST(CliWarp, PipelineFlagsReachTheWarp) {
   EXPECT_EQ(c["refine_iterations"].get<int>(), 2);
   EXPECT_GT(c["target_pulls"].get<int>(), 0);
   EXPECT_GT(c["matched_rims"].get<int>(), 0);
+  EXPECT_GT(c["rim_located_vertices"].get<int>(), 0);
 
   const WarpRun light = runWarp(files, dir, "--light");
   ASSERT_EQ(light.exit_code, 0);
   EXPECT_EQ(light.diagnostics["correspondence"]["refine_iterations"].get<int>(), 0);
   EXPECT_EQ(light.diagnostics["correspondence"]["target_pulls"].get<int>(), 0);
   EXPECT_GT(light.diagnostics["correspondence"]["matched_rims"].get<int>(), 0);
+  EXPECT_EQ(light.diagnostics["correspondence"]["rim_located_vertices"].get<int>(), 0);
 
   const WarpRun plain = runWarp(files, dir, "--plain");
   ASSERT_EQ(plain.exit_code, 0);
   EXPECT_EQ(plain.diagnostics["correspondence"]["refine_iterations"].get<int>(), 0);
   EXPECT_EQ(plain.diagnostics["correspondence"]["target_pulls"].get<int>(), 0);
   EXPECT_EQ(plain.diagnostics["correspondence"]["matched_rims"].get<int>(), 0);
+  EXPECT_EQ(plain.diagnostics["correspondence"]["rim_located_vertices"].get<int>(), 0);
 
   const WarpRun one_round = runWarp(files, dir, "--refine 1 --local-rounds 0");
   ASSERT_EQ(one_round.exit_code, 0);

@@ -274,7 +274,7 @@ TEST(Correspondence, MatchedRimsPullTheNeckCutOntoTheTargets) {
     for (int v : prepared->rims[0].vertices) {
       sum += std::sqrt(core::closestPointOnRim(r.guide.positions.row(v).transpose(),
                                                (prepared->rim_vertices.tangent.row(v) * r.landmark_warp.affine().topRows<3>()).transpose(),
-                                               target_rims[0], target.mesh)
+                                               target_rims[0], target.mesh.positions)
                            .sq_distance);
     }
     return sum / static_cast<double>(prepared->rims[0].vertices.size());
@@ -514,6 +514,48 @@ TEST(Correspondence, SlidingCentresLocateASparselyLandmarkedTargetCloser) {
   std::printf("[ bent head, 10 landmarks ] mean distance from the true source point %.5f -> %.5f (head height %.3f), "
               "%d centres slid %.5f on average\n", error_off, error_on, h, on->report.slid_centres, on->report.mean_slide);
   EXPECT_LT(error_on, 0.95 * error_off);
+}
+
+// A target whose eye holes end in a curled margin (as a lid's does): each
+// eye-rim vertex stands a little off the surface and beyond the source's
+// border, so its closest point on the guide falls inside the lid, short of
+// the border it is. Located on the guide's rim instead, it lands next to its
+// true point. Same topology: target vertex v is source vertex v.
+TEST(Correspondence, RimVerticesAreLocatedOnTheGuidesRims) {
+  const auto source = core::generateHead();
+  core::SyntheticHead target = source;
+  const std::vector<core::Rim> rims =
+      core::meshRims(source.mesh, core::coincidentVertexRepresentatives(source.mesh.positions));
+  ASSERT_EQ(rims.size(), 3u);  // the open back and neck, two eye holes (the lips are closed)
+  // Each eye-rim vertex moved away from its hole along the surface by 0.3 of
+  // the rim's mean edge and lifted off the surface by as much.
+  std::vector<Eigen::Index> eye_rims;
+  for (std::size_t r = 1; r < rims.size(); ++r) {
+    const core::Rim& rim = rims[r];
+    Eigen::RowVector3d centre = Eigen::RowVector3d::Zero();
+    for (int v : rim.vertices) centre += source.mesh.positions.row(v);
+    centre /= static_cast<double>(rim.vertices.size());
+    const double step = 0.3 * rim.length / static_cast<double>(rim.vertices.size());
+    for (int v : rim.vertices) {
+      const Eigen::RowVector3d n = source.mesh.normals.row(v);
+      Eigen::RowVector3d away = source.mesh.positions.row(v) - centre;
+      away -= away.dot(n) * n;
+      target.mesh.positions.row(v) += step * (away.normalized() + n);
+      eye_rims.push_back(v);
+    }
+  }
+  target.mesh.normals = core::computeVertexNormals(target.mesh.positions, target.mesh.triangles);
+  auto [off, on] = warpOffAndOn(&core::WarpOptions::rim_location, source, target.mesh, target.landmarks);
+  ASSERT_TRUE(off && on);
+  EXPECT_EQ(off->report.rim_located_vertices, 0);
+  EXPECT_GT(on->report.rim_located_vertices, static_cast<int>(eye_rims.size()) / 2);
+  const double h = source.mesh.positions.col(1).maxCoeff() - source.mesh.positions.col(1).minCoeff();
+  const double error_off = meanDistanceFromTrueSource(*off, source.mesh, eye_rims, h);
+  const double error_on = meanDistanceFromTrueSource(*on, source.mesh, eye_rims, h);
+  std::printf("[ curled eye margins ] %zu eye-rim vertices, mean distance from their true source point %.5f -> "
+              "%.5f (%d target vertices located on the guide's rims)\n", eye_rims.size(), error_off, error_on,
+              on->report.rim_located_vertices);
+  EXPECT_LT(error_on, 0.5 * error_off);
 }
 
 // The source landmarks a sparse target does not name are refined like the

@@ -89,7 +89,7 @@ TEST(Rims, ClosestPointKeepsToTheSideRunningTheTangentsWay) {
   const core::Rim& hole = rims[1];
   // Inside the hole, nearer its top side (y = 4) than its bottom (y = 2).
   const Eigen::Vector3d p(3.0, 3.4, 0.0);
-  const core::SurfacePoint any_way = core::closestPointOnRim(p, Eigen::Vector3d::Zero(), hole, mesh);
+  const core::SurfacePoint any_way = core::closestPointOnRim(p, Eigen::Vector3d::Zero(), hole, mesh.positions);
   EXPECT_FALSE(any_way.found());  // a zero tangent runs no edge's way
   int top = -1, bottom = -1;
   for (std::size_t i = 0; i < hole.vertices.size(); ++i) {
@@ -104,7 +104,7 @@ TEST(Rims, ClosestPointKeepsToTheSideRunningTheTangentsWay) {
     return Eigen::Vector3d(mesh.positions.row(hole.vertices[(static_cast<std::size_t>(i) + 1) % hole.vertices.size()]) -
                            mesh.positions.row(hole.vertices[static_cast<std::size_t>(i)]));
   };
-  const core::SurfacePoint near_side = core::closestPointOnRim(p, direction(top), hole, mesh);
+  const core::SurfacePoint near_side = core::closestPointOnRim(p, direction(top), hole, mesh.positions);
   ASSERT_TRUE(near_side.found());
   EXPECT_NEAR(near_side.point.y(), 4.0, 1e-12);
   EXPECT_NEAR(near_side.point.x(), 3.0, 1e-12);
@@ -115,7 +115,7 @@ TEST(Rims, ClosestPointKeepsToTheSideRunningTheTangentsWay) {
   for (int c = 0; c < 3; ++c) on_face += near_side.barycentric(c) * mesh.positions.row(t(c));
   EXPECT_LT((on_face.transpose() - near_side.point).norm(), 1e-12);
   // Running the bottom side's way, the nearer top side is not a candidate.
-  const core::SurfacePoint far_side = core::closestPointOnRim(p, direction(bottom), hole, mesh);
+  const core::SurfacePoint far_side = core::closestPointOnRim(p, direction(bottom), hole, mesh.positions);
   ASSERT_TRUE(far_side.found());
   EXPECT_NEAR(far_side.point.y(), 2.0, 1e-12);
 }

@@ -851,4 +851,8 @@ TEST(TransferOptions, TargetPullsAndTheSmoothedGuideCanBeSwitchedOff) {
   expectWarpSwitch("smooth_guide", &core::WarpOptions::smooth_guide, "null");
 }
 
+TEST(TransferOptions, RimLocationCanBeSwitchedOff) {
+  expectWarpSwitch("rim_location", &core::WarpOptions::rim_location, "\"off\"");
+}
+
 }  // namespace
