@@ -7,6 +7,8 @@
 #include <cmath>
 #include <numeric>
 
+#include <Eigen/Geometry>
+
 namespace core {
 
 namespace {
@@ -330,6 +332,13 @@ int locateRimVertices(TargetLocations& locations, const Mesh& target, const std:
   // target of the source's own topology) is not refused by the ratio.
   const double tie = 1e-4 * target_diagonal;
   const double confidence_distance = options.locate.low_confidence_distance * target_diagonal;
+  // The longest source rims only, as in matchRims, each skipped where its box
+  // is out of reach: a scan full of small holes must not cost a quadratic search.
+  const std::size_t rim_count = std::min(source.rims.size(), static_cast<std::size_t>(std::max(0, options.rims.max_rims)));
+  std::vector<Eigen::AlignedBox3d> rim_boxes(rim_count);
+  for (std::size_t r = 0; r < rim_count; ++r) {
+    for (int u : source.rims[r].vertices) rim_boxes[r].extend(guide_positions.row(u).transpose());
+  }
   int moved = 0;
   for (Eigen::Index v = 0; v < target.vertexCount(); ++v) {
     // A vertex the location refused (no compatible face, or matched across a
@@ -341,8 +350,9 @@ int locateRimVertices(TargetLocations& locations, const Mesh& target, const std:
     const Eigen::Vector3d p = target.positions.row(v).transpose();
     const Eigen::Vector3d tangent = on_rim.tangent.row(v).transpose();
     SurfacePoint best;
-    for (const Rim& rim : source.rims) {
-      const SurfacePoint sp = closestPointOnRim(on_guide, tangent, rim, guide_positions);
+    for (std::size_t r = 0; r < rim_count; ++r) {
+      if (rim_boxes[r].exteriorDistance(p) > max_distance) continue;
+      const SurfacePoint sp = closestPointOnRim(on_guide, tangent, source.rims[r], guide_positions);
       if (!sp.found() || sp.sq_distance >= best.sq_distance) continue;
       if (!target_masks.empty() && (source.face_regions[static_cast<std::size_t>(sp.face)] &
                                     target_masks[static_cast<std::size_t>(v)]) == 0) {

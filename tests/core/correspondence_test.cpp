@@ -558,6 +558,63 @@ TEST(Correspondence, RimVerticesAreLocatedOnTheGuidesRims) {
   EXPECT_LT(error_on, 0.5 * error_off);
 }
 
+// A scan with holes of its own (here: 40 small ones on the back of the
+// head) keeps their vertices where the surface location put them: no source
+// rim is near them.
+TEST(Correspondence, HolesTheSourceLacksKeepTheirSurfaceLocations) {
+  const auto source = core::generateHead();
+  core::SyntheticHead target = source;
+  const Eigen::Index nf = source.mesh.triangles.rows();
+  std::vector<char> keep(static_cast<std::size_t>(nf), 1);
+  // Each hole one triangle, touching no rim and no other hole.
+  std::vector<char> taken(static_cast<std::size_t>(source.mesh.vertexCount()), 0);
+  for (const core::Rim& rim : core::meshRims(source.mesh, core::coincidentVertexRepresentatives(source.mesh.positions))) {
+    for (int v : rim.vertices) taken[static_cast<std::size_t>(v)] = 1;
+  }
+  int holes = 0;
+  for (Eigen::Index f = 0; f < nf && holes < 40; f += 37) {
+    const Eigen::RowVector3i t = source.mesh.triangles.row(f);
+    Eigen::RowVector3d centre = Eigen::RowVector3d::Zero();
+    for (int c = 0; c < 3; ++c) centre += source.mesh.positions.row(t(c)) / 3.0;
+    if (centre.z() > 0.0) continue;  // the side and back of the head (the face looks toward +z)
+    if (taken[static_cast<std::size_t>(t(0))] || taken[static_cast<std::size_t>(t(1))] || taken[static_cast<std::size_t>(t(2))]) continue;
+    for (int c = 0; c < 3; ++c) taken[static_cast<std::size_t>(t(c))] = 1;
+    keep[static_cast<std::size_t>(f)] = 0;
+    ++holes;
+  }
+  ASSERT_EQ(holes, 40);
+  std::vector<int> new_index(static_cast<std::size_t>(nf), -1);
+  Eigen::MatrixX3i kept(nf - holes, 3);
+  for (Eigen::Index f = 0, k = 0; f < nf; ++f) {
+    if (!keep[static_cast<std::size_t>(f)]) continue;
+    new_index[static_cast<std::size_t>(f)] = static_cast<int>(k);
+    kept.row(k++) = source.mesh.triangles.row(f);
+  }
+  target.mesh.triangles = kept;
+  for (core::Landmark& l : target.landmarks.landmarks) {
+    l.face = new_index[static_cast<std::size_t>(l.face)];
+    ASSERT_GE(l.face, 0) << l.name;
+  }
+  auto [off, on] = warpOffAndOn(&core::WarpOptions::rim_location, source, target.mesh, target.landmarks);
+  ASSERT_TRUE(off && on);
+  const std::vector<core::Rim> rims =
+      core::meshRims(target.mesh, core::coincidentVertexRepresentatives(target.mesh.positions));
+  ASSERT_EQ(rims.size(), 3u + 40u);
+  int hole_vertices = 0, moved = 0;
+  for (const core::Rim& rim : rims) {
+    if (rim.vertices.size() != 3) continue;  // one removed triangle
+    for (int v : rim.vertices) {
+      ++hole_vertices;
+      const core::SurfacePoint& a = off->locations.on_source[static_cast<std::size_t>(v)];
+      const core::SurfacePoint& b = on->locations.on_source[static_cast<std::size_t>(v)];
+      moved += a.face != b.face || a.barycentric != b.barycentric;
+    }
+  }
+  EXPECT_EQ(hole_vertices, 120);
+  EXPECT_EQ(moved, 0);
+  EXPECT_GT(on->report.rim_located_vertices, 0);  // the eye holes' and the back's rims still are
+}
+
 // The source landmarks a sparse target does not name are refined like the
 // dense samples instead of staying where the landmark warp put them: the
 // final dense map carries them closer to their true places on the target.
