@@ -317,7 +317,9 @@ std::vector<int> detachedPieces(const Mesh& target, const std::vector<int>& repr
 // rim point, among edges running the vertex's way, closest to its surface
 // location. The surface location says which side (lip, lid) the vertex is
 // on; from the vertex itself, near a slit's corner, a staircase rim's step
-// of the other side can be nearer. `target_masks`: per target vertex region
+// of the other side can be nearer. A vertex the location refused (its
+// surface point across a thin gap) searches from itself and is taken back
+// when the rim point is on another face. `target_masks`: per target vertex region
 // bits, or empty (no region matching). Confidence there is the distance
 // term alone: a rim vertex's normal averages the faces of one side only
 // (normal_cosine keeps the surface location's). Returns how many moved.
@@ -341,18 +343,23 @@ int locateRimVertices(TargetLocations& locations, const Mesh& target, const std:
   }
   int moved = 0;
   for (Eigen::Index v = 0; v < target.vertexCount(); ++v) {
-    // A vertex the location refused (no compatible face, or matched across a
-    // thin gap: the other lip) stays refused; its values are inpainted.
-    if (on_rim.rim[static_cast<std::size_t>(v)] < 0 || locations.mismatched(v) != 0) continue;
+    // A vertex with no compatible guide face stays as it is (inpainted).
     SurfacePoint& located = locations.on_source[static_cast<std::size_t>(v)];
-    Eigen::Vector3d on_guide = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 3; ++k) on_guide += located.barycentric(k) * guide_positions.row(triangles(located.face, k)).transpose();
+    if (on_rim.rim[static_cast<std::size_t>(v)] < 0 || !located.found()) continue;
+    // A vertex the location refused (matched across a thin gap: the other
+    // lip) searches the rims from itself; any other from its surface point.
+    const bool refused = locations.mismatched(v) != 0;
     const Eigen::Vector3d p = target.positions.row(v).transpose();
+    Eigen::Vector3d from = p;
+    if (!refused) {
+      from.setZero();
+      for (int k = 0; k < 3; ++k) from += located.barycentric(k) * guide_positions.row(triangles(located.face, k)).transpose();
+    }
     const Eigen::Vector3d tangent = on_rim.tangent.row(v).transpose();
     SurfacePoint best;
     for (std::size_t r = 0; r < rim_count; ++r) {
       if (rim_boxes[r].exteriorDistance(p) > max_distance) continue;
-      const SurfacePoint sp = closestPointOnRim(on_guide, tangent, source.rims[r], guide_positions);
+      const SurfacePoint sp = closestPointOnRim(from, tangent, source.rims[r], guide_positions);
       if (!sp.found() || sp.sq_distance >= best.sq_distance) continue;
       if (!target_masks.empty() && (source.face_regions[static_cast<std::size_t>(sp.face)] &
                                     target_masks[static_cast<std::size_t>(v)]) == 0) {
@@ -363,6 +370,10 @@ int locateRimVertices(TargetLocations& locations, const Mesh& target, const std:
     if (!best.found()) continue;
     const double d = (best.point - p).norm();
     if (d > max_distance || d > options.rim_location_max_ratio * std::sqrt(located.sq_distance) + tie) continue;
+    // The rim point of a refused vertex on the very face the location refused
+    // says nothing new (a staircase rim's step of the other lip ran its way).
+    if (refused && best.face == located.face) continue;
+    locations.mismatched(v) = 0;
     const bool was_low = locations.confidence(v) == 0.0;
     located = best;
     located.sq_distance = d * d;

@@ -139,9 +139,10 @@ struct WarpOptions {
   // rim_location_max_distance (fraction of the target diagonal) of the
   // vertex and at most rim_location_max_ratio times as far from it as the
   // surface point: a coarse remesh's hole can cut across the lid, and a
-  // vertex of it far from any source rim keeps its surface point. Vertices
-  // the location refused (across a thin gap) stay refused. Independent of
-  // rim_matching.
+  // vertex of it far from any source rim keeps its surface point. A vertex
+  // the location refused (its surface point across a thin gap: the other
+  // lip) is taken back when the rim point running its way, searched from the
+  // vertex, lies on another face. Independent of rim_matching.
   bool rim_location = true;
   double rim_location_max_distance = 0.015;
   double rim_location_max_ratio = 2.0;
