@@ -139,6 +139,17 @@ TEST_P(IctTransfer, ShapesBeatThePlainMethodAndOutputIsValid) {
     EXPECT_LE(jaw, 0.03) << "jawOpen";
     EXPECT_LE(blink, 0.03) << "eyeBlink_L/R";
   }
+  // The parts of the issue's E limits that are met (docs/ACCURACY.md): the
+  // worst shape of every ordinary identity within 0.12 (measured 0.066-0.119,
+  // id_s03_remesh's eyeBlink_R the closest), and the 10-landmark target's
+  // median within 0.08 (measured 0.0798). The ordinary medians' 0.03 and the
+  // cartoon's 0.10 are not met and not asserted.
+  if (name.starts_with("id_")) {
+    EXPECT_LE(e.worst(), 0.12) << "worst shape of an ordinary identity";
+  }
+  if (name.starts_with("sparse")) {
+    EXPECT_LE(e.median(), 0.08) << "median with 10 landmarks";
+  }
 
   // Skin rules and the Khronos validator on the written GLB.
   const auto dir = rigport_test::makeTempDir("out");
