@@ -128,11 +128,12 @@ Eigen::MatrixX3d smoothedPulls(const PreparedSource& source, std::vector<Pull> a
 // itself and the neighbours it covers; none on detached pieces) matched to
 // their closest points on the warped source, within target_pull_max_distance
 // and with normals within target_pull_max_angle_deg (region-constrained like
-// every match); `target` carries vertex normals (runWarp's target as
-// matched). About a quarter of the queries of the whole target (mean of
+// every match: `target_masks`, per target vertex region bits or empty);
+// `target` carries vertex normals (runWarp's target as matched). About a quarter of the queries of the whole target (mean of
 // the nine ICT targets' E medians 0.0685 against 0.0676 with every vertex).
 TargetPulls matchTargetPulls(const PreparedSource& source, const Eigen::MatrixX3d& warped, const Mesh& target,
-                             const std::vector<int>& detached, const WarpReport& report, const WarpOptions& options) {
+                             const std::vector<std::uint64_t>& target_masks, const std::vector<int>& detached,
+                             const WarpReport& report, const WarpOptions& options) {
   TargetPulls out;
   const VertexSample sample = independentVertexSample(vertexAdjacency(target.triangles, target.vertexCount()));
   for (std::size_t k = 0; k < sample.vertices.size(); ++k) {
@@ -149,7 +150,7 @@ TargetPulls matchTargetPulls(const PreparedSource& source, const Eigen::MatrixX3
   cp.threads = options.threads;
   ClosestPointFilters filters;
   filters.normals = selectRows(target.normals, out.vertices);
-  if (report.region_matching) filters.label_masks = selectMasks(vertexRegionBits(target.regions), out.vertices);
+  if (!target_masks.empty()) filters.label_masks = selectMasks(target_masks, out.vertices);
   const std::vector<SurfacePoint> hits = on_warped.closestPoints(selectRows(target.positions, out.vertices), cp, filters);
   std::size_t kept = 0;
   for (std::size_t i = 0; i < hits.size(); ++i) {
@@ -539,6 +540,9 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   ClosestPointIndex target_index(target.positions, target.triangles, target_face_regions);
   const std::vector<std::uint64_t> no_masks;
   const std::vector<std::uint64_t>& source_masks = report.region_matching ? source.region_bits : no_masks;
+  // Per target vertex region bits (the turned copy below keeps the regions).
+  const std::vector<std::uint64_t> target_masks =
+      report.region_matching ? vertexRegionBits(target.regions) : std::vector<std::uint64_t>();
   auto target_positions = resolveLandmarks(target_landmarks, target, target_label, &target_index);
   if (!target_positions) return target_positions.error();
   const std::vector<int> target_representative = coincidentVertexRepresentatives(target.positions);
@@ -805,7 +809,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   const double trust = options.refine_max_distance * report.target_diagonal;
   TargetPulls target_pulls;
   if (options.local_rounds > 0 && options.target_pulls) {
-    target_pulls = matchTargetPulls(source, result.warped_positions, *matched, detached, report, options);
+    target_pulls = matchTargetPulls(source, result.warped_positions, *matched, target_masks, detached, report, options);
     report.target_pulls = static_cast<int>(target_pulls.vertices.size());
   }
   for (int round = 0; round < options.local_rounds; ++round) {
@@ -846,8 +850,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
                                    report.region_matching ? source.face_regions : std::vector<std::uint64_t>());
   if (options.rim_location && !target_rims.empty()) {
     report.rim_located_vertices = locateRimVertices(
-        result.locations, *matched, target_rims, target_representative, source, located_on,
-        report.region_matching ? vertexRegionBits(matched->regions) : std::vector<std::uint64_t>(),
+        result.locations, *matched, target_rims, target_representative, source, located_on, target_masks,
         report.target_diagonal, options);
   }
   for (Eigen::Index v = 0; v < target.vertexCount() && !detached.empty(); ++v) {
