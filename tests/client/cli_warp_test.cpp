@@ -41,32 +41,34 @@ TEST(CliWarp, PipelineFlagsReachTheWarp) {
   const auto dir = rigport_test::makeTempDir("cli_warp");
   const rigport_test::TransferFiles files = rigport_test::writeTransferFiles(dir, 40);
 
+  // A count of the run's correspondence diagnostics.
+  auto count = [](const WarpRun& run, const char* key) { return run.diagnostics["correspondence"][key].get<int>(); };
+
   const WarpRun standard = runWarp(files, dir, "");
   ASSERT_EQ(standard.exit_code, 0);
-  const auto& c = standard.diagnostics["correspondence"];
-  EXPECT_EQ(c["refine_iterations"].get<int>(), 2);
-  EXPECT_GT(c["target_pulls"].get<int>(), 0);
-  EXPECT_GT(c["matched_rims"].get<int>(), 0);
-  EXPECT_GT(c["rim_located_vertices"].get<int>(), 0);
+  EXPECT_EQ(count(standard, "refine_iterations"), 2);
+  EXPECT_GT(count(standard, "target_pulls"), 0);
+  EXPECT_GT(count(standard, "matched_rims"), 0);
+  EXPECT_GT(count(standard, "rim_located_vertices"), 0);
 
   const WarpRun light = runWarp(files, dir, "--light");
   ASSERT_EQ(light.exit_code, 0);
-  EXPECT_EQ(light.diagnostics["correspondence"]["refine_iterations"].get<int>(), 0);
-  EXPECT_EQ(light.diagnostics["correspondence"]["target_pulls"].get<int>(), 0);
-  EXPECT_GT(light.diagnostics["correspondence"]["matched_rims"].get<int>(), 0);
-  EXPECT_EQ(light.diagnostics["correspondence"]["rim_located_vertices"].get<int>(), 0);
+  EXPECT_EQ(count(light, "refine_iterations"), 0);
+  EXPECT_EQ(count(light, "target_pulls"), 0);
+  EXPECT_GT(count(light, "matched_rims"), 0);
+  EXPECT_EQ(count(light, "rim_located_vertices"), 0);
 
   const WarpRun plain = runWarp(files, dir, "--plain");
   ASSERT_EQ(plain.exit_code, 0);
-  EXPECT_EQ(plain.diagnostics["correspondence"]["refine_iterations"].get<int>(), 0);
-  EXPECT_EQ(plain.diagnostics["correspondence"]["target_pulls"].get<int>(), 0);
-  EXPECT_EQ(plain.diagnostics["correspondence"]["matched_rims"].get<int>(), 0);
-  EXPECT_EQ(plain.diagnostics["correspondence"]["rim_located_vertices"].get<int>(), 0);
+  EXPECT_EQ(count(plain, "refine_iterations"), 0);
+  EXPECT_EQ(count(plain, "target_pulls"), 0);
+  EXPECT_EQ(count(plain, "matched_rims"), 0);
+  EXPECT_EQ(count(plain, "rim_located_vertices"), 0);
 
   const WarpRun one_round = runWarp(files, dir, "--refine 1 --local-rounds 0");
   ASSERT_EQ(one_round.exit_code, 0);
-  EXPECT_EQ(one_round.diagnostics["correspondence"]["refine_iterations"].get<int>(), 1);
-  EXPECT_EQ(one_round.diagnostics["correspondence"]["target_pulls"].get<int>(), 0);  // pulls act in local rounds
+  EXPECT_EQ(count(one_round, "refine_iterations"), 1);
+  EXPECT_EQ(count(one_round, "target_pulls"), 0);  // pulls act in local rounds
 
   EXPECT_NE(runWarp(files, dir, "--light --plain").exit_code, 0);
   EXPECT_NE(runWarp(files, dir, "--light --refine 1").exit_code, 0);
