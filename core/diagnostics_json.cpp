@@ -50,6 +50,7 @@ Json warpJson(const WarpReport& r, const DiagnosticsContext& context) {
   c["flipped_triangles"] = r.flipped_triangles;
   c["collapsed_triangles"] = r.collapsed_triangles;
   c["unmatched_source_vertices"] = r.unmatched_source_vertices;
+  c["projected_source_vertices"] = r.projected_source_vertices;
   c["low_confidence_vertices"] = r.low_confidence_vertices;
   c["detached_pieces"] = r.detached_pieces;
   c["detached_vertices"] = r.detached_vertices;

@@ -94,6 +94,9 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   if (stopBefore("warp", 0.0)) return stopped("warp");
   WarpOptions warp_options = options.warp;
   warp_options.threads = options.threads;
+  // The output is the target rigged, not the guide: project only what the
+  // transfer reads from it.
+  warp_options.full_guide = false;
   auto warp = runWarp(source.surface, target, target_landmarks, target_label, warp_options);
   if (!warp) return warp.error();
   TransferResult result;

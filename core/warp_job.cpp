@@ -53,6 +53,44 @@ std::vector<std::uint64_t> selectMasks(const std::vector<std::uint64_t>& masks, 
   return out;
 }
 
+// The guide with only `rows` (ascending source vertices) projected: the
+// others keep their warped position and count as neither matched nor
+// unmatched (distance 0).
+GuideModel projectRowsToTarget(const Eigen::MatrixX3d& warped, const Eigen::MatrixX3d& normals,
+                               const std::vector<int>& rows, const ClosestPointIndex& target_index,
+                               double target_diagonal, const ProjectionOptions& projection,
+                               const std::vector<std::uint64_t>& masks) {
+  const GuideModel projected = projectToTarget(selectRows(warped, rows), selectRows(normals, rows), target_index,
+                                               target_diagonal, projection, selectMasks(masks, rows));
+  GuideModel guide;
+  guide.positions = warped;
+  guide.on_target.resize(static_cast<std::size_t>(warped.rows()));
+  guide.distance = Eigen::VectorXd::Zero(warped.rows());
+  guide.unmatched = projected.unmatched;
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    const auto i = static_cast<Eigen::Index>(k);
+    guide.positions.row(rows[k]) = projected.positions.row(i);
+    guide.on_target[static_cast<std::size_t>(rows[k])] = projected.on_target[k];
+    guide.distance(rows[k]) = projected.distance(i);
+  }
+  return guide;
+}
+
+// The rows `rows` of a guide, in that order.
+GuideModel selectGuideRows(const GuideModel& guide, const std::vector<int>& rows) {
+  GuideModel out;
+  out.positions = selectRows(guide.positions, rows);
+  out.distance.resize(static_cast<Eigen::Index>(rows.size()));
+  out.on_target.reserve(rows.size());
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    const SurfacePoint& sp = guide.on_target[static_cast<std::size_t>(rows[k])];
+    out.on_target.push_back(sp);
+    out.distance(static_cast<Eigen::Index>(k)) = guide.distance(rows[k]);
+    out.unmatched += sp.found() ? 0 : 1;
+  }
+  return out;
+}
+
 // Where the warped source should move, per source vertex: the sum of w*d
 // and of w over the pulls on it (normalised convolution, below). Packed so
 // that one cache line holds two vertices: the passes gather neighbours, and
@@ -823,8 +861,26 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
     result.warped_positions += smoothedPulls(source, std::move(pulls), options.smoothing_passes);
     warped_normals = computeVertexNormals(result.warped_positions, tris);
   }
-  result.guide = projectToTarget(result.warped_positions, warped_normals, target_index, report.target_diagonal,
-                                 projection, source_masks);
+  // The guide: the source projected onto the target. A transfer reads it
+  // only at the projection sample (the smoothed guide below) and at the dense
+  // centres' vertices (the dense map), so unless the job returns the guide
+  // (WarpOptions::full_guide) or locates the target on it, only those are
+  // projected: ~30% of the vertices.
+  const bool on_smoothed_guide = options.smooth_guide && options.local_rounds > 0;
+  std::vector<int> guide_rows(static_cast<std::size_t>(result.warped_positions.rows()));
+  std::iota(guide_rows.begin(), guide_rows.end(), 0);
+  if (options.full_guide || !on_smoothed_guide) {
+    result.guide = projectToTarget(result.warped_positions, warped_normals, target_index, report.target_diagonal,
+                                   projection, source_masks);
+  } else {
+    std::vector<char> read(guide_rows.size(), 0);
+    for (const int v : source.projection_sample) read[static_cast<std::size_t>(v)] = 1;
+    for (const int v : source.dense_vertices) read[static_cast<std::size_t>(v)] = 1;
+    std::erase_if(guide_rows, [&](int v) { return read[static_cast<std::size_t>(v)] == 0; });
+    result.guide = projectRowsToTarget(result.warped_positions, warped_normals, guide_rows, target_index,
+                                       report.target_diagonal, projection, source_masks);
+  }
+  report.projected_source_vertices = static_cast<int>(guide_rows.size());
   if (source.dense_factorization) {
     const Eigen::Index nl = source.landmark_positions.rows();
     Eigen::MatrixX3d centre_targets(source.dense_centres.rows(), 3);
@@ -834,14 +890,14 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
     }
     result.dense_map = source.dense_factorization->fit(centre_targets);
   }
-  // The target is located on the smoothed guide (WarpOptions::smooth_guide)
-  // or the guide itself.
+  // The target is located on the smoothed guide (WarpOptions::smooth_guide):
+  // one more local round's smoothed displacement of the projection sample,
+  // without target pulls; or on the guide itself.
   Eigen::MatrixX3d located_on = result.guide.positions;
-  if (options.smooth_guide && options.local_rounds > 0) {
-    std::vector<int> all(static_cast<std::size_t>(result.warped_positions.rows()));
-    std::iota(all.begin(), all.end(), 0);
-    std::vector<Pull> pulls(all.size(), Pull{0.0, 0.0, 0.0, 0.0});
-    addProjectionPulls(pulls, result.warped_positions, all, result.guide, trust);
+  if (on_smoothed_guide) {
+    const std::vector<int>& rows = source.projection_sample;
+    std::vector<Pull> pulls(static_cast<std::size_t>(result.warped_positions.rows()), Pull{0.0, 0.0, 0.0, 0.0});
+    addProjectionPulls(pulls, result.warped_positions, rows, selectGuideRows(result.guide, rows), trust);
     located_on = result.warped_positions + smoothedPulls(source, std::move(pulls), options.smoothing_passes);
   }
   LocateOptions locate = options.locate;
@@ -862,11 +918,14 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   result.locations.detached_piece = detached;
   report.correspond_ms = msSince(t0);
 
-  std::vector<double> d(result.guide.distance.data(), result.guide.distance.data() + result.guide.distance.size());
-  report.mean_distance = result.guide.distance.mean();
-  report.max_distance = result.guide.distance.maxCoeff();
+  std::vector<double> d;
+  d.reserve(guide_rows.size());
+  for (const int v : guide_rows) d.push_back(result.guide.distance(v));
+  report.mean_distance = d.empty() ? 0.0 : std::accumulate(d.begin(), d.end(), 0.0) / static_cast<double>(d.size());
+  report.max_distance = d.empty() ? 0.0 : *std::max_element(d.begin(), d.end());
   report.p95_distance = percentile(d, 0.95);
-  const FoldReport folds = countFolds(result.warped_positions, result.guide.positions, tris);
+  // Folds of the surface the target was located on.
+  const FoldReport folds = countFolds(result.warped_positions, located_on, tris);
   report.flipped_triangles = folds.flipped;
   report.collapsed_triangles = folds.collapsed;
   report.unmatched_source_vertices = result.guide.unmatched;

@@ -108,6 +108,12 @@ struct WarpOptions {
   // (the warped source may be far from the target) or with false: located
   // on the guide itself, as in the papers.
   bool smooth_guide = true;
+  // Project every source vertex for the guide (WarpResult::guide), as a warp
+  // job returns it. false (what a transfer asks): when the target is located
+  // on the smoothed guide, only the vertices read from the guide are
+  // projected (the projection sample and the dense centres' vertices); the
+  // others keep their warped position. The locations are the same either way.
+  bool full_guide = true;
   // When source and target both carry region labels (Mesh::regions), every
   // match (projection, refinement, location) stays within compatible regions;
   // see faceRegionSets. false: labels are ignored.
@@ -180,6 +186,7 @@ struct WarpReport {
   int flipped_triangles = 0;
   int collapsed_triangles = 0;
   int unmatched_source_vertices = 0;
+  int projected_source_vertices = 0;  // source vertices projected for the guide (WarpOptions::full_guide)
   int low_confidence_vertices = 0;
   int detached_pieces = 0;            // closed target pieces without landmarks (eyes, teeth) not matched as skin
   int detached_vertices = 0;          // their vertices (low-confidence, mismatched)

@@ -410,6 +410,52 @@ TEST(Correspondence, SmoothedGuideLocatesCloserThanTheGuide) {
   EXPECT_LT(error_on, 0.95 * error_off);
 }
 
+// A transfer projects only the guide vertices it reads (the projection
+// sample and the dense centres' vertices); where the target is located, the
+// dense map and the vertices projected are exactly those of the full guide.
+TEST(Correspondence, APartialGuideLocatesExactlyAsTheFullOne) {
+  const auto source = core::generateHead();
+  std::vector<Eigen::Index> lips;
+  const core::SyntheticHead target = fullerLips(source, 0.06, 0.05, lips);
+  auto [partial, full] = warpOffAndOn(&core::WarpOptions::full_guide, source, target.mesh, target.landmarks);
+  ASSERT_TRUE(partial && full);
+  const Eigen::Index nv = source.mesh.vertexCount();
+  EXPECT_EQ(full->report.projected_source_vertices, nv);
+  EXPECT_GT(partial->report.projected_source_vertices, 0);
+  EXPECT_LT(partial->report.projected_source_vertices, nv / 2);
+  int projected = 0;
+  for (Eigen::Index v = 0; v < nv; ++v) {
+    if (partial->guide.on_target[static_cast<std::size_t>(v)].found()) {
+      ++projected;
+      EXPECT_EQ(partial->guide.positions.row(v), full->guide.positions.row(v)) << "source vertex " << v;
+    } else {
+      EXPECT_EQ(partial->guide.positions.row(v), partial->warped_positions.row(v)) << "source vertex " << v;
+    }
+  }
+  EXPECT_EQ(projected + partial->report.unmatched_source_vertices, partial->report.projected_source_vertices);
+  ASSERT_TRUE(partial->dense_map && full->dense_map);
+  EXPECT_EQ(partial->dense_map->apply(source.mesh.positions), full->dense_map->apply(source.mesh.positions));
+  const core::TargetLocations& a = partial->locations;
+  const core::TargetLocations& b = full->locations;
+  for (Eigen::Index v = 0; v < target.mesh.vertexCount(); ++v) {
+    const auto i = static_cast<std::size_t>(v);
+    ASSERT_EQ(a.on_source[i].face, b.on_source[i].face) << "target vertex " << v;
+    EXPECT_EQ(a.on_source[i].barycentric, b.on_source[i].barycentric) << "target vertex " << v;
+  }
+  EXPECT_EQ(a.confidence, b.confidence);
+  EXPECT_EQ(a.mismatched, b.mismatched);
+  EXPECT_EQ(partial->report.flipped_triangles, full->report.flipped_triangles);
+
+  // Located on the guide itself (no smoothed guide), every vertex is projected.
+  auto prepared = core::prepareSource(source.mesh, source.landmarks, "source");
+  ASSERT_TRUE(prepared);
+  core::WarpOptions light = core::lightWarpOptions();
+  light.full_guide = false;
+  auto on_guide = core::runWarp(*prepared, target.mesh, target.landmarks, "light", light);
+  ASSERT_TRUE(on_guide);
+  EXPECT_EQ(on_guide->report.projected_source_vertices, nv);
+}
+
 // A neck pushed far forward below the chin (as on a strongly exaggerated
 // identity): the face's landmarks say nothing of it, so the landmark warp
 // leaves the source's neck on the wrong side of the target's, where closest
