@@ -1,5 +1,7 @@
 // rigport CLI: wiring only. Subcommands run in-process (core); the service
 // client (rigs, jobs, bench, transfer --server) is in client/remote_commands.h.
+#include <malloc.h>
+
 #include <cstdio>
 #include <string>
 
@@ -11,6 +13,13 @@
 #include "client/remote_commands.h"
 
 int main(int argc, char** argv) {
+  // A run allocates and frees buffers of hundreds of kB to a few MB (decoded
+  // accessors, per-shape deltas, indices). By default glibc maps each afresh
+  // and every page of it faults in again; kept in the heap they are reused.
+  // A CLI run is short, so memory not handed back is no loss
+  // (docs/BENCHMARKS.md: one transfer 126 -> 118 ms).
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
   CLI::App app{"rigport: facial rig transfer (warp, transfer, retarget, fit)"};
   app.require_subcommand(1);
   bool verbose = false, quiet = false;
