@@ -771,8 +771,15 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
       }
     }
   }
-  result.warped_positions = result.landmark_warp.apply(source.mesh.positions);
-  Eigen::MatrixX3d warped_normals = computeVertexNormals(result.warped_positions, tris);
+  // The whole source is warped once: by the dense map at the end of the
+  // refinement (its centres' normals start from the landmark warp's
+  // Jacobian, as the sampled ones above), or without a refinement here.
+  const bool refine = source.dense_factorization && options.refine_iterations > 0;
+  Eigen::MatrixX3d warped_normals;
+  if (!refine) {
+    result.warped_positions = result.landmark_warp.apply(source.mesh.positions);
+    warped_normals = computeVertexNormals(result.warped_positions, tris);
+  }
   // Targets of the dense map's landmark centres: the job's target landmarks;
   // for source landmarks the target does not use, the warp's image, then
   // where the refinement puts them.
@@ -783,7 +790,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
     landmark_targets.row(l) = pairs->target.row(static_cast<Eigen::Index>(i));
     landmark_used[static_cast<std::size_t>(l)] = 1;
   }
-  if (source.dense_factorization && options.refine_iterations > 0) {
+  if (refine) {
     // Non-rigid ICP on the dense centres only: project the free ones (the
     // farthest-point samples, and the source landmarks the target does not
     // use), fit the dense map to the trusted projections, move the free
@@ -805,7 +812,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
     const Eigen::MatrixX3d free_source_normals = selectRows(source.mesh.normals, vertices);
     const std::vector<std::uint64_t> free_masks = selectMasks(source_masks, vertices);
     Eigen::MatrixX3d free_positions = result.landmark_warp.apply(free_sources);
-    Eigen::MatrixX3d free_normals = selectRows(warped_normals, vertices);
+    Eigen::MatrixX3d free_normals = normalsThroughWarp(result.landmark_warp, free_sources, free_source_normals);
     const Eigen::Matrix3d rim_frame = result.landmark_warp.affine().topRows<3>();
     Eigen::MatrixX3d centre_targets(source.dense_centres.rows(), 3);
     TpsWarp dense;
@@ -830,10 +837,11 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
         if (it == 0) report.mean_slide = slide.mean_slide;
       }
       dense = source.dense_factorization->fit(centre_targets);
+      report.refine_iterations = it + 1;
+      if (it + 1 == options.refine_iterations) break;
       // Free centres and their normals through the new map (normals by J^-T).
       free_positions = dense.apply(free_sources);
       free_normals = normalsThroughWarp(dense, free_sources, free_source_normals);
-      report.refine_iterations = it + 1;
     }
     for (std::size_t k = 0; k < rows.size() && rows[k] < nl; ++k) landmark_targets.row(rows[k]) = centre_targets.row(rows[k]);
     result.warped_positions = dense.apply(source.mesh.positions);
