@@ -50,6 +50,8 @@ TEST(CliWarp, PipelineFlagsReachTheWarp) {
   EXPECT_GT(count(standard, "target_pulls"), 0);
   EXPECT_GT(count(standard, "matched_rims"), 0);
   EXPECT_GT(count(standard, "rim_located_vertices"), 0);
+  // A warp job returns the guide: every source vertex is projected.
+  EXPECT_EQ(count(standard, "projected_source_vertices"), standard.diagnostics["mesh"]["source_vertices"].get<int>());
 
   const WarpRun light = runWarp(files, dir, "--light");
   ASSERT_EQ(light.exit_code, 0);

@@ -69,6 +69,9 @@ TEST(TransferRig, OntoItsOwnMeshComesBackEqual) {
     EXPECT_TRUE(matricesNear(out.skin->inverse_bind[j], src.skin->inverse_bind[j], 1e-6 * diag)) << "joint " << j;
   }
   EXPECT_EQ(result->report.inpainted_vertices, 0);
+  // The transfer projects only the guide vertices it reads.
+  EXPECT_GT(result->report.warp.projected_source_vertices, 0);
+  EXPECT_LT(result->report.warp.projected_source_vertices, src.mesh.vertexCount() / 2);
 }
 
 TEST(TransferRig, IsEquivariantUnderRotationTranslationAndUniformScale) {
