@@ -13,7 +13,7 @@ Eigen::MatrixXd interpolate(const Eigen::MatrixXd& values, const Eigen::MatrixX3
   for (Eigen::Index v = 0; v < nt; ++v) {
     const SurfacePoint& sp = locations.on_source[static_cast<std::size_t>(v)];
     if (!sp.found()) continue;
-    for (int k = 0; k < 3; ++k) out.row(v) += sp.barycentric(k) * values.row(triangles(sp.face, k));
+    out.row(v) = interpolateOnFace(values, triangles, sp.face, sp.barycentric);
   }
   return out;
 }

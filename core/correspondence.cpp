@@ -135,8 +135,7 @@ TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_
       continue;
     }
     const double d = std::sqrt(sp.sq_distance);
-    Eigen::RowVector3d gn = Eigen::RowVector3d::Zero();
-    for (int k = 0; k < 3; ++k) gn += sp.barycentric(k) * guide_normals.row(source_triangles(sp.face, k));
+    const Eigen::RowVector3d gn = interpolateOnFace(guide_normals, source_triangles, sp.face, sp.barycentric);
     const double len = gn.norm();
     const double c = len > 0.0 ? gn.dot(normals.row(v)) / len : -1.0;
     out.distance(v) = d;

@@ -187,9 +187,7 @@ Result<Eigen::MatrixX3d> resolveLandmarks(const LandmarkSet& set, const Mesh& me
                                                              " is out of range (mesh has " +
                                                              std::to_string(mesh.triangleCount()) + " triangles)");
         }
-        Eigen::RowVector3d p = Eigen::RowVector3d::Zero();
-        for (int k = 0; k < 3; ++k) p += lm.barycentric(k) * mesh.positions.row(mesh.triangles(lm.face, k));
-        out.row(static_cast<Eigen::Index>(i)) = p;
+        out.row(static_cast<Eigen::Index>(i)) = interpolateOnFace(mesh.positions, mesh.triangles, lm.face, lm.barycentric);
         break;
       }
       case LandmarkKind::kPosition: {

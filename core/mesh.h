@@ -111,6 +111,19 @@ struct VertexSample {
 };
 VertexSample independentVertexSample(const VertexAdjacency& adjacency);
 
+// A per-vertex quantity (positions, normals, attributes: #V rows) at a point
+// of face `face` given by its barycentric weights: sum over the corners k of
+// barycentric(k) * values.row(triangles(face, k)), in corner order.
+template <class Values>
+Eigen::Matrix<double, 1, Values::ColsAtCompileTime> interpolateOnFace(const Eigen::MatrixBase<Values>& values,
+                                                                      const Eigen::MatrixX3i& triangles, int face,
+                                                                      const Eigen::Vector3d& barycentric) {
+  Eigen::Matrix<double, 1, Values::ColsAtCompileTime> out =
+      Eigen::Matrix<double, 1, Values::ColsAtCompileTime>::Zero(values.cols());
+  for (int k = 0; k < 3; ++k) out += barycentric(k) * values.row(triangles(face, k));
+  return out;
+}
+
 // #F twice-areas (|cross product|); 0 for degenerate triangles.
 Eigen::VectorXd computeDoubleAreas(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles);
 

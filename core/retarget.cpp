@@ -103,9 +103,7 @@ Eigen::MatrixXd euclideanMarkerMarker(const Eigen::MatrixX3d& markers) {
 
 // A per-vertex quantity (#V by k) at a surface point, barycentrically.
 double atPoint(const Eigen::Ref<const Eigen::VectorXd>& values, const Mesh& mesh, const SurfacePoint& p) {
-  double s = 0.0;
-  for (int k = 0; k < 3; ++k) s += p.barycentric(k) * values(mesh.triangles(p.face, k));
-  return s;
+  return interpolateOnFace(values, mesh.triangles, p.face, p.barycentric)(0);
 }
 
 // Minimum distance from every vertex to a vertex subset (brute force; the

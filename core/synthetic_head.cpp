@@ -163,9 +163,7 @@ namespace {
 Eigen::VectorXi lipAndLidRegions(const Mesh& mesh, const LandmarkSet& landmarks, const HeadShape& shape) {
   auto at = [&](const std::string& name) {
     const Landmark& l = landmarks.landmarks[static_cast<std::size_t>(landmarks.indexOf(name))];
-    Eigen::Vector3d x = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 3; ++k) x += l.barycentric(k) * mesh.positions.row(mesh.triangles(l.face, k)).transpose();
-    return x;
+    return Eigen::Vector3d(interpolateOnFace(mesh.positions, mesh.triangles, l.face, l.barycentric).transpose());
   };
   const Eigen::Vector3d mouth_left = at("mouth_outer_6"), mouth_right = at("mouth_outer_0");
   const Eigen::Vector3d mouth_centre = 0.5 * (at("mouth_inner_2") + at("mouth_inner_6"));

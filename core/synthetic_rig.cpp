@@ -36,9 +36,7 @@ SyntheticRig generateRig(const HeadShape& input_shape, const HeadResolution& res
 
   auto lm = [&](const std::string& name) {
     const Landmark& l = head.landmarks.landmarks[static_cast<std::size_t>(head.landmarks.indexOf(name))];
-    Eigen::Vector3d x = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 3; ++k) x += l.barycentric(k) * p.row(rig.mesh.triangles(l.face, k)).transpose();
-    return x;
+    return Eigen::Vector3d(interpolateOnFace(p, rig.mesh.triangles, l.face, l.barycentric).transpose());
   };
   const Eigen::Vector3d mouth_left = lm("mouth_outer_6"), mouth_right = lm("mouth_outer_0");
   const Eigen::Vector3d mouth_centre = 0.5 * (lm("mouth_inner_2") + lm("mouth_inner_6"));

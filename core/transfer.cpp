@@ -176,9 +176,8 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
     Eigen::MatrixX3d at(target.vertexCount(), 3);
     for (Eigen::Index v = 0; v < target.vertexCount(); ++v) {
       const SurfacePoint& sp = locations.on_source[static_cast<std::size_t>(v)];
-      Eigen::RowVector3d p = Eigen::RowVector3d::Zero();
-      if (sp.found()) for (int k = 0; k < 3; ++k) p += sp.barycentric(k) * src_mesh.positions.row(src_mesh.triangles(sp.face, k));
-      at.row(v) = p;
+      at.row(v) = sp.found() ? interpolateOnFace(src_mesh.positions, src_mesh.triangles, sp.face, sp.barycentric)
+                             : Eigen::RowVector3d::Zero();
     }
     vertex_adaptation = smooth_map->jacobians(at);
   } else {

@@ -123,8 +123,7 @@ void addTargetPulls(std::vector<Pull>& pulls, const Eigen::MatrixX3d& warped, co
                     const TargetPulls& target_pulls, const Eigen::MatrixX3d& target_positions) {
   for (std::size_t i = 0; i < target_pulls.vertices.size(); ++i) {
     const SurfacePoint& sp = target_pulls.on_source[i];
-    Eigen::RowVector3d point = Eigen::RowVector3d::Zero();
-    for (int k = 0; k < 3; ++k) point += sp.barycentric(k) * warped.row(triangles(sp.face, k));
+    const Eigen::RowVector3d point = interpolateOnFace(warped, triangles, sp.face, sp.barycentric);
     const Eigen::RowVector3d d = target_positions.row(target_pulls.vertices[i]) - point;
     for (int k = 0; k < 3; ++k) {
       const double w = target_pulls.weight[i] * sp.barycentric(k);
@@ -389,11 +388,8 @@ int locateRimVertices(TargetLocations& locations, const Mesh& target, const std:
     // lip) searches the rims from itself; any other from its surface point.
     const bool refused = locations.mismatched(v) != 0;
     const Eigen::Vector3d p = target.positions.row(v).transpose();
-    Eigen::Vector3d from = p;
-    if (!refused) {
-      from.setZero();
-      for (int k = 0; k < 3; ++k) from += located.barycentric(k) * guide_positions.row(triangles(located.face, k)).transpose();
-    }
+    const Eigen::Vector3d from =
+        refused ? p : Eigen::Vector3d(interpolateOnFace(guide_positions, triangles, located.face, located.barycentric).transpose());
     const Eigen::Vector3d tangent = on_rim.tangent.row(v).transpose();
     SurfacePoint best;
     for (std::size_t r = 0; r < rim_count; ++r) {
