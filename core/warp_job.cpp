@@ -166,8 +166,9 @@ Eigen::MatrixX3d smoothedPulls(const PreparedSource& source, std::vector<Pull> a
 // their closest points on the warped source, within target_pull_max_distance
 // and with normals within target_pull_max_angle_deg (region-constrained like
 // every match: `target_masks`, per target vertex region bits or empty);
-// `target` carries vertex normals (runWarp's target as matched). About a quarter of the queries of the whole target (mean of
-// the nine ICT targets' E medians 0.0685 against 0.0676 with every vertex).
+// `target` carries vertex normals (runWarp's target as matched). About a
+// quarter of the queries of the whole target (mean of the nine ICT targets'
+// E medians 0.0685 against 0.0676 with every vertex).
 TargetPulls matchTargetPulls(const PreparedSource& source, const Eigen::MatrixX3d& warped, const Mesh& target,
                              const std::vector<std::uint64_t>& target_masks, const std::vector<int>& detached,
                              const WarpReport& report, const WarpOptions& options) {
@@ -389,7 +390,9 @@ int locateRimVertices(TargetLocations& locations, const Mesh& target, const std:
     const bool refused = locations.mismatched(v) != 0;
     const Eigen::Vector3d p = target.positions.row(v).transpose();
     const Eigen::Vector3d from =
-        refused ? p : Eigen::Vector3d(interpolateOnFace(guide_positions, triangles, located.face, located.barycentric).transpose());
+        refused ? p
+                : Eigen::Vector3d(
+                      interpolateOnFace(guide_positions, triangles, located.face, located.barycentric).transpose());
     const Eigen::Vector3d tangent = on_rim.tangent.row(v).transpose();
     SurfacePoint best;
     for (std::size_t r = 0; r < rim_count; ++r) {
