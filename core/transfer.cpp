@@ -121,33 +121,43 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   report.global_scale = similarity.scale;
   report.global_rotation_deg =
       std::acos(std::clamp((similarity.rotation.trace() - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / std::numbers::pi;
-  {
-    // Residual angle: atan of the landmarks' rms misfit after the similarity
-    // (in source units) over their rms spread about their centroid.
-    const double spread =
-        std::sqrt((src_landmarks.rowwise() - src_landmarks.colwise().mean()).rowwise().squaredNorm().mean());
-    const double ratio =
-        spread > 0.0 && similarity.scale > 0.0 ? similarity.rms_residual / (similarity.scale * spread) : 0.0;
-    const double residual_deg = std::atan(ratio) * 180.0 / std::numbers::pi;
-    report.rotation_threshold_deg = std::max(options.min_rotation_deg, options.shape_rotation_factor * residual_deg);
-  }
+  // Residual angle: atan of the landmarks' rms misfit after the similarity
+  // (in source units) over their rms spread about their centroid.
+  const double spread =
+      std::sqrt((src_landmarks.rowwise() - src_landmarks.colwise().mean()).rowwise().squaredNorm().mean());
+  const double residual_ratio =
+      spread > 0.0 && similarity.scale > 0.0 ? similarity.rms_residual / (similarity.scale * spread) : 0.0;
+  const double residual_deg = std::atan(residual_ratio) * 180.0 / std::numbers::pi;
+  // The floors (min_rotation_deg, min_scale_ratio) are for faces shaped
+  // otherwise than the source, whose identity tilts and sizes them; a copy of
+  // the source's shape has none, so they shrink with the residual below
+  // shape_residual_deg and a copy is turned and scaled by any similarity.
+  // Rounding-level rotations and scales (an untransformed copy) stay unapplied.
+  const double shaped = options.shape_residual_deg > 0.0 ? std::min(1.0, residual_deg / options.shape_residual_deg) : 1.0;
+  constexpr double kRoundingDeg = 1e-4, kRoundingLogScale = 1e-9;
+  report.rotation_threshold_deg = std::max(
+      {shaped * options.min_rotation_deg, options.shape_rotation_factor * residual_deg, kRoundingDeg});
   report.rotation_applied = report.global_rotation_deg >= report.rotation_threshold_deg;
   if (!report.rotation_applied) similarity.rotation.setIdentity();
+  const double log_scale = similarity.scale > 0.0 ? std::abs(std::log(similarity.scale)) : 0.0;
+  const double scale_threshold =
+      std::max(options.min_scale_ratio > 1.0 ? shaped * std::log(options.min_scale_ratio) : 0.0, kRoundingLogScale);
   report.scale_applied =
       options.adaptation == ShapeAdaptation::kSimilarity ||
-      (options.adaptation == ShapeAdaptation::kRotation && similarity.scale > 0.0 && options.min_scale_ratio > 0.0 &&
-       std::abs(std::log(similarity.scale)) >= std::log(options.min_scale_ratio));
+      (options.adaptation == ShapeAdaptation::kRotation && options.min_scale_ratio > 0.0 && similarity.scale > 0.0 &&
+       log_scale >= scale_threshold);
   double delta_scale = report.scale_applied ? similarity.scale : 1.0;
   if (report.scale_applied && options.adaptation == ShapeAdaptation::kRotation) {
-    // A scale within 10% of a power of ten is that change of units; the rest
-    // is face size, which the deltas do not follow.
+    // A scale within 10% of a power of ten is that change of units when the
+    // rest could be face size, which the deltas do not follow.
     const double unit = unitRatioNear(similarity.scale);
-    if (unit > 0.0) delta_scale = unit;
+    const bool units = unit > 0.0 && std::abs(std::log(similarity.scale / unit)) < scale_threshold;
+    if (units) delta_scale = unit;
     char measured[32], applied[32];
     std::snprintf(measured, sizeof measured, "%.4g", similarity.scale);
     std::snprintf(applied, sizeof applied, "%.4g", delta_scale);
     report.warnings.push_back(target_label + " is " + measured + " times the size of the source (" +
-                              (unit > 0.0 ? "other units" : "a scaled copy") +
+                              (units ? "other units" : "a scaled copy") +
                               "): its deltas and animated joint translations were scaled by " + applied);
   }
   report.delta_scale = delta_scale;

@@ -53,6 +53,12 @@ struct TransferOptions {
   // Closer to 1 it is read as face size, which ICT identities' deltas do not
   // follow (measured: 0.93-1.04 at 1x, 0.78 for an identity exaggerated 3x).
   double min_scale_ratio = 1.5;
+  // The two floors above (min_rotation_deg, min_scale_ratio) hold in full for
+  // a face whose landmarks miss the similarity by this residual angle or more
+  // (ICT identities: 2.8-3.7 degrees); below it they shrink in proportion, so
+  // that a copy of the source's shape (residual 0) is turned and scaled by any
+  // similarity, however small. 0: the floors always hold in full.
+  double shape_residual_deg = 1.0;
   // kLocal: regularisation of the smoothed map, fraction of the source diagonal.
   double local_smoothing = 0.5;
   double exaggeration = 1.0;                      // shapes and animated deltas
@@ -87,14 +93,15 @@ struct TransferReport {
   int unlocated_vertices = 0;     // target vertices with no location on the source
   double global_scale = 1.0;      // similarity scale source -> target landmarks
   double global_rotation_deg = 0.0;  // similarity rotation source -> target landmarks
-  // The angle a rotation must reach to be applied: min_rotation_deg, or
+  // The angle a rotation must reach to be applied: min_rotation_deg (shrunk
+  // for a near copy of the source, see shape_residual_deg), or
   // shape_rotation_factor times the landmarks' residual angle when larger.
   double rotation_threshold_deg = 0.0;
   bool rotation_applied = false;     // deltas turned (global_rotation_deg >= rotation_threshold_deg)
-  bool scale_applied = false;        // deltas scaled (kSimilarity, or kRotation beyond min_scale_ratio)
+  bool scale_applied = false;        // deltas scaled (kSimilarity, or kRotation beyond min_scale_ratio, shrunk alike)
   // The factor applied to deltas: global_scale, or (kRotation) the power of
-  // ten within 10% of it (a change of units; the rest is face size); 1 when
-  // not applied.
+  // ten within 10% of it when the rest could be face size (a change of
+  // units); 1 when not applied.
   double delta_scale = 1.0;
   std::vector<std::string> warnings;
   // milliseconds

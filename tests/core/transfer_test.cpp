@@ -74,48 +74,62 @@ TEST(TransferRig, OntoItsOwnMeshComesBackEqual) {
   EXPECT_LT(result->report.warp.projected_source_vertices, src.mesh.vertexCount() / 2);
 }
 
+// Default options: a copy of the source's shape has no identity to feign a
+// tilt or a size, so any similarity is applied, the 23-degree turn and 1.7x
+// as well as 3 degrees and 1.15x (which, on a face shaped otherwise, would be
+// read as its shape).
 TEST(TransferRig, IsEquivariantUnderRotationTranslationAndUniformScale) {
   const core::Rig& src = sourceRig().rig;
-  const Eigen::Matrix3d rotation = Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.2, 1.0, 0.1).normalized()).toRotationMatrix();
-  const double scale = 1.7;
-  const Eigen::Vector3d shift(0.3, -0.1, 0.25);
-  core::Mesh target = src.mesh;
-  target.positions = ((scale * src.mesh.positions * rotation.transpose()).rowwise() + shift.transpose()).eval();
-  target.normals = core::computeVertexNormals(target.positions, target.triangles);
-  // Default options: a 23-degree turn is a pose and 1.7x a change of size.
-  auto result = core::transferRig(preparedSource(), target, sourceRig().landmarks, "moved");
-  ASSERT_TRUE(result) << result.error().message;
-  EXPECT_TRUE(result->report.rotation_applied);
-  EXPECT_TRUE(result->report.scale_applied);
-  EXPECT_NEAR(result->report.delta_scale, scale, 1e-9);  // not a change of units
-  const core::Rig& out = result->rig;
-  const double diag = core::boundingBoxDiagonal(target.positions);
-  EXPECT_NEAR(result->report.global_scale, scale, 1e-9);
-  // Joints moved with the mesh.
-  const Eigen::MatrixX3d expected_joints = ((scale * jointWorldPositions(src) * rotation.transpose()).rowwise() + shift.transpose()).eval();
-  EXPECT_TRUE(matricesNear(jointWorldPositions(out), expected_joints, 1e-6 * diag));
-  // Shape deltas rotated and scaled.
-  for (std::size_t k = 0; k < out.morph_targets.size(); ++k) {
-    const Eigen::MatrixX3d expected = scale * src.morph_targets[k].position_deltas * rotation.transpose();
-    EXPECT_TRUE(matricesNear(out.morph_targets[k].position_deltas, expected, 1e-4 * diag)) << out.morph_targets[k].name;
-  }
-  // Joint translation keys: the delta from rest scaled by the same factor.
-  for (std::size_t c = 0; c < src.animations[0].channels.size(); ++c) {
-    const auto& sc = src.animations[0].channels[c];
-    if (sc.path != core::AnimationPath::kTranslation) continue;
-    const auto& oc = out.animations[0].channels[c];
-    const Eigen::RowVector3d rest = src.nodes[static_cast<std::size_t>(sc.node)].translation.transpose();
-    const Eigen::RowVector3d rest_out = out.nodes[static_cast<std::size_t>(sc.node)].translation.transpose();
-    for (Eigen::Index k = 0; k < sc.values.rows(); ++k) {
-      EXPECT_TRUE(matricesNear(oc.values.row(k) - rest_out, scale * (sc.values.row(k) - rest), 1e-9)) << "key " << k;
+  struct Case {
+    double angle;
+    Eigen::Vector3d axis;
+    double scale;
+  };
+  for (const Case& c : {Case{0.4, Eigen::Vector3d(0.2, 1.0, 0.1), 1.7}, Case{0.05, Eigen::Vector3d(1.0, 0.3, -0.2), 1.15},
+                        Case{0.1, Eigen::Vector3d(0.0, 0.0, 1.0), 0.8}}) {
+    SCOPED_TRACE("angle " + std::to_string(c.angle) + ", scale " + std::to_string(c.scale));
+    const Eigen::Matrix3d rotation = Eigen::AngleAxisd(c.angle, c.axis.normalized()).toRotationMatrix();
+    const double scale = c.scale;
+    const Eigen::Vector3d shift(0.3, -0.1, 0.25);
+    core::Mesh target = src.mesh;
+    target.positions = ((scale * src.mesh.positions * rotation.transpose()).rowwise() + shift.transpose()).eval();
+    target.normals = core::computeVertexNormals(target.positions, target.triangles);
+    auto result = core::transferRig(preparedSource(), target, sourceRig().landmarks, "moved");
+    ASSERT_TRUE(result) << result.error().message;
+    EXPECT_TRUE(result->report.rotation_applied);
+    EXPECT_TRUE(result->report.scale_applied);
+    EXPECT_NEAR(result->report.delta_scale, scale, 1e-9);  // not a change of units
+    const core::Rig& out = result->rig;
+    const double diag = core::boundingBoxDiagonal(target.positions);
+    EXPECT_NEAR(result->report.global_scale, scale, 1e-9);
+    // Joints moved with the mesh.
+    const Eigen::MatrixX3d expected_joints =
+        ((scale * jointWorldPositions(src) * rotation.transpose()).rowwise() + shift.transpose()).eval();
+    EXPECT_TRUE(matricesNear(jointWorldPositions(out), expected_joints, 1e-6 * diag));
+    // Shape deltas rotated and scaled.
+    for (std::size_t k = 0; k < out.morph_targets.size(); ++k) {
+      const Eigen::MatrixX3d expected = scale * src.morph_targets[k].position_deltas * rotation.transpose();
+      EXPECT_TRUE(matricesNear(out.morph_targets[k].position_deltas, expected, 1e-4 * diag)) << out.morph_targets[k].name;
     }
+    // Joint translation keys: the delta from rest scaled by the same factor.
+    for (std::size_t ch = 0; ch < src.animations[0].channels.size(); ++ch) {
+      const auto& sc = src.animations[0].channels[ch];
+      if (sc.path != core::AnimationPath::kTranslation) continue;
+      const auto& oc = out.animations[0].channels[ch];
+      const Eigen::RowVector3d rest = src.nodes[static_cast<std::size_t>(sc.node)].translation.transpose();
+      const Eigen::RowVector3d rest_out = out.nodes[static_cast<std::size_t>(sc.node)].translation.transpose();
+      for (Eigen::Index k = 0; k < sc.values.rows(); ++k) {
+        EXPECT_TRUE(matricesNear(oc.values.row(k) - rest_out, scale * (sc.values.row(k) - rest), 1e-9)) << "key " << k;
+      }
+    }
+    // The posed target equals the posed source moved the same way.
+    const core::Pose ps = core::samplePose(src, src.animations[0], 0.5);
+    const core::Pose po = core::samplePose(out, out.animations[0], 0.5);
+    const Eigen::MatrixX3d posed_src = core::poseMesh(src, ps);
+    const Eigen::MatrixX3d expected_posed =
+        ((scale * posed_src * rotation.transpose()).rowwise() + shift.transpose()).eval();
+    EXPECT_TRUE(matricesNear(core::poseMesh(out, po), expected_posed, 1e-4 * diag));
   }
-  // The posed target equals the posed source moved the same way.
-  const core::Pose ps = core::samplePose(src, src.animations[0], 0.5);
-  const core::Pose po = core::samplePose(out, out.animations[0], 0.5);
-  const Eigen::MatrixX3d posed_src = core::poseMesh(src, ps);
-  const Eigen::MatrixX3d expected_posed = ((scale * posed_src * rotation.transpose()).rowwise() + shift.transpose()).eval();
-  EXPECT_TRUE(matricesNear(core::poseMesh(out, po), expected_posed, 1e-4 * diag));
 }
 
 // `adaptation: local` carries each delta by the local Jacobian of the dense
@@ -284,46 +298,11 @@ TEST(TransferRig, ClosedPiecesWithoutLandmarksAreNotMatchedAsSkin) {
   EXPECT_GLTF_VALID(glb);
 }
 
-// Some exporters write faces inside out (corners in clockwise order). The
-// transfer must see the same surface: the same weights and shapes as onto the
-// correctly wound mesh, which the output keeps as it came.
-// A target in other units (metres against a centimetre rig) gets its deltas
-// in its own units; a face 15% larger is another face size, which the
-// deltas do not follow (identities' expressions are size independent), also
-// when it comes in other units (0.0108 = 1.08 x 0.01: scaled by 0.01).
-TEST(TransferRig, GlobalScaleIsAppliedForUnitsButNotForFaceSize) {
+// The source's face leaning forward with height (z grows with y) and with a
+// lower face 1.6x as wide: shaped otherwise than the source (its landmarks
+// miss a similarity by ~7 degrees); the lean alone fits as a ~10 degree tilt.
+core::Mesh leaningFace() {
   const core::Rig& src = sourceRig().rig;
-  for (const double scale : {0.01, 0.0108, 1.15}) {
-    core::Mesh target = src.mesh;
-    target.positions = scale * src.mesh.positions;
-    auto result = core::transferRig(preparedSource(), target, sourceRig().landmarks, "scaled");
-    ASSERT_TRUE(result) << result.error().message;
-    const bool units = scale < 1.0;
-    EXPECT_NEAR(result->report.global_scale, scale, 1e-9 * scale);
-    EXPECT_EQ(result->report.scale_applied, units) << "scale " << scale;
-    EXPECT_EQ(result->report.warnings.size(), units ? 1u : 0u);
-    if (units) {
-      EXPECT_NE(result->report.warnings[0].find("times the size of the source (other units)"), std::string::npos);
-    }
-    const double expected_scale = units ? 0.01 : 1.0;
-    EXPECT_EQ(result->report.delta_scale, expected_scale);
-    const double diag = core::boundingBoxDiagonal(target.positions);
-    for (std::size_t k = 0; k < src.morph_targets.size(); ++k) {
-      EXPECT_TRUE(matricesNear(result->rig.morph_targets[k].position_deltas,
-                               expected_scale * src.morph_targets[k].position_deltas, 1e-4 * diag))
-          << "scale " << scale << ": " << src.morph_targets[k].name;
-    }
-  }
-}
-
-// A face shaped differently can feign a rotation (a face leaning forward
-// "tilts" in a least-squares fit) as large as the angle of its non-rigid
-// residual; only a rotation clearly beyond that is read as a pose and turns
-// the deltas.
-TEST(TransferRig, RotationFeignedByShapeIsNotAppliedButAPoseIs) {
-  const core::Rig& src = sourceRig().rig;
-  // Leaning forward with height (z grows with y) and a lower face 1.6x as
-  // wide: the lean alone fits as a ~10 degree tilt.
   core::Mesh leaning = src.mesh;
   for (Eigen::Index v = 0; v < leaning.vertexCount(); ++v) {
     const double y = src.mesh.positions(v, 1);
@@ -331,6 +310,64 @@ TEST(TransferRig, RotationFeignedByShapeIsNotAppliedButAPoseIs) {
     if (y < 0.0) leaning.positions(v, 0) *= 1.0 + 0.6 * std::min(1.0, -y / 0.05);
   }
   leaning.normals = core::computeVertexNormals(leaning.positions, leaning.triangles);
+  return leaning;
+}
+
+// A target in other units (metres against a centimetre rig) gets its deltas
+// in its own units. On a face shaped otherwise than the source, 15% larger
+// is another face size, which the deltas do not follow (identities'
+// expressions are size independent), also when it comes in other units
+// (0.0108 = 1.08 x 0.01: scaled by 0.01). A copy of the source's own shape
+// has no other size to be: it is scaled by all of it.
+TEST(TransferRig, GlobalScaleIsAppliedForUnitsButNotForFaceSize) {
+  // The leaning face brought to the source's size first (its landmarks fit
+  // the source's at ~1.2x).
+  core::Mesh leaning = leaningFace();
+  auto sized = core::transferRig(preparedSource(), leaning, sourceRig().landmarks, "leaning");
+  ASSERT_TRUE(sized) << sized.error().message;
+  leaning.positions /= sized->report.global_scale;
+  auto unscaled = core::transferRig(preparedSource(), leaning, sourceRig().landmarks, "leaning");
+  ASSERT_TRUE(unscaled) << unscaled.error().message;
+  ASSERT_NEAR(unscaled->report.global_scale, 1.0, 1e-9);
+  ASSERT_FALSE(unscaled->report.scale_applied);
+  for (const double scale : {0.01, 0.0108, 1.15}) {
+    core::Mesh target = leaning;
+    target.positions = scale * leaning.positions;
+    auto result = core::transferRig(preparedSource(), target, sourceRig().landmarks, "scaled");
+    ASSERT_TRUE(result) << result.error().message;
+    const bool units = scale < 1.0;
+    EXPECT_NEAR(result->report.global_scale, scale, 1e-9 * scale);
+    EXPECT_EQ(result->report.scale_applied, units) << "scale " << scale;
+    EXPECT_EQ(result->report.warnings.size(), unscaled->report.warnings.size() + (units ? 1u : 0u));
+    if (units) {
+      EXPECT_NE(result->report.warnings.back().find("times the size of the source (other units)"), std::string::npos);
+    }
+    const double expected_scale = units ? 0.01 : 1.0;
+    EXPECT_EQ(result->report.delta_scale, expected_scale);
+    const double diag = core::boundingBoxDiagonal(target.positions);
+    for (std::size_t k = 0; k < unscaled->rig.morph_targets.size(); ++k) {
+      EXPECT_TRUE(matricesNear(result->rig.morph_targets[k].position_deltas,
+                               expected_scale * unscaled->rig.morph_targets[k].position_deltas, 1e-4 * diag))
+          << "scale " << scale << ": " << unscaled->rig.morph_targets[k].name;
+    }
+  }
+  const core::Rig& src = sourceRig().rig;
+  core::Mesh copy = src.mesh;
+  copy.positions = 0.0108 * src.mesh.positions;
+  auto result = core::transferRig(preparedSource(), copy, sourceRig().landmarks, "copy");
+  ASSERT_TRUE(result) << result.error().message;
+  EXPECT_TRUE(result->report.scale_applied);
+  EXPECT_NEAR(result->report.delta_scale, 0.0108, 1e-12);
+  ASSERT_EQ(result->report.warnings.size(), 1u);
+  EXPECT_NE(result->report.warnings[0].find("times the size of the source (a scaled copy)"), std::string::npos);
+}
+
+// A face shaped differently can feign a rotation (a face leaning forward
+// "tilts" in a least-squares fit) as large as the angle of its non-rigid
+// residual; only a rotation clearly beyond that is read as a pose and turns
+// the deltas.
+TEST(TransferRig, RotationFeignedByShapeIsNotAppliedButAPoseIs) {
+  const core::Mesh leaning = leaningFace();
   auto shape = core::transferRig(preparedSource(), leaning, sourceRig().landmarks, "leaning");
   ASSERT_TRUE(shape) << shape.error().message;
   EXPECT_GT(shape->report.global_rotation_deg, 8.0);  // beyond min_rotation_deg alone
@@ -355,6 +392,9 @@ TEST(TransferRig, RotationFeignedByShapeIsNotAppliedButAPoseIs) {
   EXPECT_NEAR(pose->report.rotation_threshold_deg, shape->report.rotation_threshold_deg, 1e-6);
 }
 
+// Some exporters write faces inside out (corners in clockwise order). The
+// transfer must see the same surface: the same weights and shapes as onto the
+// correctly wound mesh, which the output keeps as it came.
 TEST(TransferRig, TargetWithReversedWindingGetsTheSameRig) {
   const core::SyntheticRig& target = lipTarget();
   core::Mesh inside_out = target.rig.mesh;
