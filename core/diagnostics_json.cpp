@@ -109,6 +109,9 @@ std::string formatTransferDiagnostics(const TransferReport& r, const Diagnostics
                      {"rotation_applied", r.rotation_applied},
                      {"scale_applied", r.scale_applied},
                      {"delta_scale", r.delta_scale},
+                     {"stretch_ratio", r.stretch_ratio},
+                     {"stretch_threshold", r.stretch_threshold},
+                     {"stretch_applied", r.stretch_applied},
                      {"warnings", r.warnings}};
   Json& t = doc["timings_ms"];
   t["prepare"] = r.prepare_ms;

@@ -29,4 +29,22 @@ Similarity fitSimilarity(const Eigen::MatrixX3d& source, const Eigen::MatrixX3d&
   return s;
 }
 
+std::optional<AffineMap> fitAffine(const Eigen::MatrixX3d& source, const Eigen::MatrixX3d& target) {
+  const Eigen::Index n = source.rows();
+  if (n < 4 || target.rows() != n) return std::nullopt;
+  // Centred, the normal equations are 3x3: linear = (B^T A)(A^T A)^-1.
+  const Eigen::RowVector3d ms = source.colwise().mean(), mt = target.colwise().mean();
+  const Eigen::MatrixX3d a = source.rowwise() - ms, b = target.rowwise() - mt;
+  const Eigen::Matrix3d ata = a.transpose() * a;
+  Eigen::JacobiSVD<Eigen::Matrix3d> spread(ata);
+  const Eigen::Vector3d sv = spread.singularValues();  // squared spreads along the principal axes
+  if (!(sv(2) > 1e-12 * sv(0))) return std::nullopt;
+  AffineMap m;
+  m.linear = (b.transpose() * a) * ata.inverse();
+  m.translation = mt.transpose() - m.linear * ms.transpose();
+  const Eigen::MatrixX3d mapped = ((source * m.linear.transpose()).rowwise() + m.translation.transpose()).eval();
+  m.rms_residual = std::sqrt((mapped - target).rowwise().squaredNorm().mean());
+  return m;
+}
+
 }  // namespace core

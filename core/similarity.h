@@ -1,6 +1,9 @@
 // Least-squares similarity transform between point sets (Umeyama 1991):
-// target ~= scale * rotation * source + translation.
+// target ~= scale * rotation * source + translation; and the least-squares
+// affine map.
 #pragma once
+
+#include <optional>
 
 #include <Eigen/Core>
 
@@ -16,5 +19,16 @@ struct Similarity {
 
 // source, target: #N by 3 corresponding points (N >= 3, not collinear).
 Similarity fitSimilarity(const Eigen::MatrixX3d& source, const Eigen::MatrixX3d& target);
+
+struct AffineMap {
+  Eigen::Matrix3d linear = Eigen::Matrix3d::Identity();  // target ~= linear * source + translation
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+  double rms_residual = 0.0;  // rms of the fit's misfit over the points, target units
+};
+
+// source, target: #N by 3 corresponding points. Empty when the source points
+// do not span 3D (fewer than 4, or within 1e-6 of their spread of a plane),
+// where the map across the plane is undetermined.
+std::optional<AffineMap> fitAffine(const Eigen::MatrixX3d& source, const Eigen::MatrixX3d& target);
 
 }  // namespace core

@@ -1,4 +1,5 @@
 #include <Eigen/LU>
+#include <Eigen/SVD>
 
 #include "core/transfer.h"
 
@@ -135,17 +136,52 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   // Rounding-level rotations and scales (an untransformed copy) stay unapplied.
   const double shaped = options.shape_residual_deg > 0.0 ? std::min(1.0, residual_deg / options.shape_residual_deg) : 1.0;
   constexpr double kRoundingDeg = 1e-4, kRoundingLogScale = 1e-9;
+  // A face stretched as a whole (an affine map of the source's shape: twice
+  // as wide) takes its deltas stretched the same way, the landmarks' affine
+  // map being the local deformation everywhere. An identity is no such map:
+  // its landmarks miss the best affine fit, and the anisotropy its shape
+  // feigns stays within a few times that misfit (ICT identities, also
+  // exaggerated 3x: log anisotropy up to 3.9x the misfit ratio; a stretched
+  // identity 15x, a stretched copy of the source without bound).
+  Eigen::Matrix3d stretch = Eigen::Matrix3d::Identity();
+  if (options.adaptation == ShapeAdaptation::kRotation && options.min_stretch_ratio > 0.0) {
+    if (const std::optional<AffineMap> affine = fitAffine(src_landmarks, tgt_landmarks)) {
+      const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::Matrix3d>(affine->linear).singularValues();
+      const double det = affine->linear.determinant();
+      if (det > 0.0 && sv(2) > 0.0 && spread > 0.0) {
+        report.stretch_ratio = sv(0) / sv(2);
+        const double misfit = affine->rms_residual / (std::cbrt(det) * spread);
+        const double misfit_deg = std::atan(misfit) * 180.0 / std::numbers::pi;
+        const double shaped_otherwise =
+            options.shape_residual_deg > 0.0 ? std::min(1.0, misfit_deg / options.shape_residual_deg) : 1.0;
+        const double threshold = std::max({options.min_stretch_ratio > 1.0
+                                               ? shaped_otherwise * std::log(options.min_stretch_ratio)
+                                               : 0.0,
+                                           options.shape_stretch_factor * misfit, kRoundingLogScale});
+        report.stretch_threshold = std::exp(threshold);
+        report.stretch_applied = std::log(report.stretch_ratio) >= threshold;
+      }
+      if (report.stretch_applied) {
+        stretch = affine->linear;
+        char ratio[32];
+        std::snprintf(ratio, sizeof ratio, "%.3g", report.stretch_ratio);
+        report.warnings.push_back(target_label + " is the source's shape stretched (" + ratio +
+                                  "x more along one axis than another): its deltas and animated joint translations "
+                                  "were mapped by the landmarks' affine map");
+      }
+    }
+  }
   report.rotation_threshold_deg = std::max(
       {shaped * options.min_rotation_deg, options.shape_rotation_factor * residual_deg, kRoundingDeg});
-  report.rotation_applied = report.global_rotation_deg >= report.rotation_threshold_deg;
+  report.rotation_applied = !report.stretch_applied && report.global_rotation_deg >= report.rotation_threshold_deg;
   if (!report.rotation_applied) similarity.rotation.setIdentity();
   const double log_scale = similarity.scale > 0.0 ? std::abs(std::log(similarity.scale)) : 0.0;
   const double scale_threshold =
       std::max(options.min_scale_ratio > 1.0 ? shaped * std::log(options.min_scale_ratio) : 0.0, kRoundingLogScale);
   report.scale_applied =
       options.adaptation == ShapeAdaptation::kSimilarity ||
-      (options.adaptation == ShapeAdaptation::kRotation && options.min_scale_ratio > 0.0 && similarity.scale > 0.0 &&
-       log_scale >= scale_threshold);
+      (options.adaptation == ShapeAdaptation::kRotation && !report.stretch_applied && options.min_scale_ratio > 0.0 &&
+       similarity.scale > 0.0 && log_scale >= scale_threshold);
   double delta_scale = report.scale_applied ? similarity.scale : 1.0;
   if (report.scale_applied && options.adaptation == ShapeAdaptation::kRotation) {
     // A scale within 10% of a power of ten is that change of units when the
@@ -176,6 +212,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
     switch (options.adaptation) {
       case ShapeAdaptation::kNone: return Eigen::Matrix3d::Identity();
       case ShapeAdaptation::kRotation:
+        return report.stretch_applied ? stretch : Eigen::Matrix3d(delta_scale * similarity.rotation);
       case ShapeAdaptation::kSimilarity: return delta_scale * similarity.rotation;
       case ShapeAdaptation::kLocal: return smooth_map->jacobian(p);
     }

@@ -59,6 +59,17 @@ struct TransferOptions {
   // that a copy of the source's shape (residual 0) is turned and scaled by any
   // similarity, however small. 0: the floors always hold in full.
   double shape_residual_deg = 1.0;
+  // kRotation: a target whose landmarks are an affine map of the source's
+  // stretched at least this ratio more along one axis than another, and by
+  // more than shape_stretch_factor times the map's misfit (log ratio against
+  // rms misfit over spread) can feign, has its deltas and animated joint
+  // translations mapped by that affine map (a face twice as wide: twice as
+  // far sideways). The ratio floor shrinks like the ones above for a near
+  // affine copy of the source (misfit angle under shape_residual_deg). ICT
+  // identities: ratios 1.03-1.16 (1.53 exaggerated 3x), log ratio at most 3.9
+  // times their misfit. 0: never.
+  double min_stretch_ratio = 1.5;
+  double shape_stretch_factor = 8.0;
   // kLocal: regularisation of the smoothed map, fraction of the source diagonal.
   double local_smoothing = 0.5;
   double exaggeration = 1.0;                      // shapes and animated deltas
@@ -99,6 +110,13 @@ struct TransferReport {
   double rotation_threshold_deg = 0.0;
   bool rotation_applied = false;     // deltas turned (global_rotation_deg >= rotation_threshold_deg)
   bool scale_applied = false;        // deltas scaled (kSimilarity, or kRotation beyond min_scale_ratio, shrunk alike)
+  // kRotation: largest over smallest singular value of the landmarks' affine
+  // map (1 when not measured), the ratio it had to reach, and whether deltas
+  // were mapped by it (min_stretch_ratio); then the rotation and scale above
+  // are not applied on their own.
+  double stretch_ratio = 1.0;
+  double stretch_threshold = 0.0;
+  bool stretch_applied = false;
   // The factor applied to deltas: global_scale, or (kRotation) the power of
   // ten within 10% of it when the rest could be face size (a change of
   // units); 1 when not applied.

@@ -132,11 +132,14 @@ TEST(TransferRig, IsEquivariantUnderRotationTranslationAndUniformScale) {
   }
 }
 
-// `adaptation: local` carries each delta by the local Jacobian of the dense
-// map: on a face twice as wide, a shape moves twice as far sideways, and so
-// do the animated joints. The default leaves the deltas as they are (an
-// identity's deltas do not follow its proportions; docs/ACCURACY.md).
-TEST(TransferRig, LocalAdaptationFollowsTheTargetsProportions) {
+// On a face twice as wide a shape moves twice as far sideways, and so do the
+// animated joints: `adaptation: local` carries each delta by the local
+// Jacobian of the dense map, and the default, seeing the source's shape
+// stretched as a whole (its landmarks an exact affine map of the source's),
+// by that affine map. A face shaped otherwise keeps its deltas under the
+// default (an identity's deltas do not follow its proportions;
+// docs/ACCURACY.md, and RotationFeignedByShapeIsNotAppliedButAPoseIs).
+TEST(TransferRig, ShapesAndJointsFollowAFaceStretchedAsAWhole) {
   const core::Rig& src = sourceRig().rig;
   const Eigen::Matrix3d wide = Eigen::Vector3d(2.0, 1.0, 1.0).asDiagonal();
   core::Mesh target = src.mesh;
@@ -145,9 +148,14 @@ TEST(TransferRig, LocalAdaptationFollowsTheTargetsProportions) {
   core::TransferOptions local;
   local.adaptation = core::ShapeAdaptation::kLocal;
   auto adapted = core::transferRig(preparedSource(), target, sourceRig().landmarks, "wide", local);
-  auto raw = core::transferRig(preparedSource(), target, sourceRig().landmarks, "wide");
+  auto stretched = core::transferRig(preparedSource(), target, sourceRig().landmarks, "wide");
   ASSERT_TRUE(adapted) << adapted.error().message;
-  ASSERT_TRUE(raw) << raw.error().message;
+  ASSERT_TRUE(stretched) << stretched.error().message;
+  EXPECT_TRUE(stretched->report.stretch_applied);
+  EXPECT_NEAR(stretched->report.stretch_ratio, 2.0, 1e-6);
+  EXPECT_FALSE(stretched->report.rotation_applied);
+  EXPECT_FALSE(stretched->report.scale_applied);
+  EXPECT_FALSE(adapted->report.stretch_applied);  // local adaptation has its own Jacobians
   const double diag = core::boundingBoxDiagonal(target.positions);
   ASSERT_EQ(adapted->rig.morph_targets.size(), src.morph_targets.size());
   int sideways = 0;
@@ -156,21 +164,25 @@ TEST(TransferRig, LocalAdaptationFollowsTheTargetsProportions) {
     if (d.col(0).cwiseAbs().maxCoeff() > 1e-3 * diag) ++sideways;
     EXPECT_TRUE(matricesNear(adapted->rig.morph_targets[k].position_deltas, d * wide, 1e-4 * diag))
         << src.morph_targets[k].name;
-    EXPECT_TRUE(matricesNear(raw->rig.morph_targets[k].position_deltas, d, 1e-4 * diag)) << src.morph_targets[k].name;
+    EXPECT_TRUE(matricesNear(stretched->rig.morph_targets[k].position_deltas, d * wide, 1e-4 * diag))
+        << src.morph_targets[k].name;
   }
   EXPECT_GT(sideways, 0) << "no shape of the rig moves sideways: the test would prove nothing";
   // Joint translation keys: the delta from rest, in the parent's frame
   // (unrotated in this rig), scaled sideways too.
   int translation_channels = 0;
-  for (std::size_t c = 0; c < src.animations[0].channels.size(); ++c) {
-    const auto& sc = src.animations[0].channels[c];
-    if (sc.path != core::AnimationPath::kTranslation) continue;
-    ++translation_channels;
-    const auto& oc = adapted->rig.animations[0].channels[c];
-    const Eigen::RowVector3d rest = src.nodes[static_cast<std::size_t>(sc.node)].translation.transpose();
-    const Eigen::RowVector3d rest_out = adapted->rig.nodes[static_cast<std::size_t>(sc.node)].translation.transpose();
-    for (Eigen::Index k = 0; k < sc.values.rows(); ++k) {
-      EXPECT_TRUE(matricesNear(oc.values.row(k) - rest_out, (sc.values.row(k) - rest) * wide, 1e-6 * diag)) << "key " << k;
+  for (const auto* result : {&*adapted, &*stretched}) {
+    for (std::size_t c = 0; c < src.animations[0].channels.size(); ++c) {
+      const auto& sc = src.animations[0].channels[c];
+      if (sc.path != core::AnimationPath::kTranslation) continue;
+      ++translation_channels;
+      const auto& oc = result->rig.animations[0].channels[c];
+      const Eigen::RowVector3d rest = src.nodes[static_cast<std::size_t>(sc.node)].translation.transpose();
+      const Eigen::RowVector3d rest_out = result->rig.nodes[static_cast<std::size_t>(sc.node)].translation.transpose();
+      for (Eigen::Index k = 0; k < sc.values.rows(); ++k) {
+        EXPECT_TRUE(matricesNear(oc.values.row(k) - rest_out, (sc.values.row(k) - rest) * wide, 1e-6 * diag))
+            << "key " << k;
+      }
     }
   }
   EXPECT_GT(translation_channels, 0);
@@ -373,6 +385,7 @@ TEST(TransferRig, RotationFeignedByShapeIsNotAppliedButAPoseIs) {
   EXPECT_GT(shape->report.global_rotation_deg, 8.0);  // beyond min_rotation_deg alone
   EXPECT_GT(shape->report.rotation_threshold_deg, shape->report.global_rotation_deg);
   EXPECT_FALSE(shape->report.rotation_applied);
+  EXPECT_FALSE(shape->report.stretch_applied);  // its lower face alone is 1.6x as wide
   core::TransferOptions unadapted;
   unadapted.adaptation = core::ShapeAdaptation::kNone;
   auto raw = core::transferRig(preparedSource(), leaning, sourceRig().landmarks, "leaning", unadapted);
