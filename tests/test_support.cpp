@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <map>
+#include <random>
 #include <sstream>
 #include <utility>
 #include <vector>
@@ -115,6 +116,14 @@ Icosphere unitIcosphere(int levels) {
   mesh.triangles.resize(static_cast<Eigen::Index>(f.size()), 3);
   for (std::size_t i = 0; i < f.size(); ++i) mesh.triangles.row(static_cast<Eigen::Index>(i)) = f[i].transpose();
   return mesh;
+}
+
+Eigen::MatrixX3d randomPoints(int n, unsigned seed, double half_width) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-half_width, half_width);
+  Eigen::MatrixX3d p(n, 3);
+  for (int i = 0; i < n; ++i) p.row(i) << u(rng), u(rng), u(rng);
+  return p;
 }
 
 }  // namespace rigport_test

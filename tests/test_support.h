@@ -55,6 +55,10 @@ Icosphere unitIcosphere(int levels);
 // animation's first channel (core::samplePose + core::poseMesh).
 Eigen::MatrixX3d displacementAtKey(const core::Rig& rig, Eigen::Index key);
 
+// n points drawn uniformly from the cube [-half_width, half_width]^3
+// (std::mt19937 seeded with `seed`: the same points on every machine).
+Eigen::MatrixX3d randomPoints(int n, unsigned seed, double half_width = 1.0);
+
 // Compares two matrices elementwise; the failure names the first (i, j) apart.
 ::testing::AssertionResult matricesNear(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b, double tol);
 

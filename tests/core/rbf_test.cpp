@@ -15,13 +15,8 @@ using rigport_test::matricesNear;
 constexpr core::RbfKernel kKernels[] = {core::RbfKernel::kGaussian, core::RbfKernel::kMultiquadric,
                                         core::RbfKernel::kThinPlate, core::RbfKernel::kLinear};
 
-Eigen::MatrixX3d randomPoints(int n, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(-0.1, 0.1);
-  Eigen::MatrixX3d p(n, 3);
-  for (int i = 0; i < n; ++i) p.row(i) << u(rng), u(rng), u(rng);
-  return p;
-}
+// Points in a 0.2-wide cube (face-sized in metres).
+Eigen::MatrixX3d randomPoints(int n, unsigned seed) { return rigport_test::randomPoints(n, seed, 0.1); }
 
 Eigen::MatrixXd distances(const Eigen::MatrixX3d& a, const Eigen::MatrixX3d& b) {
   Eigen::MatrixXd d(a.rows(), b.rows());

@@ -1,7 +1,5 @@
 #include "core/similarity.h"
 
-#include <random>
-
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
@@ -10,14 +8,7 @@
 namespace {
 
 using rigport_test::matricesNear;
-
-Eigen::MatrixX3d randomPoints(int n, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  Eigen::MatrixX3d p(n, 3);
-  for (int i = 0; i < n; ++i) p.row(i) << u(rng), u(rng), u(rng);
-  return p;
-}
+using rigport_test::randomPoints;
 
 TEST(Similarity, RecoversRotationScaleAndTranslation) {
   const Eigen::MatrixX3d source = randomPoints(20, 1);

@@ -1,7 +1,6 @@
 #include "core/tps.h"
 
 #include <cmath>
-#include <random>
 
 #include <gtest/gtest.h>
 
@@ -10,14 +9,7 @@
 namespace {
 
 using rigport_test::matricesNear;
-
-Eigen::MatrixX3d randomPoints(int n, unsigned seed, double scale = 1.0) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(-scale, scale);
-  Eigen::MatrixX3d p(n, 3);
-  for (int i = 0; i < n; ++i) p.row(i) << u(rng), u(rng), u(rng);
-  return p;
-}
+using rigport_test::randomPoints;
 
 // A smooth non-linear deformation used as ground truth.
 Eigen::MatrixX3d bend(const Eigen::MatrixX3d& p) {
