@@ -140,17 +140,29 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   // as wide) takes its deltas stretched the same way, the landmarks' affine
   // map being the local deformation everywhere. An identity is no such map:
   // its landmarks miss the best affine fit, and the anisotropy its shape
-  // feigns stays within a few times that misfit (ICT identities, also
-  // exaggerated 3x: log anisotropy up to 3.9x the misfit ratio; a stretched
-  // identity 15x, a stretched copy of the source without bound).
+  // feigns stays within about that misfit. The misfit is taken relative to
+  // the landmarks' thinnest principal spread (where the fit is least sure of
+  // the stretch) and per degree of freedom the fit leaves (n - 4 of n per
+  // coordinate): ICT identities, also exaggerated 3x, the cartoon and random
+  // draws of 8-20 landmarks have log anisotropy at most 1.7x that misfit; an
+  // identity stretched 1.6x sideways 4.0x, a stretched copy of the source
+  // without bound. Under kMinStretchLandmarks the fit has too few spare
+  // equations to tell (draws of 4-6 ICT landmarks on identities "fit"
+  // stretches up to 2.1x).
+  constexpr Eigen::Index kMinStretchLandmarks = 8;
   Eigen::Matrix3d stretch = Eigen::Matrix3d::Identity();
-  if (options.adaptation == ShapeAdaptation::kRotation && options.min_stretch_ratio > 0.0) {
+  if (options.adaptation == ShapeAdaptation::kRotation && options.min_stretch_ratio > 0.0 &&
+      src_landmarks.rows() >= kMinStretchLandmarks) {
     if (const std::optional<AffineMap> affine = fitAffine(src_landmarks, tgt_landmarks)) {
       const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::Matrix3d>(affine->linear).singularValues();
       const double det = affine->linear.determinant();
+      const Eigen::MatrixX3d centred = src_landmarks.rowwise() - src_landmarks.colwise().mean();
       if (det > 0.0 && sv(2) > 0.0 && spread > 0.0) {
         report.stretch_ratio = sv(0) / sv(2);
-        const double misfit = affine->rms_residual / (std::cbrt(det) * spread);
+        const auto n = static_cast<double>(src_landmarks.rows());
+        const double thinnest = std::sqrt(
+            Eigen::JacobiSVD<Eigen::Matrix3d>(centred.transpose() * centred / n).singularValues()(2));
+        const double misfit = affine->rms_residual * std::sqrt(n / (n - 4.0)) / (std::cbrt(det) * thinnest);
         const double misfit_deg = std::atan(misfit) * 180.0 / std::numbers::pi;
         const double shaped_otherwise =
             options.shape_residual_deg > 0.0 ? std::min(1.0, misfit_deg / options.shape_residual_deg) : 1.0;

@@ -59,17 +59,18 @@ struct TransferOptions {
   // that a copy of the source's shape (residual 0) is turned and scaled by any
   // similarity, however small. 0: the floors always hold in full.
   double shape_residual_deg = 1.0;
-  // kRotation: a target whose landmarks are an affine map of the source's
-  // stretched at least this ratio more along one axis than another, and by
-  // more than shape_stretch_factor times the map's misfit (log ratio against
-  // rms misfit over spread) can feign, has its deltas and animated joint
-  // translations mapped by that affine map (a face twice as wide: twice as
-  // far sideways). The ratio floor shrinks like the ones above for a near
-  // affine copy of the source (misfit angle under shape_residual_deg). ICT
-  // identities: ratios 1.03-1.16 (1.53 exaggerated 3x), log ratio at most 3.9
-  // times their misfit. 0: never.
+  // kRotation: a target whose landmarks (8 or more) are an affine map of the
+  // source's stretched at least this ratio more along one axis than another,
+  // and by more than shape_stretch_factor times the map's misfit can feign
+  // (log ratio against the rms misfit per remaining degree of freedom over
+  // the landmarks' thinnest principal spread), has its deltas and animated
+  // joint translations mapped by that affine map (a face twice as wide:
+  // twice as far sideways). The ratio floor shrinks like the ones above for
+  // a near affine copy of the source (misfit angle under
+  // shape_residual_deg). ICT identities: ratios 1.03-1.16 (1.53 exaggerated
+  // 3x), log ratio at most 1.5 times their misfit. 0: never.
   double min_stretch_ratio = 1.5;
-  double shape_stretch_factor = 8.0;
+  double shape_stretch_factor = 3.0;
   // kLocal: regularisation of the smoothed map, fraction of the source diagonal.
   double local_smoothing = 0.5;
   double exaggeration = 1.0;                      // shapes and animated deltas

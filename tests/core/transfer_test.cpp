@@ -186,6 +186,13 @@ TEST(TransferRig, ShapesAndJointsFollowAFaceStretchedAsAWhole) {
     }
   }
   EXPECT_GT(translation_channels, 0);
+  // Six landmarks fit almost any affine map closely: too few to tell a
+  // stretch from a shape, so the default leaves the deltas as they are.
+  core::LandmarkSet six;
+  six.landmarks.assign(sourceRig().landmarks.landmarks.begin(), sourceRig().landmarks.landmarks.begin() + 6);
+  auto few = core::transferRig(preparedSource(), target, six, "wide");
+  ASSERT_TRUE(few) << few.error().message;
+  EXPECT_FALSE(few->report.stretch_applied);
 }
 
 TEST(TransferRig, WeightsAreNormalisedPrunedAndShapesSparseOnAnotherFace) {
