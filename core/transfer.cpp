@@ -26,6 +26,139 @@ double unitRatioNear(double scale) {
   return std::abs(std::log(scale / unit)) <= std::log(1.1) ? unit : 0.0;
 }
 
+// The one matrix the default (kRotation) and kSimilarity adaptations map
+// every delta and animated joint translation by, and the rotation the
+// joints' frames turn by, decided from the landmarks alone (source
+// landmarks and their images under the landmark warp). Fills the report's
+// global_*, rotation_*, scale_*, delta_scale and stretch_* fields and
+// warnings.
+struct GlobalAdaptation {
+  Eigen::Matrix3d deltas = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+};
+
+GlobalAdaptation globalAdaptation(const Eigen::MatrixX3d& src_landmarks, const Eigen::MatrixX3d& tgt_landmarks,
+                                  const TransferOptions& options, const std::string& target_label,
+                                  TransferReport& report) {
+  constexpr double kDegrees = 180.0 / std::numbers::pi;
+  auto angleOf = [&](const Eigen::Matrix3d& r) {
+    return std::acos(std::clamp((r.trace() - 1.0) / 2.0, -1.0, 1.0)) * kDegrees;
+  };
+  const Similarity similarity = fitSimilarity(src_landmarks, tgt_landmarks);
+  report.global_scale = similarity.scale;
+  report.global_rotation_deg = angleOf(similarity.rotation);
+  // Residual angle: atan of the landmarks' rms misfit after the similarity
+  // (in source units) over their rms spread about their centroid.
+  const Eigen::MatrixX3d centred = src_landmarks.rowwise() - src_landmarks.colwise().mean();
+  const auto n = static_cast<double>(src_landmarks.rows());
+  const double spread = std::sqrt(centred.rowwise().squaredNorm().mean());
+  const double residual_deg =
+      spread > 0.0 && similarity.scale > 0.0 ? std::atan(similarity.rms_residual / (similarity.scale * spread)) * kDegrees
+                                             : 0.0;
+  // The floors (min_rotation_deg, min_scale_ratio, min_stretch_ratio) are
+  // for faces shaped otherwise than the source, whose identity tilts, sizes
+  // and stretches them; a copy of the source's shape has none, so they
+  // shrink with its residual below shape_residual_deg: a copy is turned,
+  // scaled (and stretched) by any map, however slight. Rounding-level
+  // rotations and scales (an untransformed copy) stay unapplied.
+  auto floorShare = [&](double angle_deg) {
+    return options.shape_residual_deg > 0.0 ? std::min(1.0, angle_deg / options.shape_residual_deg) : 1.0;
+  };
+  constexpr double kRoundingDeg = 1e-4, kRoundingLogScale = 1e-9;
+  auto rotationThreshold = [&](double angle_deg) {
+    return std::max({floorShare(angle_deg) * options.min_rotation_deg, options.shape_rotation_factor * angle_deg,
+                     kRoundingDeg});
+  };
+
+  // A face stretched as a whole (an affine map of the source's shape: twice
+  // as wide) takes its deltas stretched the same way, the landmarks' affine
+  // map being the local deformation everywhere. An identity is no such map:
+  // its landmarks miss the best affine fit, and the anisotropy its shape
+  // feigns stays within about that misfit. The misfit is taken relative to
+  // the landmarks' thinnest principal spread (where the fit is least sure of
+  // the stretch) and per degree of freedom the fit leaves (n - 4 of n per
+  // coordinate): ICT identities, also exaggerated 3x, the cartoon and random
+  // draws of 8-20 landmarks have log anisotropy at most 1.7x that misfit; an
+  // identity stretched 1.6x sideways 4.0x, a stretched copy of the source
+  // without bound. Under kMinStretchLandmarks the fit has too few spare
+  // equations to tell (draws of 4-6 ICT landmarks on identities "fit"
+  // stretches up to 2.1x). The map splits into a rotation and a stretch
+  // (polar decomposition): the rotation turns the joints' frames and the
+  // deltas when it is a pose, by the rule below with the affine map's
+  // misfit for the residual; the stretch always applies.
+  constexpr Eigen::Index kMinStretchLandmarks = 8;
+  std::optional<AffineMap> affine;
+  if (options.adaptation == ShapeAdaptation::kRotation && options.min_stretch_ratio > 0.0 &&
+      src_landmarks.rows() >= kMinStretchLandmarks && spread > 0.0) {
+    affine = fitAffine(src_landmarks, tgt_landmarks);
+  }
+  if (affine && affine->linear.determinant() > 0.0) {
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(affine->linear, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    const Eigen::Vector3d sv = svd.singularValues();
+    const double size = std::cbrt(affine->linear.determinant());
+    const double thinnest =
+        std::sqrt(Eigen::JacobiSVD<Eigen::Matrix3d>(centred.transpose() * centred / n).singularValues()(2));
+    if (sv(2) > 0.0 && thinnest > 0.0) {
+      report.stretch_ratio = sv(0) / sv(2);
+      const double misfit = affine->rms_residual * std::sqrt(n / (n - 4.0)) / (size * thinnest);
+      const double threshold =
+          std::max({options.min_stretch_ratio > 1.0
+                        ? floorShare(std::atan(misfit) * kDegrees) * std::log(options.min_stretch_ratio)
+                        : 0.0,
+                    options.shape_stretch_factor * misfit, kRoundingLogScale});
+      report.stretch_threshold = std::exp(threshold);
+      report.stretch_applied = std::log(report.stretch_ratio) >= threshold;
+    }
+    if (report.stretch_applied) {
+      const Eigen::Matrix3d rotation = svd.matrixU() * svd.matrixV().transpose();  // det +1: det(linear) > 0
+      const Eigen::Matrix3d stretch = rotation.transpose() * affine->linear;      // symmetric positive
+      const double affine_residual_deg = std::atan(affine->rms_residual / (size * spread)) * kDegrees;
+      report.global_rotation_deg = angleOf(rotation);
+      report.rotation_threshold_deg = rotationThreshold(affine_residual_deg);
+      report.rotation_applied = report.global_rotation_deg >= report.rotation_threshold_deg;
+      char ratio[32];
+      std::snprintf(ratio, sizeof ratio, "%.3g", report.stretch_ratio);
+      report.warnings.push_back(target_label + " is the source's shape stretched (" + ratio +
+                                "x more along one axis than another): its deltas and animated joint translations "
+                                "were mapped by the landmarks' affine map");
+      GlobalAdaptation out;
+      if (report.rotation_applied) out.rotation = rotation;
+      out.deltas = out.rotation * stretch;
+      return out;
+    }
+  }
+
+  GlobalAdaptation out;
+  report.rotation_threshold_deg = rotationThreshold(residual_deg);
+  report.rotation_applied = report.global_rotation_deg >= report.rotation_threshold_deg;
+  if (report.rotation_applied) out.rotation = similarity.rotation;
+  const double log_scale = similarity.scale > 0.0 ? std::abs(std::log(similarity.scale)) : 0.0;
+  const double scale_threshold = std::max(
+      options.min_scale_ratio > 1.0 ? floorShare(residual_deg) * std::log(options.min_scale_ratio) : 0.0,
+      kRoundingLogScale);
+  report.scale_applied =
+      options.adaptation == ShapeAdaptation::kSimilarity ||
+      (options.adaptation == ShapeAdaptation::kRotation && options.min_scale_ratio > 0.0 && similarity.scale > 0.0 &&
+       log_scale >= scale_threshold);
+  double delta_scale = report.scale_applied ? similarity.scale : 1.0;
+  if (report.scale_applied && options.adaptation == ShapeAdaptation::kRotation) {
+    // A scale within 10% of a power of ten is that change of units when the
+    // rest could be face size, which the deltas do not follow.
+    const double unit = unitRatioNear(similarity.scale);
+    const bool units = unit > 0.0 && std::abs(std::log(similarity.scale / unit)) < scale_threshold;
+    if (units) delta_scale = unit;
+    char measured[32], applied[32];
+    std::snprintf(measured, sizeof measured, "%.4g", similarity.scale);
+    std::snprintf(applied, sizeof applied, "%.4g", delta_scale);
+    report.warnings.push_back(target_label + " is " + measured + " times the size of the source (" +
+                              (units ? "other units" : "a scaled copy") +
+                              "): its deltas and animated joint translations were scaled by " + applied);
+  }
+  report.delta_scale = delta_scale;
+  out.deltas = delta_scale * out.rotation;
+  return out;
+}
+
 using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
@@ -118,97 +251,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
     src_landmarks.row(i) = source.surface.landmark_positions.row(source.surface.landmarks.indexOf(name));
     tgt_landmarks.row(i) = warp->landmark_warp.apply(Eigen::Vector3d(src_landmarks.row(i).transpose())).transpose();
   }
-  Similarity similarity = fitSimilarity(src_landmarks, tgt_landmarks);
-  report.global_scale = similarity.scale;
-  report.global_rotation_deg =
-      std::acos(std::clamp((similarity.rotation.trace() - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / std::numbers::pi;
-  // Residual angle: atan of the landmarks' rms misfit after the similarity
-  // (in source units) over their rms spread about their centroid.
-  const double spread =
-      std::sqrt((src_landmarks.rowwise() - src_landmarks.colwise().mean()).rowwise().squaredNorm().mean());
-  const double residual_ratio =
-      spread > 0.0 && similarity.scale > 0.0 ? similarity.rms_residual / (similarity.scale * spread) : 0.0;
-  const double residual_deg = std::atan(residual_ratio) * 180.0 / std::numbers::pi;
-  // The floors (min_rotation_deg, min_scale_ratio) are for faces shaped
-  // otherwise than the source, whose identity tilts and sizes them; a copy of
-  // the source's shape has none, so they shrink with the residual below
-  // shape_residual_deg and a copy is turned and scaled by any similarity.
-  // Rounding-level rotations and scales (an untransformed copy) stay unapplied.
-  const double shaped = options.shape_residual_deg > 0.0 ? std::min(1.0, residual_deg / options.shape_residual_deg) : 1.0;
-  constexpr double kRoundingDeg = 1e-4, kRoundingLogScale = 1e-9;
-  // A face stretched as a whole (an affine map of the source's shape: twice
-  // as wide) takes its deltas stretched the same way, the landmarks' affine
-  // map being the local deformation everywhere. An identity is no such map:
-  // its landmarks miss the best affine fit, and the anisotropy its shape
-  // feigns stays within about that misfit. The misfit is taken relative to
-  // the landmarks' thinnest principal spread (where the fit is least sure of
-  // the stretch) and per degree of freedom the fit leaves (n - 4 of n per
-  // coordinate): ICT identities, also exaggerated 3x, the cartoon and random
-  // draws of 8-20 landmarks have log anisotropy at most 1.7x that misfit; an
-  // identity stretched 1.6x sideways 4.0x, a stretched copy of the source
-  // without bound. Under kMinStretchLandmarks the fit has too few spare
-  // equations to tell (draws of 4-6 ICT landmarks on identities "fit"
-  // stretches up to 2.1x).
-  constexpr Eigen::Index kMinStretchLandmarks = 8;
-  Eigen::Matrix3d stretch = Eigen::Matrix3d::Identity();
-  if (options.adaptation == ShapeAdaptation::kRotation && options.min_stretch_ratio > 0.0 &&
-      src_landmarks.rows() >= kMinStretchLandmarks) {
-    if (const std::optional<AffineMap> affine = fitAffine(src_landmarks, tgt_landmarks)) {
-      const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::Matrix3d>(affine->linear).singularValues();
-      const double det = affine->linear.determinant();
-      const Eigen::MatrixX3d centred = src_landmarks.rowwise() - src_landmarks.colwise().mean();
-      if (det > 0.0 && sv(2) > 0.0 && spread > 0.0) {
-        report.stretch_ratio = sv(0) / sv(2);
-        const auto n = static_cast<double>(src_landmarks.rows());
-        const double thinnest = std::sqrt(
-            Eigen::JacobiSVD<Eigen::Matrix3d>(centred.transpose() * centred / n).singularValues()(2));
-        const double misfit = affine->rms_residual * std::sqrt(n / (n - 4.0)) / (std::cbrt(det) * thinnest);
-        const double misfit_deg = std::atan(misfit) * 180.0 / std::numbers::pi;
-        const double shaped_otherwise =
-            options.shape_residual_deg > 0.0 ? std::min(1.0, misfit_deg / options.shape_residual_deg) : 1.0;
-        const double threshold = std::max({options.min_stretch_ratio > 1.0
-                                               ? shaped_otherwise * std::log(options.min_stretch_ratio)
-                                               : 0.0,
-                                           options.shape_stretch_factor * misfit, kRoundingLogScale});
-        report.stretch_threshold = std::exp(threshold);
-        report.stretch_applied = std::log(report.stretch_ratio) >= threshold;
-      }
-      if (report.stretch_applied) {
-        stretch = affine->linear;
-        char ratio[32];
-        std::snprintf(ratio, sizeof ratio, "%.3g", report.stretch_ratio);
-        report.warnings.push_back(target_label + " is the source's shape stretched (" + ratio +
-                                  "x more along one axis than another): its deltas and animated joint translations "
-                                  "were mapped by the landmarks' affine map");
-      }
-    }
-  }
-  report.rotation_threshold_deg = std::max(
-      {shaped * options.min_rotation_deg, options.shape_rotation_factor * residual_deg, kRoundingDeg});
-  report.rotation_applied = !report.stretch_applied && report.global_rotation_deg >= report.rotation_threshold_deg;
-  if (!report.rotation_applied) similarity.rotation.setIdentity();
-  const double log_scale = similarity.scale > 0.0 ? std::abs(std::log(similarity.scale)) : 0.0;
-  const double scale_threshold =
-      std::max(options.min_scale_ratio > 1.0 ? shaped * std::log(options.min_scale_ratio) : 0.0, kRoundingLogScale);
-  report.scale_applied =
-      options.adaptation == ShapeAdaptation::kSimilarity ||
-      (options.adaptation == ShapeAdaptation::kRotation && !report.stretch_applied && options.min_scale_ratio > 0.0 &&
-       similarity.scale > 0.0 && log_scale >= scale_threshold);
-  double delta_scale = report.scale_applied ? similarity.scale : 1.0;
-  if (report.scale_applied && options.adaptation == ShapeAdaptation::kRotation) {
-    // A scale within 10% of a power of ten is that change of units when the
-    // rest could be face size, which the deltas do not follow.
-    const double unit = unitRatioNear(similarity.scale);
-    const bool units = unit > 0.0 && std::abs(std::log(similarity.scale / unit)) < scale_threshold;
-    if (units) delta_scale = unit;
-    char measured[32], applied[32];
-    std::snprintf(measured, sizeof measured, "%.4g", similarity.scale);
-    std::snprintf(applied, sizeof applied, "%.4g", delta_scale);
-    report.warnings.push_back(target_label + " is " + measured + " times the size of the source (" +
-                              (units ? "other units" : "a scaled copy") +
-                              "): its deltas and animated joint translations were scaled by " + applied);
-  }
-  report.delta_scale = delta_scale;
+  const GlobalAdaptation global = globalAdaptation(src_landmarks, tgt_landmarks, options, target_label, report);
   const TpsWarp& dense_map = warp->dense_map ? *warp->dense_map : warp->landmark_warp;
   std::optional<TpsWarp> smooth_map;
   if (options.adaptation == ShapeAdaptation::kLocal) {
@@ -224,8 +267,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
     switch (options.adaptation) {
       case ShapeAdaptation::kNone: return Eigen::Matrix3d::Identity();
       case ShapeAdaptation::kRotation:
-        return report.stretch_applied ? stretch : Eigen::Matrix3d(delta_scale * similarity.rotation);
-      case ShapeAdaptation::kSimilarity: return delta_scale * similarity.rotation;
+      case ShapeAdaptation::kSimilarity: return global.deltas;
       case ShapeAdaptation::kLocal: return smooth_map->jacobian(p);
     }
     return Eigen::Matrix3d::Identity();
@@ -297,7 +339,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
     SkeletonTransferOptions skeleton_options;
     skeleton_options.exaggeration = options.exaggeration;
     skeleton_options.per_joint = options.joint_exaggeration;
-    TransferredSkeleton skeleton = transferSkeleton(src, dense_map, similarity.rotation, adaptationAt, skeleton_options);
+    TransferredSkeleton skeleton = transferSkeleton(src, dense_map, global.rotation, adaptationAt, skeleton_options);
     out.nodes = std::move(skeleton.nodes);
     out.skin = std::move(skeleton.skin);
     if (options.animations) out.animations = std::move(skeleton.animations);

@@ -186,6 +186,30 @@ TEST(TransferRig, ShapesAndJointsFollowAFaceStretchedAsAWhole) {
     }
   }
   EXPECT_GT(translation_channels, 0);
+  // The wide face turned by a pose: the stretch applies and the rotation turns
+  // deltas, joint keys and joint frames (the polar split of the affine map).
+  const Eigen::Matrix3d turn =
+      Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.2, 1.0, 0.1).normalized()).toRotationMatrix();
+  core::Mesh turned = target;
+  turned.positions = (target.positions * turn.transpose()).eval();
+  turned.normals = (target.normals * turn.transpose()).eval();
+  auto posed = core::transferRig(preparedSource(), turned, sourceRig().landmarks, "wide, turned");
+  ASSERT_TRUE(posed) << posed.error().message;
+  EXPECT_TRUE(posed->report.stretch_applied);
+  EXPECT_TRUE(posed->report.rotation_applied);
+  EXPECT_NEAR(posed->report.global_rotation_deg, 0.4 * 180.0 / std::numbers::pi, 1e-6);
+  for (std::size_t k = 0; k < src.morph_targets.size(); ++k) {
+    EXPECT_TRUE(matricesNear(posed->rig.morph_targets[k].position_deltas,
+                             src.morph_targets[k].position_deltas * wide * turn.transpose(), 1e-4 * diag))
+        << src.morph_targets[k].name;
+  }
+  EXPECT_TRUE(matricesNear(jointWorldPositions(posed->rig), (jointWorldPositions(src) * wide * turn.transpose()).eval(),
+                           1e-6 * diag));
+  const Eigen::MatrixX3d posed_wide =
+      core::poseMesh(stretched->rig, core::samplePose(stretched->rig, stretched->rig.animations[0], 0.5));
+  const Eigen::MatrixX3d posed_turned =
+      core::poseMesh(posed->rig, core::samplePose(posed->rig, posed->rig.animations[0], 0.5));
+  EXPECT_TRUE(matricesNear(posed_turned, (posed_wide * turn.transpose()).eval(), 1e-4 * diag));
   // Six landmarks fit almost any affine map closely: too few to tell a
   // stretch from a shape, so the default leaves the deltas as they are.
   core::LandmarkSet six;
