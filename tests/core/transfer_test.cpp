@@ -52,6 +52,14 @@ Eigen::MatrixX3d jointWorldPositions(const core::Rig& rig) {
   return p;
 }
 
+// The mesh turned rigidly about the origin, its normals with it.
+core::Mesh turnedMesh(const core::Mesh& mesh, const Eigen::Matrix3d& turn) {
+  core::Mesh turned = mesh;
+  turned.positions = (mesh.positions * turn.transpose()).eval();
+  turned.normals = (mesh.normals * turn.transpose()).eval();
+  return turned;
+}
+
 TEST(TransferRig, OntoItsOwnMeshComesBackEqual) {
   const core::Rig& src = sourceRig().rig;
   auto result = core::transferRig(preparedSource(), src.mesh, sourceRig().landmarks, "self");
@@ -190,10 +198,7 @@ TEST(TransferRig, ShapesAndJointsFollowAFaceStretchedAsAWhole) {
   // deltas, joint keys and joint frames (the polar split of the affine map).
   const Eigen::Matrix3d turn =
       Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.2, 1.0, 0.1).normalized()).toRotationMatrix();
-  core::Mesh turned = target;
-  turned.positions = (target.positions * turn.transpose()).eval();
-  turned.normals = (target.normals * turn.transpose()).eval();
-  auto posed = core::transferRig(preparedSource(), turned, sourceRig().landmarks, "wide, turned");
+  auto posed = core::transferRig(preparedSource(), turnedMesh(target, turn), sourceRig().landmarks, "wide, turned");
   ASSERT_TRUE(posed) << posed.error().message;
   EXPECT_TRUE(posed->report.stretch_applied);
   EXPECT_TRUE(posed->report.rotation_applied);
@@ -427,10 +432,7 @@ TEST(TransferRig, RotationFeignedByShapeIsNotAppliedButAPoseIs) {
   }
   // The same face turned by 30 degrees: a pose.
   const Eigen::Matrix3d turn = Eigen::AngleAxisd(30.0 * std::numbers::pi / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
-  core::Mesh posed = leaning;
-  posed.positions = (leaning.positions * turn.transpose()).eval();
-  posed.normals = (leaning.normals * turn.transpose()).eval();
-  auto pose = core::transferRig(preparedSource(), posed, sourceRig().landmarks, "posed");
+  auto pose = core::transferRig(preparedSource(), turnedMesh(leaning, turn), sourceRig().landmarks, "posed");
   ASSERT_TRUE(pose) << pose.error().message;
   EXPECT_TRUE(pose->report.rotation_applied);
   EXPECT_NEAR(pose->report.rotation_threshold_deg, shape->report.rotation_threshold_deg, 1e-6);
