@@ -93,7 +93,8 @@ TEST(TransferRig, IsEquivariantUnderRotationTranslationAndUniformScale) {
     Eigen::Vector3d axis;
     double scale;
   };
-  for (const Case& c : {Case{0.4, Eigen::Vector3d(0.2, 1.0, 0.1), 1.7}, Case{0.05, Eigen::Vector3d(1.0, 0.3, -0.2), 1.15},
+  for (const Case& c : {Case{0.4, Eigen::Vector3d(0.2, 1.0, 0.1), 1.7},
+                        Case{0.05, Eigen::Vector3d(1.0, 0.3, -0.2), 1.15},
                         Case{0.1, Eigen::Vector3d(0.0, 0.0, 1.0), 0.8}}) {
     SCOPED_TRACE("angle " + std::to_string(c.angle) + ", scale " + std::to_string(c.scale));
     const Eigen::Matrix3d rotation = Eigen::AngleAxisd(c.angle, c.axis.normalized()).toRotationMatrix();
@@ -117,7 +118,8 @@ TEST(TransferRig, IsEquivariantUnderRotationTranslationAndUniformScale) {
     // Shape deltas rotated and scaled.
     for (std::size_t k = 0; k < out.morph_targets.size(); ++k) {
       const Eigen::MatrixX3d expected = scale * src.morph_targets[k].position_deltas * rotation.transpose();
-      EXPECT_TRUE(matricesNear(out.morph_targets[k].position_deltas, expected, 1e-4 * diag)) << out.morph_targets[k].name;
+      EXPECT_TRUE(matricesNear(out.morph_targets[k].position_deltas, expected, 1e-4 * diag))
+          << out.morph_targets[k].name;
     }
     // Joint translation keys: the delta from rest scaled by the same factor.
     for (std::size_t ch = 0; ch < src.animations[0].channels.size(); ++ch) {
