@@ -402,13 +402,23 @@ struct AccessorValues {
   }
 };
 
+// Where decoded values go: component c of element i at
+// data[i * element_stride + c * component_stride] (row-major values, or a
+// block of rows of a column-major matrix).
+struct DecodeDestination {
+  double* data = nullptr;
+  std::size_t element_stride = 0;
+  std::size_t component_stride = 1;
+};
+
 void decodeElement(const std::uint8_t* src, const ElementLayout& layout, int component_type, bool normalized,
-                   double* dst) {
+                   double* dst, std::size_t component_stride) {
   for (int c = 0; c < layout.columns; ++c) {
     for (int r = 0; r < layout.rows; ++r) {
-      *dst++ = decodeComponent(src + static_cast<std::size_t>(c) * layout.column_stride +
-                                   static_cast<std::size_t>(r) * layout.component_size,
-                               component_type, normalized);
+      *dst = decodeComponent(src + static_cast<std::size_t>(c) * layout.column_stride +
+                                 static_cast<std::size_t>(r) * layout.component_size,
+                             component_type, normalized);
+      dst += component_stride;
     }
   }
 }
@@ -457,9 +467,70 @@ Result<const std::uint8_t*> viewRange(const tinygltf::Model& model, int view_ind
   return data.data() + view.byteOffset + offset;
 }
 
-// Applies accessor.sparse: `values` already holds the dense (or zero) data.
-Status applySparse(const tinygltf::Model& model, const tinygltf::Accessor& accessor, const ElementLayout& layout,
-                   const std::string& what, const std::string& label, AccessorValues& out) {
+// An accessor checked against its bufferViews and buffers, ready to decode:
+// every byte it will read is known to be inside the file, so a caller may
+// size its destination by `count` before decoding.
+struct CheckedAccessor {
+  std::string what;  // "accessor 3 (POSITION)", for messages
+  std::size_t count = 0;
+  int components = 0;
+  ElementLayout layout;
+  int component_type = 0;
+  bool normalized = false;
+  const std::uint8_t* data = nullptr;  // nullptr: no bufferView, all zeros
+  std::size_t stride = 0;
+  // accessor.sparse, when present
+  std::size_t sparse_count = 0;
+  int sparse_index_type = 0;
+  const std::uint8_t* sparse_indices = nullptr;
+  const std::uint8_t* sparse_values = nullptr;
+};
+
+// Checks accessor `index` (any type, stride, normalisation, sparse). `role`
+// says what it is for ("POSITION", "indices") in error messages.
+Result<CheckedAccessor> checkAccessor(const tinygltf::Model& model, int index, const std::string& role,
+                                      const std::string& label) {
+  CheckedAccessor out;
+  out.what = "accessor " + std::to_string(index) + " (" + role + ")";
+  const std::string& what = out.what;
+  if (index < 0 || static_cast<std::size_t>(index) >= model.accessors.size()) {
+    return parseError(label, role + " refers to accessor " + std::to_string(index) + " but the file has " +
+                                 std::to_string(model.accessors.size()));
+  }
+  const tinygltf::Accessor& accessor = model.accessors[static_cast<std::size_t>(index)];
+  out.layout = elementLayout(accessor.type, accessor.componentType);
+  if (out.layout.rows == 0) return parseError(label, what + " has an invalid type");
+  if (out.layout.component_size == 0) {
+    return parseError(label, what + " has unsupported componentType " + std::to_string(accessor.componentType));
+  }
+  out.count = accessor.count;
+  out.components = out.layout.rows * out.layout.columns;
+  out.component_type = accessor.componentType;
+  out.normalized = accessor.normalized;
+  if (accessor.bufferView < 0) {
+    if (accessor.count > kMaxImplicitAccessorCount) {
+      return parseError(label, what + " has no bufferView and claims " + std::to_string(accessor.count) +
+                                   " elements (more than the " + std::to_string(kMaxImplicitAccessorCount) +
+                                   " supported)");
+    }
+  } else {
+    const tinygltf::BufferView* view = static_cast<std::size_t>(accessor.bufferView) < model.bufferViews.size()
+                                           ? &model.bufferViews[static_cast<std::size_t>(accessor.bufferView)]
+                                           : nullptr;
+    out.stride = view && view->byteStride != 0 ? view->byteStride : out.layout.size;
+    if (out.stride < out.layout.size) {
+      return parseError(label, what + " has elements of " + std::to_string(out.layout.size) +
+                                   " bytes but bufferView byteStride " + std::to_string(out.stride));
+    }
+    // This bounds count by the buffer size, so a destination sized by it is
+    // at most a few times the file size.
+    auto data = viewRange(model, accessor.bufferView, accessor.byteOffset,
+                          spanBytes(accessor.count, out.stride, out.layout.size), what, label);
+    if (!data) return data.error();
+    out.data = *data;
+  }
+  if (!accessor.sparse.isSparse) return out;
+
   const auto& sparse = accessor.sparse;
   if (sparse.count < 0 || static_cast<std::size_t>(sparse.count) > accessor.count) {
     return parseError(label, what + " has a sparse count of " + std::to_string(sparse.count) + " for " +
@@ -468,29 +539,62 @@ Status applySparse(const tinygltf::Model& model, const tinygltf::Accessor& acces
   if (sparse.indices.byteOffset < 0 || sparse.values.byteOffset < 0) {
     return parseError(label, what + " has a negative sparse byteOffset");
   }
-  const auto n = static_cast<std::size_t>(sparse.count);
-  const int index_type = sparse.indices.componentType;
-  if (index_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && index_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
-      index_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) {
-    return parseError(label, what + " has sparse indices of invalid componentType " + std::to_string(index_type));
+  out.sparse_count = static_cast<std::size_t>(sparse.count);
+  out.sparse_index_type = sparse.indices.componentType;
+  if (out.sparse_index_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+      out.sparse_index_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+      out.sparse_index_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) {
+    return parseError(label, what + " has sparse indices of invalid componentType " +
+                                 std::to_string(out.sparse_index_type));
   }
-  const std::size_t index_size = static_cast<std::size_t>(componentSize(index_type));
+  const std::size_t index_size = static_cast<std::size_t>(componentSize(out.sparse_index_type));
   auto indices = viewRange(model, sparse.indices.bufferView, static_cast<std::size_t>(sparse.indices.byteOffset),
-                           spanBytes(n, index_size, index_size), what + " sparse indices", label);
+                           spanBytes(out.sparse_count, index_size, index_size), what + " sparse indices", label);
   if (!indices) return indices.error();
   auto values = viewRange(model, sparse.values.bufferView, static_cast<std::size_t>(sparse.values.byteOffset),
-                          spanBytes(n, layout.size, layout.size), what + " sparse values", label);
+                          spanBytes(out.sparse_count, out.layout.size, out.layout.size), what + " sparse values",
+                          label);
   if (!values) return values.error();
+  out.sparse_indices = *indices;
+  out.sparse_values = *values;
+  return out;
+}
 
-  for (std::size_t i = 0; i < n; ++i) {
-    const double index = decodeComponent(*indices + i * index_size, index_type, false);
-    if (index >= static_cast<double>(accessor.count)) {
-      return parseError(label, what + " sparse index " + std::to_string(i) + " is " +
-                                   std::to_string(static_cast<std::uint64_t>(index)) + " but the accessor has " +
-                                   std::to_string(accessor.count) + " elements");
+// Decodes a checked accessor into `dst`, which has room for its count
+// elements: the dense data (or zeros), then the sparse overrides.
+Status decodeAccessor(const CheckedAccessor& a, DecodeDestination dst, const std::string& label) {
+  const std::size_t components = static_cast<std::size_t>(a.components);
+  if (a.data == nullptr) {
+    for (std::size_t i = 0; i < a.count; ++i) {
+      for (std::size_t c = 0; c < components; ++c) dst.data[i * dst.element_stride + c * dst.component_stride] = 0.0;
     }
-    decodeElement(*values + i * layout.size, layout, accessor.componentType, accessor.normalized,
-                  out.values.data() + static_cast<std::size_t>(index) * static_cast<std::size_t>(out.components));
+  } else if (a.component_type == TINYGLTF_COMPONENT_TYPE_FLOAT) {
+    // The common case (positions, normals, morph deltas, weights, keys),
+    // without a component-type switch per value. Float components are 4-byte
+    // aligned, so a matrix's columns follow each other without padding.
+    for (std::size_t i = 0; i < a.count; ++i) {
+      const std::uint8_t* src = a.data + i * a.stride;
+      double* out = dst.data + i * dst.element_stride;
+      for (std::size_t c = 0; c < components; ++c) {
+        out[c * dst.component_stride] = std::bit_cast<float>(readLe32(src + 4 * c));
+      }
+    }
+  } else {
+    for (std::size_t i = 0; i < a.count; ++i) {
+      decodeElement(a.data + i * a.stride, a.layout, a.component_type, a.normalized,
+                    dst.data + i * dst.element_stride, dst.component_stride);
+    }
+  }
+  const std::size_t index_size = static_cast<std::size_t>(componentSize(a.sparse_index_type));
+  for (std::size_t i = 0; i < a.sparse_count; ++i) {
+    const double index = decodeComponent(a.sparse_indices + i * index_size, a.sparse_index_type, false);
+    if (index >= static_cast<double>(a.count)) {
+      return parseError(label, a.what + " sparse index " + std::to_string(i) + " is " +
+                                   std::to_string(static_cast<std::uint64_t>(index)) + " but the accessor has " +
+                                   std::to_string(a.count) + " elements");
+    }
+    decodeElement(a.sparse_values + i * a.layout.size, a.layout, a.component_type, a.normalized,
+                  dst.data + static_cast<std::size_t>(index) * dst.element_stride, dst.component_stride);
   }
   return Ok{};
 }
@@ -499,51 +603,15 @@ Status applySparse(const tinygltf::Model& model, const tinygltf::Accessor& acces
 // `role` says what it is for ("POSITION", "indices") in error messages.
 Result<AccessorValues> readAccessor(const tinygltf::Model& model, int index, const std::string& role,
                                     const std::string& label) {
-  const std::string what = "accessor " + std::to_string(index) + " (" + role + ")";
-  if (index < 0 || static_cast<std::size_t>(index) >= model.accessors.size()) {
-    return parseError(label, role + " refers to accessor " + std::to_string(index) + " but the file has " +
-                                 std::to_string(model.accessors.size()));
-  }
-  const tinygltf::Accessor& accessor = model.accessors[static_cast<std::size_t>(index)];
-  const ElementLayout layout = elementLayout(accessor.type, accessor.componentType);
-  if (layout.rows == 0) return parseError(label, what + " has an invalid type");
-  if (layout.component_size == 0) {
-    return parseError(label, what + " has unsupported componentType " + std::to_string(accessor.componentType));
-  }
-
+  auto checked = checkAccessor(model, index, role, label);
+  if (!checked) return checked.error();
   AccessorValues out;
-  out.count = accessor.count;
-  out.components = layout.rows * layout.columns;
-  const std::size_t components = static_cast<std::size_t>(out.components);
-  if (accessor.bufferView < 0) {
-    if (accessor.count > kMaxImplicitAccessorCount) {
-      return parseError(label, what + " has no bufferView and claims " + std::to_string(accessor.count) +
-                                   " elements (more than the " + std::to_string(kMaxImplicitAccessorCount) +
-                                   " supported)");
-    }
-    out.values.assign(accessor.count * components, 0.0);  // spec: no bufferView means zeros
-  } else {
-    const tinygltf::BufferView* view = static_cast<std::size_t>(accessor.bufferView) < model.bufferViews.size()
-                                           ? &model.bufferViews[static_cast<std::size_t>(accessor.bufferView)]
-                                           : nullptr;
-    const std::size_t stride = view && view->byteStride != 0 ? view->byteStride : layout.size;
-    if (stride < layout.size) {
-      return parseError(label, what + " has elements of " + std::to_string(layout.size) +
-                                   " bytes but bufferView byteStride " + std::to_string(stride));
-    }
-    auto data = viewRange(model, accessor.bufferView, accessor.byteOffset,
-                          spanBytes(accessor.count, stride, layout.size), what, label);
-    if (!data) return data.error();
-    // The range check above bounds count by the buffer size, so this
-    // allocation is at most a few times the file size.
-    out.values.resize(accessor.count * components);
-    for (std::size_t i = 0; i < accessor.count; ++i) {
-      decodeElement(*data + i * stride, layout, accessor.componentType, accessor.normalized,
-                    out.values.data() + i * components);
-    }
-  }
-  if (accessor.sparse.isSparse) {
-    if (auto ok = applySparse(model, accessor, layout, what, label, out); !ok) return ok.error();
+  out.count = checked->count;
+  out.components = checked->components;
+  out.values.resize(out.count * static_cast<std::size_t>(out.components));
+  if (auto ok = decodeAccessor(*checked, {out.values.data(), static_cast<std::size_t>(out.components), 1}, label);
+      !ok) {
+    return ok.error();
   }
   return out;
 }
@@ -1256,37 +1324,42 @@ bool presentInAny(const std::vector<int>& accessors) {
 }
 
 // One attribute of every primitive merged into a #V by `components` matrix
-// (rows of primitives without it stay zero; no rows when no primitive has it).
-// `components` 0 takes the count from the first accessor. Values must be finite.
-Result<Eigen::MatrixXd> readMergedAttribute(const tinygltf::Model& model, const std::vector<int>& accessors,
-                                            const std::vector<PrimitiveRange>& ranges, int components,
-                                            const std::string& role, const std::string& mesh_name,
-                                            const std::string& label) {
-  Eigen::MatrixXd merged;
+// (rows of primitives without it stay zero; no rows when no primitive has it),
+// decoded straight into place. `components` 0 takes the count from the first
+// accessor. Values must be finite.
+template <typename Matrix = Eigen::MatrixXd>
+Result<Matrix> readMergedAttribute(const tinygltf::Model& model, const std::vector<int>& accessors,
+                                   const std::vector<PrimitiveRange>& ranges, int components, const std::string& role,
+                                   const std::string& mesh_name, const std::string& label) {
+  Matrix merged;
   for (std::size_t p = 0; p < accessors.size(); ++p) {
     if (accessors[p] < 0) continue;
     const std::string what = mesh_name + " primitive " + std::to_string(p) + " " + role;
-    auto values = readAccessor(model, accessors[p], role, label);
-    if (!values) return values.error();
-    if (components == 0) components = values->components;
-    if (values->components != components) {
-      return parseError(label, what + " has " + std::to_string(values->components) +
+    auto checked = checkAccessor(model, accessors[p], role, label);
+    if (!checked) return checked.error();
+    if (components == 0) components = checked->components;
+    if (checked->components != components) {
+      return parseError(label, what + " has " + std::to_string(checked->components) +
                                    " components per element, expected " + std::to_string(components));
     }
     const PrimitiveRange range = ranges[p];
-    if (values->count != static_cast<std::size_t>(range.count)) {
-      return parseError(label, what + " has " + std::to_string(values->count) + " elements but POSITION has " +
+    if (checked->count != static_cast<std::size_t>(range.count)) {
+      return parseError(label, what + " has " + std::to_string(checked->count) + " elements but POSITION has " +
                                    std::to_string(range.count));
     }
-    if (merged.rows() == 0) merged = Eigen::MatrixXd::Zero(vertexTotal(ranges), components);
-    for (Eigen::Index v = 0; v < range.count; ++v) {
-      for (int c = 0; c < components; ++c) {
-        const double x = values->at(static_cast<std::size_t>(v), c);
-        if (!std::isfinite(x)) {
-          return makeError(ErrorCode::kInvalidMesh,
-                           label + ": " + role + " of vertex " + std::to_string(range.offset + v) + " is not finite");
-        }
-        merged(range.offset + v, c) = x;
+    if (merged.rows() == 0) {
+      merged.resize(vertexTotal(ranges), components);
+      if (!presentInAll(accessors)) merged.setZero();
+    }
+    if (auto ok = decodeAccessor(*checked,
+                                 {merged.data() + range.offset, 1, static_cast<std::size_t>(merged.rows())}, label);
+        !ok) {
+      return ok.error();
+    }
+    for (Eigen::Index v = range.offset; v < range.offset + range.count; ++v) {
+      if (!merged.row(v).allFinite()) {
+        return makeError(ErrorCode::kInvalidMesh, label + ": " + role + " of vertex " + std::to_string(v) +
+                                                      " is not finite");
       }
     }
   }
@@ -1448,20 +1521,20 @@ Result<std::vector<MorphTarget>> readMorphTargets(const tinygltf::Model& model, 
   for (std::size_t t = 0; t < count; ++t) {
     const int ti = static_cast<int>(t);
     const std::string role = "morph target " + std::to_string(t);
-    auto positions = readMergedAttribute(model, attributeAccessors(gmesh, "POSITION", ti), ranges, 3,
-                                         role + " POSITION", mesh_name, label);
+    auto positions = readMergedAttribute<Eigen::MatrixX3d>(model, attributeAccessors(gmesh, "POSITION", ti), ranges,
+                                                           3, role + " POSITION", mesh_name, label);
     if (!positions) return positions.error();
-    auto normals = readMergedAttribute(model, attributeAccessors(gmesh, "NORMAL", ti), ranges, 3, role + " NORMAL",
-                                       mesh_name, label);
+    auto normals = readMergedAttribute<Eigen::MatrixX3d>(model, attributeAccessors(gmesh, "NORMAL", ti), ranges, 3,
+                                                         role + " NORMAL", mesh_name, label);
     if (!normals) return normals.error();
     MorphTarget& target = targets[t];
     target.name = names[t];
     if (positions->rows() > 0) {
-      target.position_deltas = *positions;
+      target.position_deltas = std::move(*positions);
     } else {
       target.position_deltas = Eigen::MatrixX3d::Zero(vertexTotal(ranges), 3);  // NORMAL-only target
     }
-    if (normals->rows() > 0) target.normal_deltas = *normals;  // else 0 rows: no NORMAL deltas
+    if (normals->rows() > 0) target.normal_deltas = std::move(*normals);  // else 0 rows: no NORMAL deltas
     for (const tinygltf::Primitive& primitive : gmesh.primitives) {
       for (const auto& [name, accessor] : primitive.targets[t]) {
         if (name != "POSITION" && name != "NORMAL") ignored.insert(name);
@@ -2929,14 +3002,15 @@ Result<LoadedRig> readRigGltf(std::span<const std::uint8_t> bytes, const std::st
 // Like readMesh: .glb / .gltf by extension, else by the GLB magic; a .gltf may
 // use buffer files in its own directory.
 Result<LoadedRig> readRig(const std::filesystem::path& path) {
-  auto bytes = readFileBytes(path);
-  if (!bytes) return bytes.error();
+  auto file = MappedFile::open(path);
+  if (!file) return file.error();
+  const std::span<const std::uint8_t> bytes = file->bytes();
   std::string ext = path.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  const bool magic = bytes->size() >= 4 && std::memcmp(bytes->data(), "glTF", 4) == 0;
+  const bool magic = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
   const bool binary = ext == ".glb" || (ext != ".gltf" && magic);
-  return readRigImpl(*bytes, path.filename().string(), binary, path.parent_path());
+  return readRigImpl(bytes, path.filename().string(), binary, path.parent_path());
 }
 
 Result<std::vector<std::uint8_t>> encodeRigGlb(const Rig& rig, const RigWriteOptions& options) {

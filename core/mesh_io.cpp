@@ -6,6 +6,7 @@
 #include "core/mesh_io.h"
 
 #include <fcntl.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -15,6 +16,7 @@
 #include <cerrno>
 #include <cstring>
 #include <optional>
+#include <utility>
 
 namespace core {
 
@@ -120,15 +122,65 @@ Result<LoadedMesh> readMeshFromMemory(std::span<const std::uint8_t> bytes, const
 
 Result<LoadedMesh> readMesh(const std::filesystem::path& path) {
   const std::string label = path.filename().string();
-  auto bytes = readFileBytes(path);
-  if (!bytes) return bytes.error();
-  auto format = detectMeshFormat(*bytes, path, label);
+  auto file = MappedFile::open(path);
+  if (!file) return file.error();
+  const std::span<const std::uint8_t> bytes = file->bytes();
+  auto format = detectMeshFormat(bytes, path, label);
   if (!format) return format.error();
   // A glTF read from disk may use buffer files beside it.
   if (*format == MeshFormat::kGltf || *format == MeshFormat::kGlb) {
-    return readGltfWithBaseDir(*bytes, label, /*binary=*/*format == MeshFormat::kGlb, path.parent_path());
+    return readGltfWithBaseDir(bytes, label, /*binary=*/*format == MeshFormat::kGlb, path.parent_path());
   }
-  return readMeshFromMemory(*bytes, *format, label);
+  return readMeshFromMemory(bytes, *format, label);
+}
+
+Result<MappedFile> MappedFile::open(const std::filesystem::path& path) {
+  // Below this a read costs no more than a mapping.
+  constexpr off_t kMapFrom = off_t{1} << 20;
+  MappedFile file;
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    const int err = errno;
+    return makeError(ErrorCode::kIo, path.string() + ": cannot open for reading: " + errnoText(err));
+  }
+  struct stat st {};
+  if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size >= kMapFrom) {
+    void* mapping = ::mmap(nullptr, static_cast<std::size_t>(st.st_size), PROT_READ, MAP_PRIVATE, fd, 0);
+    ::close(fd);
+    if (mapping != MAP_FAILED) {
+      // Parsers read front to back.
+      ::madvise(mapping, static_cast<std::size_t>(st.st_size), MADV_SEQUENTIAL);
+      file.mapping_ = mapping;
+      file.data_ = static_cast<const std::uint8_t*>(mapping);
+      file.size_ = static_cast<std::size_t>(st.st_size);
+      return file;
+    }
+  } else {
+    ::close(fd);
+  }
+  auto bytes = readFileBytes(path);
+  if (!bytes) return bytes.error();
+  file.read_ = std::move(*bytes);
+  file.data_ = file.read_.data();
+  file.size_ = file.read_.size();
+  return file;
+}
+
+MappedFile::MappedFile(MappedFile&& other) noexcept { *this = std::move(other); }
+
+MappedFile& MappedFile::operator=(MappedFile&& other) noexcept {
+  if (this == &other) return *this;
+  if (mapping_ != nullptr) ::munmap(mapping_, size_);
+  mapping_ = std::exchange(other.mapping_, nullptr);
+  size_ = std::exchange(other.size_, 0);
+  read_ = std::move(other.read_);
+  data_ = mapping_ != nullptr ? static_cast<const std::uint8_t*>(mapping_) : read_.data();
+  other.data_ = nullptr;
+  return *this;
+}
+
+MappedFile::~MappedFile() {
+  if (mapping_ != nullptr) ::munmap(mapping_, size_);
 }
 
 Result<std::vector<std::uint8_t>> readFileBytes(const std::filesystem::path& path) {

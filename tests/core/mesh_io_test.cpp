@@ -1128,6 +1128,57 @@ TEST(MeshIo, WriteFileBytesReplacesAtomicallyAndLeavesNoTempFiles) {
   EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir), std::filesystem::directory_iterator()), 2);
 }
 
+TEST(MeshIo, MappedFileHoldsTheFileBytesLargeOrSmall) {
+  const auto dir = rigport_test::makeTempDir("mapped");
+  std::vector<std::uint8_t> large(3u << 19);  // 1.5 MB: mapped
+  std::mt19937 rng(7);
+  for (auto& b : large) b = static_cast<std::uint8_t>(rng());
+  ASSERT_TRUE(core::writeFileBytes(dir / "large.bin", large).ok());
+  ASSERT_TRUE(core::writeFileBytes(dir / "small.bin", toBytes("small file")).ok());
+
+  auto mapped = core::MappedFile::open(dir / "large.bin");
+  ASSERT_TRUE(mapped.ok()) << mapped.error().message;
+  EXPECT_TRUE(std::ranges::equal(mapped->bytes(), large));
+  core::MappedFile moved = std::move(*mapped);  // the mapping moves with it
+  EXPECT_TRUE(mapped->bytes().empty());
+  EXPECT_TRUE(std::ranges::equal(moved.bytes(), large));
+  auto small = core::MappedFile::open(dir / "small.bin");
+  ASSERT_TRUE(small.ok());
+  moved = std::move(*small);  // the large mapping is released, the small bytes taken over
+  EXPECT_EQ(std::string(moved.bytes().begin(), moved.bytes().end()), "small file");
+
+  const auto missing = core::MappedFile::open(dir / "nope.bin");
+  ASSERT_FALSE(missing.ok());
+  EXPECT_EQ(missing.error().code, ErrorCode::kIo);
+  EXPECT_NE(missing.error().message.find((dir / "nope.bin").string()), std::string::npos);
+}
+
+TEST(MeshIo, ReadMeshReadsALargeFileInPlace) {
+  // 40k vertices: a GLB over the size from which MappedFile maps.
+  core::Mesh mesh;
+  const int n = 200;
+  mesh.positions.resize(n * n, 3);
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) mesh.positions.row(i * n + j) << i, j, 0.25 * ((i * j) % 7);  // exact in float
+  }
+  mesh.triangles.resize(2 * (n - 1) * (n - 1), 3);
+  int t = 0;
+  for (int i = 0; i + 1 < n; ++i) {
+    for (int j = 0; j + 1 < n; ++j) {
+      const int v = i * n + j;
+      mesh.triangles.row(t++) << v, v + n, v + 1;
+      mesh.triangles.row(t++) << v + 1, v + n, v + n + 1;
+    }
+  }
+  const auto path = rigport_test::makeTempDir("large") / "grid.glb";
+  ASSERT_TRUE(core::writeMeshGlb(mesh, path).ok());
+  ASSERT_GE(std::filesystem::file_size(path), std::uintmax_t{1} << 20);
+  auto loaded = core::readMesh(path);
+  ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+  EXPECT_TRUE(rigport_test::matricesNear(loaded->mesh.positions, mesh.positions, 0.0));
+  EXPECT_EQ(loaded->mesh.triangles, mesh.triangles);
+}
+
 TEST(MeshIo, WriteMeshGlbThenReadMesh) {
   const auto path = rigport_test::makeTempDir("glb") / "tet.glb";
   const core::Mesh mesh = makeTetrahedron();
