@@ -3,7 +3,8 @@
 // orientation (turned by the global rotation between the faces), inverse bind
 // matrices are recomputed so the target rest mesh is the bind pose; joint
 // translation keys are mapped by the local adaptation in the parent's frame,
-// rotations and morph-weight keys are kept.
+// rotations and morph-weight keys are kept. Movement exaggeration (papers 000
+// sec. 5.4.2) scales each animated joint's motion away from its rest pose.
 #pragma once
 
 #include <functional>
@@ -16,22 +17,33 @@
 
 namespace core {
 
-struct SkeletonTransferOptions {
-  double exaggeration = 1.0;                // scales animated translation deltas
-  std::map<std::string, double> per_joint;  // overrides `exaggeration` by joint (node) name
-};
-
 struct TransferredSkeleton {
   std::vector<Node> nodes;
   std::optional<Skin> skin;
-  std::vector<Animation> animations;
   int moved_nodes = 0;
 };
 
 // `rotation`: global rotation source -> target (orientation of moved joints).
-// `adaptation(p)`: 3x3 map of a world-space delta at source point p.
-TransferredSkeleton transferSkeleton(const Rig& source, const TpsWarp& dense_map, const Eigen::Matrix3d& rotation,
-                                     const std::function<Eigen::Matrix3d(const Eigen::Vector3d&)>& adaptation,
-                                     const SkeletonTransferOptions& options = {});
+// Moved: skin joints and their descendants (attachments, locators).
+TransferredSkeleton transferSkeleton(const Rig& source, const TpsWarp& dense_map, const Eigen::Matrix3d& rotation);
+
+struct AnimationTransferOptions {
+  // Scales animated motion away from the rest pose: translation offsets,
+  // rotation angles (about the same axis) and scale ratios (in log scale) of
+  // the skin joints and their descendants. Morph-weight keys are kept (the
+  // shapes carry their own exaggeration).
+  double exaggeration = 1.0;
+  std::map<std::string, double> per_joint;  // overrides `exaggeration` by joint (node) name
+};
+
+// The source's animations on `nodes` (the transferred skeleton, or the
+// source's own when joints are not transferred). `rotation` and
+// `adaptation(p)` (3x3 map of a world-space delta at source point p) as for
+// the joints: a moved subtree's root turns its rotation keys, translation
+// keys are mapped by J_local = L'_P^-1 A L_P in the parent's frame.
+std::vector<Animation> transferAnimations(const Rig& source, const std::vector<Node>& nodes,
+                                          const Eigen::Matrix3d& rotation,
+                                          const std::function<Eigen::Matrix3d(const Eigen::Vector3d&)>& adaptation,
+                                          const AnimationTransferOptions& options = {});
 
 }  // namespace core

@@ -332,22 +332,31 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   }
   report.weights_ms = msSince(t0);
 
-  // --- joints (+ animations: their translation keys need the same frames)
+  // --- joints
   if (stopBefore("joints", 0.7)) return stopped("joints");
   t0 = Clock::now();
-  if (options.joints && src.skin) {
-    SkeletonTransferOptions skeleton_options;
-    skeleton_options.exaggeration = options.exaggeration;
-    skeleton_options.per_joint = options.joint_exaggeration;
-    TransferredSkeleton skeleton = transferSkeleton(src, dense_map, global.rotation, adaptationAt, skeleton_options);
+  const bool joints_moved = options.joints && src.skin;
+  if (joints_moved) {
+    TransferredSkeleton skeleton = transferSkeleton(src, dense_map, global.rotation);
     out.nodes = std::move(skeleton.nodes);
     out.skin = std::move(skeleton.skin);
-    if (options.animations) out.animations = std::move(skeleton.animations);
     report.joints = static_cast<int>(out.skin->joints.size());
-  } else if (options.animations) {
-    out.animations = src.animations;
   }
   report.joints_ms = msSince(t0);
+
+  // --- animations: on the moved joints, translation keys in their new frames
+  if (stopBefore("animations", 0.72)) return stopped("animations");
+  t0 = Clock::now();
+  if (options.animations) {
+    AnimationTransferOptions animation_options;
+    animation_options.exaggeration = options.exaggeration;
+    animation_options.per_joint = options.joint_exaggeration;
+    const auto unchanged = [](const Eigen::Vector3d&) -> Eigen::Matrix3d { return Eigen::Matrix3d::Identity(); };
+    out.animations = joints_moved
+                         ? transferAnimations(src, out.nodes, global.rotation, adaptationAt, animation_options)
+                         : transferAnimations(src, src.nodes, Eigen::Matrix3d::Identity(), unchanged, animation_options);
+  }
+  report.animations_ms = msSince(t0);
 
   // --- shapes
   if (stopBefore("shapes", 0.75)) return stopped("shapes");

@@ -73,13 +73,16 @@ struct TransferOptions {
   double shape_stretch_factor = 3.0;
   // kLocal: regularisation of the smoothed map, fraction of the source diagonal.
   double local_smoothing = 0.5;
-  double exaggeration = 1.0;                      // shapes and animated deltas
+  // Movement exaggeration (papers 000 sec. 5.4.2): shapes' deltas, and the
+  // skin joints' animated motion away from rest (translation offsets,
+  // rotation angles, scale ratios in log scale).
+  double exaggeration = 1.0;
   std::map<std::string, double> shape_exaggeration;  // by morph target name
   std::map<std::string, double> joint_exaggeration;  // by joint name
   bool diagnostic_attributes = false;             // add _CONFIDENCE and _INPAINTED to the output
   int threads = 0;
   // Called at each stage boundary with the stage about to run ("warp",
-  // "dense_map", "weights", "joints", "shapes", "attributes") and the fraction
+  // "dense_map", "weights", "joints", "animations", "shapes", "attributes") and the fraction
   // of the transfer done (0-1). Returning false stops the transfer there with
   // ErrorCode::kCancelled (cancellation, time limits). Empty = run to the end.
   std::function<bool(std::string_view stage, double fraction)> on_stage;

@@ -839,6 +839,21 @@ TEST(TransferRig, ExaggerationScalesShapesAndAnimatedDeltas) {
   ASSERT_EQ(sc.path, core::AnimationPath::kTranslation);
   const Eigen::RowVector3d rest = src.nodes[3].translation.transpose();
   EXPECT_TRUE(matricesNear(oc.values.row(30) - rest, 3.0 * (sc.values.row(30) - rest), 1e-6 * diag));
+  // The jaw's rotation keys turn three times as far from its rest; the head,
+  // at the global 1, keeps its keys.
+  auto key = [](const core::AnimationChannel& c, Eigen::Index k) {
+    return Eigen::Quaterniond(c.values(k, 3), c.values(k, 0), c.values(k, 1), c.values(k, 2));
+  };
+  const auto& jaw_in = src.animations[0].channels[0];
+  const auto& jaw_out = result->rig.animations[0].channels[0];
+  ASSERT_EQ(jaw_in.path, core::AnimationPath::kRotation);
+  ASSERT_EQ(jaw_in.node, 3);
+  const Eigen::Quaterniond jaw_rest = src.nodes[3].rotation;
+  for (const Eigen::Index k : {5, 15, 25}) {
+    EXPECT_NEAR(jaw_rest.angularDistance(key(jaw_out, k)), 3.0 * jaw_rest.angularDistance(key(jaw_in, k)), 1e-9);
+  }
+  EXPECT_GT(jaw_rest.angularDistance(key(jaw_out, 15)), 0.9);  // 3 x 18 degrees
+  EXPECT_TRUE(matricesNear(result->rig.animations[0].channels[2].values, src.animations[0].channels[2].values, 1e-12));
 }
 
 TEST(TransferRig, BadInputsGiveClearErrors) {

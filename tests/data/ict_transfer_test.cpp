@@ -312,44 +312,57 @@ TEST(IctTransferLimits, TrueCorrespondenceAndTrueDenseCentres) {
   }
 }
 
+// Distance between the upper and lower inner-lip midpoints (papers 000 sec.
+// 5.3.1) on `rig` posed by `clip` at 61 times over 0-2 s.
+std::vector<double> innerLipGaps(const core::Rig& rig, const core::LandmarkSet& set, const core::Animation& clip) {
+  auto at = [&](const char* n, const Eigen::MatrixX3d& posed) {
+    const auto& l = set.landmarks[static_cast<std::size_t>(set.indexOf(n))];
+    if (l.kind == core::LandmarkKind::kVertex) return Eigen::RowVector3d(posed.row(l.vertex));
+    Eigen::RowVector3d p = Eigen::RowVector3d::Zero();
+    for (int k = 0; k < 3; ++k) p += l.barycentric(k) * posed.row(rig.mesh.triangles(l.face, k));
+    return p;
+  };
+  std::vector<double> gaps;
+  for (int k = 0; k <= 60; ++k) {
+    const Eigen::MatrixX3d posed = core::poseMesh(rig, core::samplePose(rig, clip, k / 30.0));
+    gaps.push_back((at("mouth_inner_2", posed) - at("mouth_inner_6", posed)).norm());
+  }
+  return gaps;
+}
+
+// The ICT rig's "jaw_open_head_turn" (the data's manifest names it).
+std::size_t jawClipIndex(const core::Rig& rig) {
+  for (std::size_t a = 0; a < rig.animations.size(); ++a) {
+    if (rig.animations[a].name == "jaw_open_head_turn") return a;
+  }
+  ADD_FAILURE() << "no clip jaw_open_head_turn";
+  return 0;
+}
+const core::Animation& jawClip(const core::Rig& rig) { return rig.animations[jawClipIndex(rig)]; }
+
 TEST(IctTransferAnimation, MouthStrainFollowsTheSourceOverTheSkinnedClip) {
   // Papers 000 sec. 5.3.1: eps = (l1 - l0) / l0 with l the distance between
   // the upper and lower inner-lip midpoints on the posed mesh.
   RIGPORT_REQUIRE_SHARED_DATA(data);
   const core::PreparedRig* source = ictRig(data);
   ASSERT_NE(source, nullptr);
+  const core::Rig& s = source->rig;
+  const std::vector<double> ls = innerLipGaps(s, source->surface.landmarks, jawClip(s));
   for (const std::string name : {"id_s02", "stylized_s01_cartoon", "id_s02_remesh", "stylized_s01_cartoon_remesh"}) {
     auto target = core::readMesh(data / "ict" / "targets" / (name + ".glb"));
     auto landmarks = core::readLandmarks(data / "ict" / "targets" / (name + ".landmarks.json"));
     ASSERT_TRUE(target && landmarks);
     auto out = core::transferRig(*source, target->mesh, *landmarks, name);
     ASSERT_TRUE(out) << out.error().message;
-    auto gap = [](const core::Rig& rig, const core::LandmarkSet& set, const Eigen::MatrixX3d& posed) {
-      auto at = [&](const char* n) {
-        const auto& l = set.landmarks[static_cast<std::size_t>(set.indexOf(n))];
-        if (l.kind == core::LandmarkKind::kVertex) return Eigen::RowVector3d(posed.row(l.vertex));
-        Eigen::RowVector3d p = Eigen::RowVector3d::Zero();
-        for (int k = 0; k < 3; ++k) p += l.barycentric(k) * posed.row(rig.mesh.triangles(l.face, k));
-        return p;
-      };
-      return (at("mouth_inner_2") - at("mouth_inner_6")).norm();
-    };
-    const core::Rig& s = source->rig;
     const core::Rig& t = out->rig;
-    std::size_t clip = 0;
-    while (clip < s.animations.size() && s.animations[clip].name != "jaw_open_head_turn") ++clip;
-    ASSERT_LT(clip, s.animations.size());
-    const double l0s = gap(s, source->surface.landmarks, s.mesh.positions);
-    const double l0t = gap(t, *landmarks, t.mesh.positions);
+    const std::vector<double> lt = innerLipGaps(t, *landmarks, jawClip(t));
+    const double l0s = ls.front(), l0t = lt.front();  // the clip starts at rest
     std::vector<double> es, et, os, ot;
-    for (int k = 0; k <= 60; ++k) {
-      const double time = k / 30.0;
-      const double ls = gap(s, source->surface.landmarks, core::poseMesh(s, core::samplePose(s, s.animations[clip], time)));
-      const double lt = gap(t, *landmarks, core::poseMesh(t, core::samplePose(t, t.animations[clip], time)));
-      es.push_back(ls / l0s - 1);
-      et.push_back(lt / l0t - 1);
-      os.push_back(ls - l0s);
-      ot.push_back((lt - l0t) / out->report.global_scale);
+    for (std::size_t k = 0; k < ls.size(); ++k) {
+      es.push_back(ls[k] / l0s - 1);
+      et.push_back(lt[k] / l0t - 1);
+      os.push_back(ls[k] - l0s);
+      ot.push_back((lt[k] - l0t) / out->report.global_scale);
     }
     const double opening_ratio = *std::max_element(ot.begin(), ot.end()) / *std::max_element(os.begin(), os.end());
     const Eigen::Map<Eigen::VectorXd> a(es.data(), static_cast<Eigen::Index>(es.size())), b(et.data(), static_cast<Eigen::Index>(et.size()));
@@ -365,6 +378,49 @@ TEST(IctTransferAnimation, MouthStrainFollowsTheSourceOverTheSkinnedClip) {
     // opening, normalised by face size, is what the transfer must preserve.
     EXPECT_NEAR(opening_ratio, 1.0, 0.1);
   }
+}
+
+TEST(IctTransferAnimation, JawExaggerationOpensTheMouthFarther) {
+  // Papers 000 sec. 5.4.2: a percentage that exaggerates the movements. The
+  // ICT jaw opens by rotation alone (18 degrees): at 1.5 the transferred
+  // rig's lips move as the plain transfer's do with its jaw keys turned 27
+  // degrees about the same axis.
+  RIGPORT_REQUIRE_SHARED_DATA(data);
+  const core::PreparedRig* source = ictRig(data);
+  ASSERT_NE(source, nullptr);
+  const std::string name = "id_s02_remesh";
+  auto target = core::readMesh(data / "ict" / "targets" / (name + ".glb"));
+  auto landmarks = core::readLandmarks(data / "ict" / "targets" / (name + ".landmarks.json"));
+  ASSERT_TRUE(target && landmarks);
+  core::TransferOptions exaggerated;
+  exaggerated.joint_exaggeration["jaw"] = 1.5;
+  auto plain = core::transferRig(*source, target->mesh, *landmarks, name);
+  auto more = core::transferRig(*source, target->mesh, *landmarks, name, exaggerated);
+  ASSERT_TRUE(plain && more);
+
+  core::Rig turned_farther = plain->rig;
+  core::Animation& clip = turned_farther.animations[jawClipIndex(turned_farther)];
+  int jaw_channels = 0;
+  for (auto& c : clip.channels) {
+    if (c.path != core::AnimationPath::kRotation || turned_farther.nodes[static_cast<std::size_t>(c.node)].name != "jaw") continue;
+    ++jaw_channels;
+    const Eigen::Quaterniond rest = turned_farther.nodes[static_cast<std::size_t>(c.node)].rotation;
+    for (Eigen::Index k = 0; k < c.values.rows(); ++k) {
+      const Eigen::AngleAxisd turn(rest.conjugate() * Eigen::Quaterniond(c.values(k, 3), c.values(k, 0), c.values(k, 1), c.values(k, 2)));
+      c.values.row(k) = (rest * Eigen::Quaterniond(Eigen::AngleAxisd(1.5 * turn.angle(), turn.axis()))).coeffs().transpose();
+    }
+  }
+  ASSERT_EQ(jaw_channels, 1);
+  const std::vector<double> expected = innerLipGaps(turned_farther, *landmarks, jawClip(turned_farther));
+  const std::vector<double> gaps = innerLipGaps(more->rig, *landmarks, jawClip(more->rig));
+  const std::vector<double> before = innerLipGaps(plain->rig, *landmarks, jawClip(plain->rig));
+  for (std::size_t k = 0; k < gaps.size(); ++k) EXPECT_NEAR(gaps[k], expected[k], 1e-9) << "sample " << k;
+  const double ratio = (*std::max_element(gaps.begin(), gaps.end()) - gaps.front()) /
+                       (*std::max_element(before.begin(), before.end()) - before.front());
+  std::printf("[ %-28s ] widest opening with the jaw exaggerated 1.5x: %.3f times\n", name.c_str(), ratio);
+  EXPECT_GT(ratio, 1.3);
+  // The shapes were not asked to change.
+  EXPECT_EQ(more->rig.morph_targets[0].position_deltas, plain->rig.morph_targets[0].position_deltas);
 }
 
 }  // namespace
