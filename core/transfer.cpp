@@ -272,6 +272,16 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
     }
     return Eigen::Matrix3d::Identity();
   };
+  // Animated joint translations keep the source's proportions adjusted to the
+  // target's (papers 000 sec. 4.7.2: a jaw thrust on a face a third larger
+  // moves a third farther): by default the stretch of the dense map's local
+  // Jacobian at the joint (its polar factor), turned by the global rotation
+  // when that is a pose, so that keys and joint frames turn alike.
+  auto jointAdaptationAt = [&](const Eigen::Vector3d& p) -> Eigen::Matrix3d {
+    if (options.adaptation != ShapeAdaptation::kRotation) return adaptationAt(p);
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(dense_map.jacobian(p), Eigen::ComputeFullV);
+    return global.rotation * svd.matrixV() * svd.singularValues().asDiagonal() * svd.matrixV().transpose();
+  };
   std::vector<Eigen::Matrix3d> vertex_adaptation;
   if (options.adaptation == ShapeAdaptation::kLocal) {
     Eigen::MatrixX3d at(target.vertexCount(), 3);
@@ -353,7 +363,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
     animation_options.per_joint = options.joint_exaggeration;
     const auto unchanged = [](const Eigen::Vector3d&) -> Eigen::Matrix3d { return Eigen::Matrix3d::Identity(); };
     out.animations = joints_moved
-                         ? transferAnimations(src, out.nodes, global.rotation, adaptationAt, animation_options)
+                         ? transferAnimations(src, out.nodes, global.rotation, jointAdaptationAt, animation_options)
                          : transferAnimations(src, src.nodes, Eigen::Matrix3d::Identity(), unchanged, animation_options);
   }
   report.animations_ms = msSince(t0);

@@ -22,7 +22,10 @@ namespace core {
 enum class ShapeAdaptation {
   kNone,        // raw copy
   kRotation,    // turned by the global rotation between the faces, and scaled by the global
-                // scale when that is a change of units or size, not of face shape (default)
+                // scale when that is a change of units or size, not of face shape (default);
+                // animated joint translations: the stretch of the dense map's local Jacobian at
+                // the joint (papers 000 sec. 4.7.2: proportions adjusted to the target's), turned
+                // alike
   kSimilarity,  // rotation and the global uniform scale
   kLocal,       // local Jacobian of the smoothed dense map: follows proportions
 };

@@ -368,7 +368,8 @@ core::Mesh leaningFace() {
 // is another face size, which the deltas do not follow (identities'
 // expressions are size independent), also when it comes in other units
 // (0.0108 = 1.08 x 0.01: scaled by 0.01). A copy of the source's own shape
-// has no other size to be: it is scaled by all of it.
+// has no other size to be: it is scaled by all of it. Animated joint
+// translations follow the face's size either way.
 TEST(TransferRig, GlobalScaleIsAppliedForUnitsButNotForFaceSize) {
   // The leaning face brought to the source's size first (its landmarks fit
   // the source's at ~1.2x).
@@ -399,6 +400,19 @@ TEST(TransferRig, GlobalScaleIsAppliedForUnitsButNotForFaceSize) {
       EXPECT_TRUE(matricesNear(result->rig.morph_targets[k].position_deltas,
                                expected_scale * unscaled->rig.morph_targets[k].position_deltas, 1e-4 * diag))
           << "scale " << scale << ": " << unscaled->rig.morph_targets[k].name;
+    }
+    // Animated joint translations keep the source's proportions adjusted to
+    // the target's (papers 000 sec. 4.7.2), face size included: the jaw's
+    // keys move `scale` times as far from its rest.
+    const core::AnimationChannel& keys = result->rig.animations[0].channels[1];
+    const core::AnimationChannel& unscaled_keys = unscaled->rig.animations[0].channels[1];
+    ASSERT_EQ(keys.path, core::AnimationPath::kTranslation);
+    ASSERT_EQ(keys.node, 3);
+    const Eigen::RowVector3d rest = result->rig.nodes[3].translation.transpose();
+    const Eigen::RowVector3d unscaled_rest = unscaled->rig.nodes[3].translation.transpose();
+    for (const Eigen::Index k : {5, 15, 25}) {
+      EXPECT_TRUE(matricesNear(keys.values.row(k) - rest, scale * (unscaled_keys.values.row(k) - unscaled_rest), 1e-4 * diag))
+          << "scale " << scale << ", key " << k;
     }
   }
   const core::Rig& src = sourceRig().rig;
