@@ -4,11 +4,15 @@
 #include "core/transfer.h"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <numbers>
 #include <optional>
+#include <string>
+#include <vector>
 
 #include "core/inpainting.h"
 #include "core/similarity.h"
@@ -159,6 +163,24 @@ GlobalAdaptation globalAdaptation(const Eigen::MatrixX3d& src_landmarks, const E
   return out;
 }
 
+// Names `option` gives gains for that the rig has no `what` of: a typo
+// ("JawOpen") or an options file shared across rigs. A warning each, with the
+// rig's name that differs only in case when there is one.
+void warnUnknownNames(const std::map<std::string, double>& gains, const std::vector<std::string>& names,
+                      const std::string& option, const std::string& what, std::vector<std::string>& warnings) {
+  auto lower = [](std::string text) {
+    std::transform(text.begin(), text.end(), text.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return text;
+  };
+  for (const auto& [name, gain] : gains) {
+    if (std::find(names.begin(), names.end(), name) != names.end()) continue;
+    std::string message = option + " names '" + name + "', but the rig has no " + what + " of that name; ignored";
+    const auto same = std::find_if(names.begin(), names.end(), [&](const std::string& n) { return lower(n) == lower(name); });
+    if (same != names.end()) message += " (did you mean '" + *same + "'?)";
+    warnings.push_back(std::move(message));
+  }
+}
+
 using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
@@ -236,6 +258,16 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   TransferResult result;
   TransferReport& report = result.report;
   report.warp = warp->report;
+  if (options.shapes) {
+    std::vector<std::string> shape_names;
+    for (const auto& t : src.morph_targets) shape_names.push_back(t.name);
+    warnUnknownNames(options.shape_exaggeration, shape_names, "shape_exaggeration", "morph target", report.warnings);
+  }
+  if (options.animations) {
+    std::vector<std::string> node_names;
+    for (const auto& n : src.nodes) node_names.push_back(n.name);
+    warnUnknownNames(options.joint_exaggeration, node_names, "joint_exaggeration", "joint", report.warnings);
+  }
   report.prepare_ms = source.surface.prepare_ms;
   const TargetLocations& locations = warp->locations;
   for (const auto& sp : locations.on_source) report.unlocated_vertices += sp.found() ? 0 : 1;

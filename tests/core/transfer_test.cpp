@@ -845,6 +845,7 @@ TEST(TransferRig, ExaggerationScalesShapesAndAnimatedDeltas) {
   options.joint_exaggeration["jaw"] = 3.0;
   auto result = core::transferRig(preparedSource(), src.mesh, sourceRig().landmarks, "self", options);
   ASSERT_TRUE(result);
+  EXPECT_TRUE(result->report.warnings.empty());  // both names are the rig's
   const double diag = core::boundingBoxDiagonal(src.mesh.positions);
   EXPECT_TRUE(matricesNear(result->rig.morph_targets[0].position_deltas, 2.0 * src.morph_targets[0].position_deltas, 1e-4 * diag));
   EXPECT_TRUE(matricesNear(result->rig.morph_targets[1].position_deltas, src.morph_targets[1].position_deltas, 1e-4 * diag));
@@ -868,6 +869,24 @@ TEST(TransferRig, ExaggerationScalesShapesAndAnimatedDeltas) {
   }
   EXPECT_GT(jaw_rest.angularDistance(key(jaw_out, 15)), 0.9);  // 3 x 18 degrees
   EXPECT_TRUE(matricesNear(result->rig.animations[0].channels[2].values, src.animations[0].channels[2].values, 1e-12));
+}
+
+TEST(TransferRig, ExaggerationOfNamesTheRigLacksIsReported) {
+  const core::Rig& src = sourceRig().rig;
+  core::TransferOptions options;
+  options.shape_exaggeration["JawOpen"] = 2.0;  // the rig's is jawOpen
+  options.joint_exaggeration["chin"] = 1.5;
+  auto result = core::transferRig(preparedSource(), src.mesh, sourceRig().landmarks, "self", options);
+  ASSERT_TRUE(result);
+  const auto& w = result->report.warnings;
+  ASSERT_EQ(w.size(), 2u);
+  EXPECT_NE(w[0].find("shape_exaggeration names 'JawOpen'"), std::string::npos) << w[0];
+  EXPECT_NE(w[0].find("did you mean 'jawOpen'?"), std::string::npos) << w[0];
+  EXPECT_NE(w[1].find("joint_exaggeration names 'chin'"), std::string::npos) << w[1];
+  EXPECT_EQ(w[1].find("did you mean"), std::string::npos) << w[1];
+  // Nothing else changes: the shapes keep their size.
+  EXPECT_TRUE(matricesNear(result->rig.morph_targets[0].position_deltas, src.morph_targets[0].position_deltas,
+                           1e-4 * core::boundingBoxDiagonal(src.mesh.positions)));
 }
 
 TEST(TransferRig, BadInputsGiveClearErrors) {
