@@ -92,9 +92,42 @@ TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_
   const bool by_region = !source_face_regions.empty();
   const Eigen::MatrixX3i& source_triangles = guide_faces.triangles();
   const MovingMeshIndex::Fitted guide_index = guide_faces.fit(guide_positions, source_face_regions);
-  const Eigen::MatrixX3d normals =
+  const Eigen::Index n = target.positions.rows();
+  // The copies of a split point (UV seams, hard edges) are one point of the
+  // surface: matched with one normal (their average where theirs differ) and
+  // judged by the edges around the whole point, so that every copy gets the
+  // same location, confidence and flags. Otherwise a copy judged apart (its
+  // side's edges only, its side's normal) could be inpainted while its twin
+  // keeps its value, and the seam would part when the mesh moves.
+  const std::vector<int> representative = coincidentVertexRepresentatives(target.positions);
+  auto pointOf = [&](Eigen::Index v) -> Eigen::Index {
+    return representative.empty() ? v : representative[static_cast<std::size_t>(v)];
+  };
+  Eigen::MatrixX3d normals =
       target.normals.rows() == target.positions.rows() ? target.normals
                                                         : computeSeamlessVertexNormals(target.positions, target.triangles);
+  if (!representative.empty()) {
+    std::vector<char> differs(static_cast<std::size_t>(n), 0);
+    bool any = false;
+    for (Eigen::Index v = 0; v < n; ++v) {
+      const Eigen::Index r = pointOf(v);
+      if (r != v && normals.row(v) != normals.row(r)) {
+        differs[static_cast<std::size_t>(r)] = 1;
+        any = true;
+      }
+    }
+    if (any) {
+      Eigen::MatrixX3d summed = Eigen::MatrixX3d::Zero(n, 3);
+      for (Eigen::Index v = 0; v < n; ++v) {
+        if (differs[static_cast<std::size_t>(pointOf(v))]) summed.row(pointOf(v)) += normals.row(v);
+      }
+      for (Eigen::Index v = 0; v < n; ++v) {
+        const Eigen::Index r = pointOf(v);
+        const double length = summed.row(r).norm();
+        if (differs[static_cast<std::size_t>(r)] && length > 0.0) normals.row(v) = summed.row(r) / length;
+      }
+    }
+  }
   ClosestPointOptions cp;
   cp.max_normal_angle_deg = options.max_normal_angle_deg;
   cp.threads = options.threads;
@@ -104,7 +137,6 @@ TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_
 
   TargetLocations out;
   out.on_source = guide_index.closestPoints(target.positions, cp, filters);
-  const Eigen::Index n = target.positions.rows();
   out.distance = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::infinity());
   out.normal_cosine = Eigen::VectorXd::Constant(n, -1.0);
   out.confidence = Eigen::VectorXd::Zero(n);
@@ -114,11 +146,11 @@ TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_
   // would disagree with a curved surface's vertex normal by a few degrees.
   const Eigen::MatrixX3d guide_normals = computeVertexNormals(guide_positions, source_triangles);
   const double max_distance = options.low_confidence_distance * boundingBoxDiagonal(target.positions);
-  // Mean incident edge length per target vertex (edges counted from both faces).
+  // Mean incident edge length per target point (edges counted from both faces).
   Eigen::VectorXd edge_sum = Eigen::VectorXd::Zero(n), edge_count = Eigen::VectorXd::Zero(n);
   for (Eigen::Index f = 0; f < target.triangles.rows(); ++f) {
     for (int k = 0; k < 3; ++k) {
-      const int a = target.triangles(f, k), b = target.triangles(f, (k + 1) % 3);
+      const Eigen::Index a = pointOf(target.triangles(f, k)), b = pointOf(target.triangles(f, (k + 1) % 3));
       const double len = (target.positions.row(a) - target.positions.row(b)).norm();
       edge_sum(a) += len;
       edge_sum(b) += len;
@@ -142,7 +174,8 @@ TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_
     out.normal_cosine(v) = c;
     const double distance_term = max_distance > 0.0 ? std::max(0.0, 1.0 - d / max_distance) : (d == 0.0 ? 1.0 : 0.0);
     const double angle_term = cos_limit < 1.0 ? std::clamp((c - cos_limit) / (1.0 - cos_limit), 0.0, 1.0) : 1.0;
-    const double edge = edge_count(v) > 0 ? edge_sum(v) / edge_count(v) : 0.0;
+    const Eigen::Index point = pointOf(v);
+    const double edge = edge_count(point) > 0 ? edge_sum(point) / edge_count(point) : 0.0;
     const bool jumped = options.max_relative_distance > 0.0 && edge > 0.0 && d > options.max_relative_distance * edge;
     out.confidence(v) = jumped ? 0.0 : distance_term * angle_term;
     out.mismatched(v) = jumped ? 1 : 0;

@@ -255,6 +255,70 @@ TEST(TransferRig, WeightsAreNormalisedPrunedAndShapesSparseOnAnotherFace) {
   EXPECT_LT((blink.position_deltas.rowwise().norm().array() > 0).count(), out.mesh.vertexCount() / 10);
 }
 
+// Exported meshes are split at UV seams and hard edges: one surface point,
+// several vertices, each with only its side's faces and, at a hard edge, its
+// own normal. Every copy must get the same weights and deltas, or the seam
+// parts when the mesh moves. Here the head is split down the middle (lips
+// included) and made a hard edge whose copies' normals differ by 40 degrees,
+// more than the 30 that make a lone copy untrustworthy.
+TEST(TransferRig, CopiesOfASplitPointTakeTheSameWeightsAndShapes) {
+  const core::HeadResolution res{.columns = 70, .rows = 66, .alternate_diagonals = true, .jitter = 0.25, .seed = 9};
+  const core::SyntheticRig other = core::generateRig(core::randomHeadShape(9, 0.2), res);
+  core::Mesh split = other.rig.mesh;
+  const Eigen::MatrixX3d smooth = core::computeSeamlessVertexNormals(split.positions, split.triangles);
+  std::vector<char> left(static_cast<std::size_t>(split.vertexCount()), 0), right(left.size(), 0);
+  std::vector<char> right_face(static_cast<std::size_t>(split.triangles.rows()), 0);
+  for (Eigen::Index f = 0; f < split.triangles.rows(); ++f) {
+    double x = 0;
+    for (int k = 0; k < 3; ++k) x += split.positions(split.triangles(f, k), 0);
+    right_face[static_cast<std::size_t>(f)] = x > 0.0;
+    for (int k = 0; k < 3; ++k) (x > 0.0 ? right : left)[static_cast<std::size_t>(split.triangles(f, k))] = 1;
+  }
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> pairs;  // (original, copy)
+  std::vector<Eigen::Index> copy_of(left.size(), -1);
+  for (Eigen::Index v = 0; v < split.vertexCount(); ++v) {
+    if (left[static_cast<std::size_t>(v)] && right[static_cast<std::size_t>(v)]) {
+      copy_of[static_cast<std::size_t>(v)] = split.vertexCount() + static_cast<Eigen::Index>(pairs.size());
+      pairs.emplace_back(v, copy_of[static_cast<std::size_t>(v)]);
+    }
+  }
+  ASSERT_GT(pairs.size(), 40u);
+  const Eigen::Index n = split.vertexCount();
+  const auto extra = static_cast<Eigen::Index>(pairs.size());
+  split.positions.conservativeResize(n + extra, 3);
+  split.normals = smooth;
+  split.normals.conservativeResize(n + extra, 3);
+  split.regions.conservativeResize(n + extra);
+  const Eigen::Matrix3d hard = Eigen::AngleAxisd(40.0 * std::numbers::pi / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  for (const auto& [v, c] : pairs) {
+    split.positions.row(c) = split.positions.row(v);
+    split.regions(c) = split.regions(v);
+    split.normals.row(c) = smooth.row(v);
+    split.normals.row(v) = smooth.row(v) * hard.transpose();  // the lower-indexed copy's side turned
+  }
+  for (Eigen::Index f = 0; f < split.triangles.rows(); ++f) {
+    if (!right_face[static_cast<std::size_t>(f)]) continue;
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Index c = copy_of[static_cast<std::size_t>(split.triangles(f, k))];
+      if (c >= 0) split.triangles(f, k) = static_cast<int>(c);
+    }
+  }
+  auto result = core::transferRig(preparedSource(), split, other.landmarks, "split");
+  ASSERT_TRUE(result) << result.error().message;
+  const core::Rig& out = result->rig;
+  const double diag = core::boundingBoxDiagonal(split.positions);
+  double weight_gap = 0.0, delta_gap = 0.0;
+  for (const auto& [v, c] : pairs) {
+    weight_gap = std::max(weight_gap, (Eigen::VectorXd(out.weights.row(v)) - Eigen::VectorXd(out.weights.row(c))).cwiseAbs().maxCoeff());
+    for (const auto& t : out.morph_targets) delta_gap = std::max(delta_gap, (t.position_deltas.row(v) - t.position_deltas.row(c)).norm());
+  }
+  EXPECT_LT(weight_gap, 1e-9);
+  EXPECT_LT(delta_gap, 1e-9 * diag);
+  // The output keeps the split and each copy's own normal.
+  EXPECT_EQ(out.mesh.triangles, split.triangles);
+  EXPECT_TRUE(out.mesh.normals == split.normals);
+}
+
 // A closed sphere (UV sphere, poles shared) appended to `mesh`; returns its
 // first vertex.
 Eigen::Index appendSphere(core::Mesh& mesh, const Eigen::Vector3d& centre, double radius) {

@@ -312,6 +312,72 @@ TEST(IctTransferLimits, TrueCorrespondenceAndTrueDenseCentres) {
   }
 }
 
+// An identity exported as glTF exports textured faces: split at the UV seams
+// (source_face_uv.glb's topology, 409 points in two copies). It is the same
+// surface as the unsplit identity: the same E, and both copies of every split
+// point take the same weights and deltas (before copies were matched as one
+// point, one pair on id_s01 parted by 0.16 mm).
+TEST(IctTransferSplit, IdentitySplitAtUvSeamsMatchesAsOneSurface) {
+  RIGPORT_REQUIRE_SHARED_DATA(data);
+  const core::PreparedRig* source = ictRig(data);
+  ASSERT_NE(source, nullptr);
+  auto uv = core::readRig(data / "ict" / "source_face_uv.glb");
+  ASSERT_TRUE(uv) << uv.error().message;
+  const auto field = uv->rig.attributes.fields.find("ICT_VERTEX");
+  ASSERT_NE(field, uv->rig.attributes.fields.end());
+  const Eigen::VectorXi ict = field->second.col(0).cast<int>();
+  for (const std::string name : {"id_s01", "id_s02"}) {
+    auto identity = core::readMesh(data / "ict" / "targets" / (name + ".glb"));
+    auto landmarks = core::readLandmarks(data / "ict" / "targets" / (name + ".landmarks.json"));
+    auto gt = core::readRig(data / "ict" / "targets" / (name + ".gt.glb"));
+    ASSERT_TRUE(identity && landmarks && gt);
+    core::Mesh split = uv->rig.mesh;
+    split.normals.resize(0, 3);
+    for (Eigen::Index v = 0; v < split.vertexCount(); ++v) split.positions.row(v) = identity->mesh.positions.row(ict(v));
+    // The same landmarks, by position (vertex indices differ on the split mesh).
+    auto at = core::resolveLandmarks(*landmarks, identity->mesh, name);
+    ASSERT_TRUE(at);
+    core::LandmarkSet by_position = *landmarks;
+    for (std::size_t i = 0; i < by_position.landmarks.size(); ++i) {
+      by_position.landmarks[i].kind = core::LandmarkKind::kPosition;
+      by_position.landmarks[i].position = at->row(static_cast<Eigen::Index>(i)).transpose();
+    }
+    auto whole = core::transferRig(*source, identity->mesh, *landmarks, name);
+    auto parts = core::transferRig(*source, split, by_position, name + " split");
+    ASSERT_TRUE(whole && parts);
+    core::Rig truth = gt->rig;  // the ground truth on the split topology
+    for (auto& t : truth.morph_targets) {
+      Eigen::MatrixX3d d(split.vertexCount(), 3);
+      for (Eigen::Index v = 0; v < split.vertexCount(); ++v) d.row(v) = t.position_deltas.row(ict(v));
+      t.position_deltas = d;
+    }
+    const Errors e_whole = shapeErrors(whole->rig, gt->rig), e_split = shapeErrors(parts->rig, truth);
+    double weight_gap = 0.0, delta_gap = 0.0;
+    std::vector<Eigen::Index> first(static_cast<std::size_t>(identity->mesh.vertexCount()), -1);
+    int pairs = 0;
+    for (Eigen::Index v = 0; v < split.vertexCount(); ++v) {
+      Eigen::Index& f = first[static_cast<std::size_t>(ict(v))];
+      if (f < 0) {
+        f = v;
+        continue;
+      }
+      ++pairs;
+      const core::Rig& r = parts->rig;
+      weight_gap = std::max(weight_gap, (Eigen::VectorXd(r.weights.row(v)) - Eigen::VectorXd(r.weights.row(f))).cwiseAbs().maxCoeff());
+      for (const auto& t : r.morph_targets) delta_gap = std::max(delta_gap, (t.position_deltas.row(v) - t.position_deltas.row(f)).norm());
+    }
+    std::printf("[ %-28s ] split at UV seams (%d points in two copies): E median/worst %.4f/%.4f (unsplit %.4f/%.4f); "
+                "largest gap between copies: weight %.2g, delta %.2g cm\n",
+                name.c_str(), pairs, e_split.median(), e_split.worst(), e_whole.median(), e_whole.worst(), weight_gap,
+                delta_gap);
+    EXPECT_GT(pairs, 0);
+    EXPECT_NEAR(e_split.median(), e_whole.median(), 0.002);
+    EXPECT_NEAR(e_split.worst(), e_whole.worst(), 0.005);
+    EXPECT_LT(weight_gap, 1e-9);
+    EXPECT_LT(delta_gap, 1e-9);
+  }
+}
+
 // Distance between the upper and lower inner-lip midpoints (papers 000 sec.
 // 5.3.1) on `rig` posed by `clip` at 61 times over 0-2 s.
 std::vector<double> innerLipGaps(const core::Rig& rig, const core::LandmarkSet& set, const core::Animation& clip) {
