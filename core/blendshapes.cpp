@@ -11,47 +11,58 @@ namespace core {
 namespace {
 
 // Vertex normals of the displaced target minus the rest ones, recomputed only
-// at vertices next to a moving one (elsewhere the delta is exactly 0). Each
-// such vertex sums its faces in ascending order with the formula of
-// computeVertexNormals, so the values are bit-identical to recomputing the
-// whole mesh (53 shapes did that: most of the shape stage).
-Eigen::MatrixX3d normalDeltas(const Mesh& target, const Eigen::MatrixX3d& base_normals,
+// at vertices next to a moving one (elsewhere the delta is exactly 0). The
+// vertices sharing a representative (`shared`, smoothVertexRepresentatives:
+// the copies of a point split at a UV seam) take the normal of all their
+// faces, so both sides of a seam shade alike under the shape. Each sums its
+// faces in ascending order with the formula of computeVertexNormals, so the
+// values are bit-identical to computeSharedVertexNormals of the whole mesh
+// (53 shapes did that: most of the shape stage).
+Eigen::MatrixX3d normalDeltas(const Mesh& target, const std::vector<int>& shared, const Eigen::MatrixX3d& base_normals,
                               const Eigen::MatrixX3d& deltas) {
   const Eigen::Index nv = target.vertexCount();
   const Eigen::MatrixX3i& tris = target.triangles;
+  auto pointOf = [&](Eigen::Index v) -> std::size_t {
+    return static_cast<std::size_t>(shared.empty() ? v : shared[static_cast<std::size_t>(v)]);
+  };
   std::vector<unsigned char> moving(static_cast<std::size_t>(nv), 0), affected(static_cast<std::size_t>(nv), 0);
   for (Eigen::Index v = 0; v < nv; ++v) moving[static_cast<std::size_t>(v)] = deltas.row(v).isZero(0.0) ? 0 : 1;
-  auto touches = [&](const std::vector<unsigned char>& mark, Eigen::Index f) {
-    return mark[static_cast<std::size_t>(tris(f, 0))] | mark[static_cast<std::size_t>(tris(f, 1))] |
-           mark[static_cast<std::size_t>(tris(f, 2))];
+  auto touches = [&](const std::vector<unsigned char>& mark, Eigen::Index f, bool by_point) {
+    unsigned char any = 0;
+    for (int k = 0; k < 3; ++k) any |= mark[by_point ? pointOf(tris(f, k)) : static_cast<std::size_t>(tris(f, k))];
+    return any;
   };
   for (Eigen::Index f = 0; f < tris.rows(); ++f) {
-    if (!touches(moving, f)) continue;
-    for (int k = 0; k < 3; ++k) affected[static_cast<std::size_t>(tris(f, k))] = 1;
+    if (!touches(moving, f, false)) continue;
+    for (int k = 0; k < 3; ++k) affected[pointOf(tris(f, k))] = 1;
   }
   Eigen::MatrixX3d normals = Eigen::MatrixX3d::Zero(nv, 3);
   for (Eigen::Index f = 0; f < tris.rows(); ++f) {
-    if (!touches(affected, f)) continue;
+    if (!touches(affected, f, true)) continue;
     const Eigen::Vector3d a = target.positions.row(tris(f, 0)) + deltas.row(tris(f, 0));
     const Eigen::Vector3d b = target.positions.row(tris(f, 1)) + deltas.row(tris(f, 1));
     const Eigen::Vector3d c = target.positions.row(tris(f, 2)) + deltas.row(tris(f, 2));
     const Eigen::RowVector3d n = (b - a).cross(c - a).transpose();
     for (int k = 0; k < 3; ++k) {
-      if (affected[static_cast<std::size_t>(tris(f, k))]) normals.row(tris(f, k)) += n;
+      const std::size_t p = pointOf(tris(f, k));
+      if (affected[p]) normals.row(static_cast<Eigen::Index>(p)) += n;
     }
   }
   Eigen::MatrixX3d out = Eigen::MatrixX3d::Zero(nv, 3);
   for (Eigen::Index v = 0; v < nv; ++v) {
-    if (!affected[static_cast<std::size_t>(v)]) continue;
-    // The same expressions on the same matrix rows as computeVertexNormals
-    // (a contiguous vector's norm() may sum in another order).
-    const double len = normals.row(v).norm();
-    if (len > 0.0) normals.row(v) /= len;
-    out.row(v) = normals.row(v) - base_normals.row(v);
+    // Representatives come first in index order: normalised before their copies read them.
+    const auto p = static_cast<Eigen::Index>(pointOf(v));
+    if (!affected[static_cast<std::size_t>(p)]) continue;
+    if (p == v) {
+      // The same expressions on the same matrix rows as computeVertexNormals
+      // (a contiguous vector's norm() may sum in another order).
+      const double len = normals.row(v).norm();
+      if (len > 0.0) normals.row(v) /= len;
+    }
+    out.row(v) = normals.row(p) - base_normals.row(v);
   }
   return out;
 }
-
 
 // Each located target vertex's source corners and weights (corner -1: no
 // location), read once per shape from this compact table (the SurfacePoints
@@ -168,13 +179,16 @@ std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& so
   // transferable: they belong to the source's surface).
   const bool any_normal_deltas =
       std::any_of(source.begin(), source.end(), [](const MorphTarget& s) { return s.normal_deltas.rows() > 0; });
+  const std::vector<int> shared = any_normal_deltas && target.normals.rows() == target.vertexCount()
+                                      ? smoothVertexRepresentatives(target.positions, target.normals)
+                                      : std::vector<int>();
   const Eigen::MatrixX3d rest_normals =
-      any_normal_deltas ? computeVertexNormals(target.positions, target.triangles) : Eigen::MatrixX3d();
+      any_normal_deltas ? computeSharedVertexNormals(target.positions, target.triangles, shared) : Eigen::MatrixX3d();
   parallelFor(static_cast<std::ptrdiff_t>(source.size()), options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     for (std::ptrdiff_t k = begin; k < end; ++k) {
       if (source[static_cast<std::size_t>(k)].normal_deltas.rows() == 0) continue;
       MorphTarget& t = out[static_cast<std::size_t>(k)];
-      t.normal_deltas = normalDeltas(target, rest_normals, t.position_deltas);
+      t.normal_deltas = normalDeltas(target, shared, rest_normals, t.position_deltas);
       // Exact zeros where the shape does not move, so sparse output stays sparse.
       for (Eigen::Index v = 0; v < nt; ++v) {
         if (t.normal_deltas.row(v).cwiseAbs().maxCoeff() < 1e-12) t.normal_deltas.row(v).setZero();

@@ -80,8 +80,8 @@ std::vector<int> coincidentVertexRepresentatives(const Eigen::MatrixX3d& positio
   return representative;
 }
 
-Eigen::MatrixX3d computeSeamlessVertexNormals(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles) {
-  const std::vector<int> representative = coincidentVertexRepresentatives(positions);
+Eigen::MatrixX3d computeSharedVertexNormals(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles,
+                                            const std::vector<int>& representative) {
   if (representative.empty()) return computeVertexNormals(positions, triangles);
   // Faces through each point's representative (at the same position, so the
   // face normals are the same): its normal sums every face around the point,
@@ -91,6 +91,34 @@ Eigen::MatrixX3d computeSeamlessVertexNormals(const Eigen::MatrixX3d& positions,
   Eigen::MatrixX3d normals = computeVertexNormals(positions, welded);
   for (Eigen::Index v = 0; v < normals.rows(); ++v) normals.row(v) = normals.row(representative[static_cast<std::size_t>(v)]);
   return normals;
+}
+
+Eigen::MatrixX3d computeSeamlessVertexNormals(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles) {
+  return computeSharedVertexNormals(positions, triangles, coincidentVertexRepresentatives(positions));
+}
+
+std::vector<int> smoothVertexRepresentatives(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3d& normals) {
+  std::vector<int> representative = coincidentVertexRepresentatives(positions);
+  if (representative.empty()) return representative;
+  // The copies of each point so far, in index order; a copy joins the first
+  // one with its normal.
+  std::vector<std::vector<int>> copies(representative.size());
+  bool shared = false;
+  for (std::size_t v = 0; v < representative.size(); ++v) {
+    std::vector<int>& point = copies[static_cast<std::size_t>(representative[v])];
+    const auto same = std::find_if(point.begin(), point.end(), [&](int u) {
+      return normals.row(u) == normals.row(static_cast<Eigen::Index>(v));
+    });
+    if (same != point.end()) {
+      representative[v] = *same;
+      shared = true;
+    } else {
+      representative[v] = static_cast<int>(v);
+      point.push_back(static_cast<int>(v));
+    }
+  }
+  if (!shared) representative.clear();
+  return representative;
 }
 
 WindingNormals normalsAgreeingWithWinding(const Eigen::MatrixX3d& normals, const Eigen::MatrixX3d& positions,

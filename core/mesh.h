@@ -81,6 +81,19 @@ std::vector<BoundaryLoop> boundaryLoops(const Mesh& mesh);
 // surface. For meshes whose file gives no normals.
 Eigen::MatrixX3d computeSeamlessVertexNormals(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles);
 
+// For each vertex, the lowest-indexed vertex at exactly its position with
+// exactly its normal (itself when none): the copies of a point split at a UV
+// seam, which shade as one surface, share one; copies split at a hard edge
+// (normals that differ) stay apart. Empty when every vertex is its own.
+std::vector<int> smoothVertexRepresentatives(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3d& normals);
+
+// computeVertexNormals with the vertices that share a representative (as
+// from coincidentVertexRepresentatives or smoothVertexRepresentatives; empty:
+// none) sharing one normal, that of all their faces, summed in ascending face
+// order.
+Eigen::MatrixX3d computeSharedVertexNormals(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles,
+                                            const std::vector<int>& representative);
+
 // Vertex normals fit for matching: `normals` (#V by 3 unit) where they point
 // to the side the faces' winding makes the front (positive dot with the
 // area-weighted face normal of computeVertexNormals), that face normal where

@@ -90,6 +90,30 @@ TEST(Mesh, CopiesOfASplitPointShareTheNormalOfAllItsFaces) {
   EXPECT_GT((per_vertex.row(0) - per_vertex.row(4)).norm(), 0.5);
 }
 
+// A point split three ways: two copies with one normal (a UV seam) share the
+// lower index, the third with its own normal (a hard edge) stays apart.
+TEST(Mesh, SmoothRepresentativesJoinCopiesWithOneNormalOnly) {
+  core::Mesh mesh = makeSplitTetrahedron();  // vertex 4: a copy of 0 on face 2
+  mesh.positions.conservativeResize(6, 3);
+  mesh.positions.row(5) = mesh.positions.row(0);
+  for (int k = 0; k < 3; ++k) {
+    if (mesh.triangles(1, k) == 0) mesh.triangles(1, k) = 5;
+  }
+  Eigen::MatrixX3d normals = core::computeSeamlessVertexNormals(mesh.positions, mesh.triangles);
+  normals.row(5) << 0.0, 0.0, 1.0;
+  EXPECT_EQ(core::smoothVertexRepresentatives(mesh.positions, normals), (std::vector<int>{0, 1, 2, 3, 0, 5}));
+  // Shared normals sum the faces of 0 and 4 only; 5 keeps its face.
+  const std::vector<int> shared = core::smoothVertexRepresentatives(mesh.positions, normals);
+  const Eigen::MatrixX3d n = core::computeSharedVertexNormals(mesh.positions, mesh.triangles, shared);
+  const Eigen::MatrixX3d apart = core::computeVertexNormals(mesh.positions, mesh.triangles);
+  EXPECT_TRUE(n.row(4) == n.row(0));
+  EXPECT_TRUE(n.row(5) == apart.row(5));
+  EXPECT_GT((n.row(0) - apart.row(0)).norm(), 0.1);
+  // No copies with one normal: nothing shared.
+  normals.row(4) << 0.0, 1.0, 0.0;
+  EXPECT_TRUE(core::smoothVertexRepresentatives(mesh.positions, normals).empty());
+}
+
 // Against a brute-force search: points on a coarse grid (so many coincide,
 // some three or more times), -0 and +0 as one coordinate.
 TEST(Mesh, CoincidentVerticesShareTheirLowestIndex) {

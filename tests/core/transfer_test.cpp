@@ -255,17 +255,17 @@ TEST(TransferRig, WeightsAreNormalisedPrunedAndShapesSparseOnAnotherFace) {
   EXPECT_LT((blink.position_deltas.rowwise().norm().array() > 0).count(), out.mesh.vertexCount() / 10);
 }
 
-// Exported meshes are split at UV seams and hard edges: one surface point,
-// several vertices, each with only its side's faces and, at a hard edge, its
-// own normal. Every copy must get the same weights and deltas, or the seam
-// parts when the mesh moves. Here the head is split down the middle (lips
-// included) and made a hard edge whose copies' normals differ by 40 degrees,
-// more than the 30 that make a lone copy untrustworthy.
-TEST(TransferRig, CopiesOfASplitPointTakeTheSameWeightsAndShapes) {
-  const core::HeadResolution res{.columns = 70, .rows = 66, .alternate_diagonals = true, .jitter = 0.25, .seed = 9};
-  const core::SyntheticRig other = core::generateRig(core::randomHeadShape(9, 0.2), res);
-  core::Mesh split = other.rig.mesh;
-  const Eigen::MatrixX3d smooth = core::computeSeamlessVertexNormals(split.positions, split.triangles);
+// `mesh` split down the middle (x = 0, lips included) as exporters split a
+// mesh at a UV seam: the vertices of faces on both sides get a second copy
+// (appended) for the faces on the +x side. Positions, normals and regions are
+// copied; `pairs` lists (original, copy).
+struct SplitMesh {
+  core::Mesh mesh;
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> pairs;
+};
+SplitMesh splitDownTheMiddle(const core::Mesh& mesh) {
+  SplitMesh out{mesh, {}};
+  core::Mesh& split = out.mesh;
   std::vector<char> left(static_cast<std::size_t>(split.vertexCount()), 0), right(left.size(), 0);
   std::vector<char> right_face(static_cast<std::size_t>(split.triangles.rows()), 0);
   for (Eigen::Index f = 0; f < split.triangles.rows(); ++f) {
@@ -274,27 +274,22 @@ TEST(TransferRig, CopiesOfASplitPointTakeTheSameWeightsAndShapes) {
     right_face[static_cast<std::size_t>(f)] = x > 0.0;
     for (int k = 0; k < 3; ++k) (x > 0.0 ? right : left)[static_cast<std::size_t>(split.triangles(f, k))] = 1;
   }
-  std::vector<std::pair<Eigen::Index, Eigen::Index>> pairs;  // (original, copy)
   std::vector<Eigen::Index> copy_of(left.size(), -1);
-  for (Eigen::Index v = 0; v < split.vertexCount(); ++v) {
+  const Eigen::Index n = split.vertexCount();
+  for (Eigen::Index v = 0; v < n; ++v) {
     if (left[static_cast<std::size_t>(v)] && right[static_cast<std::size_t>(v)]) {
-      copy_of[static_cast<std::size_t>(v)] = split.vertexCount() + static_cast<Eigen::Index>(pairs.size());
-      pairs.emplace_back(v, copy_of[static_cast<std::size_t>(v)]);
+      copy_of[static_cast<std::size_t>(v)] = n + static_cast<Eigen::Index>(out.pairs.size());
+      out.pairs.emplace_back(v, copy_of[static_cast<std::size_t>(v)]);
     }
   }
-  ASSERT_GT(pairs.size(), 40u);
-  const Eigen::Index n = split.vertexCount();
-  const auto extra = static_cast<Eigen::Index>(pairs.size());
+  const auto extra = static_cast<Eigen::Index>(out.pairs.size());
   split.positions.conservativeResize(n + extra, 3);
-  split.normals = smooth;
   split.normals.conservativeResize(n + extra, 3);
   split.regions.conservativeResize(n + extra);
-  const Eigen::Matrix3d hard = Eigen::AngleAxisd(40.0 * std::numbers::pi / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
-  for (const auto& [v, c] : pairs) {
+  for (const auto& [v, c] : out.pairs) {
     split.positions.row(c) = split.positions.row(v);
+    split.normals.row(c) = split.normals.row(v);
     split.regions(c) = split.regions(v);
-    split.normals.row(c) = smooth.row(v);
-    split.normals.row(v) = smooth.row(v) * hard.transpose();  // the lower-indexed copy's side turned
   }
   for (Eigen::Index f = 0; f < split.triangles.rows(); ++f) {
     if (!right_face[static_cast<std::size_t>(f)]) continue;
@@ -303,12 +298,30 @@ TEST(TransferRig, CopiesOfASplitPointTakeTheSameWeightsAndShapes) {
       if (c >= 0) split.triangles(f, k) = static_cast<int>(c);
     }
   }
+  return out;
+}
+
+// Exported meshes are split at UV seams and hard edges: one surface point,
+// several vertices, each with only its side's faces and, at a hard edge, its
+// own normal. Every copy must get the same weights and deltas, or the seam
+// parts when the mesh moves. Here the head is split down the middle and made
+// a hard edge whose copies' normals differ by 40 degrees, more than the 30
+// that make a lone copy untrustworthy.
+TEST(TransferRig, CopiesOfASplitPointTakeTheSameWeightsAndShapes) {
+  const core::HeadResolution res{.columns = 70, .rows = 66, .alternate_diagonals = true, .jitter = 0.25, .seed = 9};
+  core::SyntheticRig other = core::generateRig(core::randomHeadShape(9, 0.2), res);
+  other.rig.mesh.normals = core::computeSeamlessVertexNormals(other.rig.mesh.positions, other.rig.mesh.triangles);
+  SplitMesh cut = splitDownTheMiddle(other.rig.mesh);
+  core::Mesh& split = cut.mesh;
+  ASSERT_GT(cut.pairs.size(), 40u);
+  const Eigen::Matrix3d hard = Eigen::AngleAxisd(40.0 * std::numbers::pi / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  for (const auto& [v, c] : cut.pairs) split.normals.row(v) = split.normals.row(v) * hard.transpose();  // the lower-indexed copy's side turned
   auto result = core::transferRig(preparedSource(), split, other.landmarks, "split");
   ASSERT_TRUE(result) << result.error().message;
   const core::Rig& out = result->rig;
   const double diag = core::boundingBoxDiagonal(split.positions);
   double weight_gap = 0.0, delta_gap = 0.0;
-  for (const auto& [v, c] : pairs) {
+  for (const auto& [v, c] : cut.pairs) {
     weight_gap = std::max(weight_gap, (Eigen::VectorXd(out.weights.row(v)) - Eigen::VectorXd(out.weights.row(c))).cwiseAbs().maxCoeff());
     for (const auto& t : out.morph_targets) delta_gap = std::max(delta_gap, (t.position_deltas.row(v) - t.position_deltas.row(c)).norm());
   }
@@ -317,6 +330,62 @@ TEST(TransferRig, CopiesOfASplitPointTakeTheSameWeightsAndShapes) {
   // The output keeps the split and each copy's own normal.
   EXPECT_EQ(out.mesh.triangles, split.triangles);
   EXPECT_TRUE(out.mesh.normals == split.normals);
+}
+
+// Under a shape, the two sides of a UV seam (copies with one normal) must
+// shade as one surface: their normal deltas are those of the mesh's normals
+// computed across the seam (computeSeamlessVertexNormals), not of each
+// side's faces alone. The two sides of a hard edge (copies with their own
+// normals) keep their own.
+TEST(TransferRig, NormalDeltasShadeAUvSeamAsOneSurfaceAndKeepHardEdges) {
+  core::Rig rig = sourceRig().rig;
+  const Eigen::MatrixX3d rest = core::computeVertexNormals(rig.mesh.positions, rig.mesh.triangles);
+  for (auto& shape : rig.morph_targets) {
+    shape.normal_deltas = core::computeVertexNormals(rig.mesh.positions + shape.position_deltas, rig.mesh.triangles) - rest;
+  }
+  auto prepared = core::prepareRig(rig, sourceRig().landmarks, "source with normal deltas");
+  ASSERT_TRUE(prepared) << prepared.error().message;
+  const core::HeadResolution res{.columns = 70, .rows = 66, .alternate_diagonals = true, .seed = 5};
+  core::SyntheticRig target = core::generateRig(core::randomHeadShape(5, 0.2), res);
+  target.rig.mesh.normals = core::computeSeamlessVertexNormals(target.rig.mesh.positions, target.rig.mesh.triangles);
+  const SplitMesh seam = splitDownTheMiddle(target.rig.mesh);
+  auto split = core::transferRig(*prepared, seam.mesh, target.landmarks, "uv seam");
+  ASSERT_TRUE(split) << split.error().message;
+  const core::Mesh& mesh = seam.mesh;
+  auto zeroed = [](Eigen::MatrixX3d d) {
+    for (Eigen::Index v = 0; v < d.rows(); ++v) {
+      if (d.row(v).cwiseAbs().maxCoeff() < 1e-12) d.row(v).setZero();
+    }
+    return d;
+  };
+  const Eigen::MatrixX3d base = core::computeSeamlessVertexNormals(mesh.positions, mesh.triangles);
+  const Eigen::MatrixX3d base_apart = core::computeVertexNormals(mesh.positions, mesh.triangles);
+  double apart_gap = 0.0;  // how far each side's own faces would be off at the seam
+  for (const auto& shape : split->rig.morph_targets) {
+    const Eigen::MatrixX3d moved = mesh.positions + shape.position_deltas;
+    EXPECT_TRUE(shape.normal_deltas == zeroed(core::computeSeamlessVertexNormals(moved, mesh.triangles) - base))
+        << shape.name;
+    const Eigen::MatrixX3d apart = core::computeVertexNormals(moved, mesh.triangles) - base_apart;
+    for (const auto& [v, c] : seam.pairs) {
+      EXPECT_TRUE(shape.normal_deltas.row(v) == shape.normal_deltas.row(c)) << shape.name << " vertex " << v;
+      apart_gap = std::max(apart_gap, (apart.row(c) - shape.normal_deltas.row(c)).norm());
+    }
+  }
+  EXPECT_GT(apart_gap, 0.01);
+
+  // The same cut as a hard edge: each side's normal delta is that of its own
+  // faces (the normals of the split mesh computed apart).
+  SplitMesh edge = splitDownTheMiddle(target.rig.mesh);
+  edge.mesh.normals = core::computeVertexNormals(edge.mesh.positions, edge.mesh.triangles);
+  auto hard = core::transferRig(*prepared, edge.mesh, target.landmarks, "hard edge");
+  ASSERT_TRUE(hard);
+  const Eigen::MatrixX3d edge_base = core::computeVertexNormals(edge.mesh.positions, edge.mesh.triangles);
+  for (const auto& shape : hard->rig.morph_targets) {
+    EXPECT_TRUE(shape.normal_deltas ==
+                zeroed(core::computeVertexNormals(edge.mesh.positions + shape.position_deltas, edge.mesh.triangles) -
+                       edge_base))
+        << shape.name;
+  }
 }
 
 // A closed sphere (UV sphere, poles shared) appended to `mesh`; returns its
