@@ -167,8 +167,7 @@ std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& so
     std::vector<unsigned char> moving;
     for (std::ptrdiff_t k = begin; k < end; ++k) {
       const MorphTarget& s = source[static_cast<std::size_t>(k)];
-      const auto found = options.per_shape.find(s.name);
-      const double gain = found != options.per_shape.end() ? found->second : options.exaggeration;
+      const double gain = options.exaggeration.of(s.name);
       out[static_cast<std::size_t>(k)].name = s.name;
       out[static_cast<std::size_t>(k)].position_deltas = gatherDeltas(s, corners, adaptation, gain, moving);
     }

@@ -16,9 +16,8 @@
 namespace core {
 
 struct ShapeTransferOptions {
-  double exaggeration = 1.0;                    // applied to every delta
-  std::map<std::string, double> per_shape;      // overrides `exaggeration` by target name
-  int threads = 0;                              // shapes in parallel; 0 = hardware threads
+  Exaggeration exaggeration;  // gain on every delta, by morph target name
+  int threads = 0;            // shapes in parallel; 0 = hardware threads
 };
 
 // adaptation: #Vt matrices (one per target vertex) or a single one for all.

@@ -61,6 +61,17 @@ struct Animation {
   std::vector<AnimationChannel> channels;
 };
 
+// Movement exaggeration (papers 000 sec. 5.4.2): one gain for everything, or
+// the one given by name (a morph target's, a joint's).
+struct Exaggeration {
+  double gain = 1.0;
+  std::map<std::string, double> by_name;
+  double of(const std::string& name) const {
+    const auto found = by_name.find(name);
+    return found != by_name.end() ? found->second : gain;
+  }
+};
+
 // Vertex attributes beyond positions/normals/TEXCOORD_0 (which live in Mesh).
 struct VertexAttributes {
   std::vector<Eigen::MatrixX2d> extra_uv_sets;     // TEXCOORD_1.. (#V by 2 each)

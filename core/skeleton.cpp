@@ -129,10 +129,6 @@ std::vector<Animation> transferAnimations(const Rig& source, const std::vector<N
   const std::vector<char> moved = skinSubtree(source);
   const std::vector<Eigen::Matrix4d> world = nodeWorldTransforms(source.nodes);
   const std::vector<Eigen::Matrix4d> new_world = nodeWorldTransforms(nodes);
-  auto gainOf = [&](std::size_t i) {
-    const auto found = options.per_joint.find(source.nodes[i].name);
-    return found != options.per_joint.end() ? found->second : options.exaggeration;
-  };
 
   for (auto& animation : animations) {
     for (auto& channel : animation.channels) {
@@ -140,7 +136,7 @@ std::vector<Animation> transferAnimations(const Rig& source, const std::vector<N
       if (channel.path == AnimationPath::kWeights || i >= n || !moved[i]) continue;
       const int p = source.nodes[i].parent;
       const bool cubic = channel.interpolation == Interpolation::kCubicSpline;
-      const double gain = gainOf(i);
+      const double gain = options.exaggeration.of(source.nodes[i].name);
       if (channel.path == AnimationPath::kRotation) {
         const Eigen::Quaterniond rest = source.nodes[i].rotation.normalized();
         if (gain != 1.0) {

@@ -28,14 +28,12 @@ struct TransferredSkeleton {
 TransferredSkeleton transferSkeleton(const Rig& source, const TpsWarp& dense_map, const Eigen::Matrix3d& rotation);
 
 struct AnimationTransferOptions {
-  // Scales animated motion away from the rest pose: translation offsets,
-  // rotation angles (about the same axis) and scale ratios (in log scale) of
-  // the skin joints and their descendants. Morph-weight keys are kept (the
-  // shapes carry their own exaggeration).
-  double exaggeration = 1.0;
-  std::map<std::string, double> per_joint;  // overrides `exaggeration` by joint (node) name
+  // Scales animated motion away from the rest pose, by joint (node) name:
+  // translation offsets, rotation angles (about the same axis) and scale
+  // ratios (in log scale) of the skin joints and their descendants.
+  // Morph-weight keys are kept (the shapes carry their own exaggeration).
+  Exaggeration exaggeration;
 };
-
 // The source's animations on `nodes` (the transferred skeleton, or the
 // source's own when joints are not transferred). `rotation` and
 // `adaptation(p)` (3x3 map of a world-space delta at source point p) as for

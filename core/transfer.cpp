@@ -390,9 +390,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   if (stopBefore("animations", 0.72)) return stopped("animations");
   t0 = Clock::now();
   if (options.animations) {
-    AnimationTransferOptions animation_options;
-    animation_options.exaggeration = options.exaggeration;
-    animation_options.per_joint = options.joint_exaggeration;
+    const AnimationTransferOptions animation_options{{options.exaggeration, options.joint_exaggeration}};
     const auto unchanged = [](const Eigen::Vector3d&) -> Eigen::Matrix3d { return Eigen::Matrix3d::Identity(); };
     out.animations = joints_moved
                          ? transferAnimations(src, out.nodes, global.rotation, jointAdaptationAt, animation_options)
@@ -404,10 +402,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   if (stopBefore("shapes", 0.75)) return stopped("shapes");
   t0 = Clock::now();
   if (options.shapes) {
-    ShapeTransferOptions shape_options;
-    shape_options.exaggeration = options.exaggeration;
-    shape_options.per_shape = options.shape_exaggeration;
-    shape_options.threads = options.threads;
+    const ShapeTransferOptions shape_options{{options.exaggeration, options.shape_exaggeration}, options.threads};
     out.morph_targets = transferMorphTargets(src.morph_targets, src_mesh.triangles, locations, vertex_adaptation,
                                              out.mesh, mismatched_inpainting, shape_options);
     out.morph_default_weights = src.morph_default_weights;

@@ -36,6 +36,21 @@ core::Rig oneJointRig(std::vector<core::AnimationChannel> channels) {
 
 double angleBetween(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) { return a.angularDistance(b); }
 
+// A LINEAR rotation channel on the jaw (node 1), `keys` keys 1 s apart
+// (values to fill).
+core::AnimationChannel jawRotation(int keys) {
+  core::AnimationChannel c;
+  c.node = 1;
+  c.path = core::AnimationPath::kRotation;
+  c.times = Eigen::VectorXd::LinSpaced(keys, 0.0, keys - 1.0);
+  c.values.resize(keys, 4);
+  return c;
+}
+
+Eigen::Quaterniond keyOf(const core::AnimationChannel& c, Eigen::Index k) {
+  return Eigen::Quaterniond(c.values(k, 3), c.values(k, 0), c.values(k, 1), c.values(k, 2));
+}
+
 // The jaw's rotation about an axis through its rest, theta(t) = 0.6 sin(2t)
 // rad, as a cubic spline with exact tangents, keys 0.25 s apart.
 core::AnimationChannel cubicJawRotation(const Eigen::Quaterniond& rest) {
@@ -66,11 +81,7 @@ core::AnimationChannel cubicJawRotation(const Eigen::Quaterniond& rest) {
 }
 
 TEST(AnimationTransfer, ExaggerationTurnsRotationKeysFartherAboutTheSameAxis) {
-  core::AnimationChannel rotation;
-  rotation.node = 1;
-  rotation.path = core::AnimationPath::kRotation;
-  rotation.times = Eigen::VectorXd::LinSpaced(3, 0.0, 1.0);
-  rotation.values.resize(3, 4);
+  core::AnimationChannel rotation = jawRotation(3);
   core::Rig rig = oneJointRig({});
   const Eigen::Quaterniond rest = rig.nodes[1].rotation;
   const Eigen::Vector3d axis = Eigen::Vector3d(0.0, 1.0, 1.0).normalized();
@@ -86,11 +97,11 @@ TEST(AnimationTransfer, ExaggerationTurnsRotationKeysFartherAboutTheSameAxis) {
   rig.animations[0].channels = {rotation, scale};
 
   core::AnimationTransferOptions options;
-  options.per_joint["jaw"] = 2.5;
+  options.exaggeration.by_name["jaw"] = 2.5;
   const auto out = core::transferAnimations(rig, rig.nodes, kIdentity, unchanged, options);
   const core::AnimationChannel& r = out[0].channels[0];
   for (int k = 0; k < 3; ++k) {
-    const Eigen::Quaterniond q(r.values(k, 3), r.values(k, 0), r.values(k, 1), r.values(k, 2));
+    const Eigen::Quaterniond q = keyOf(r, k);
     EXPECT_NEAR(q.norm(), 1.0, 1e-12);
     const Eigen::Quaterniond expected = rest * Eigen::Quaterniond(Eigen::AngleAxisd(2.5 * 0.4 * k, axis));
     EXPECT_LT(angleBetween(q, expected), 1e-12) << "key " << k;
@@ -112,7 +123,7 @@ TEST(AnimationTransfer, ExaggeratedCubicSplineRotationFollowsTheExaggeratedMotio
   const Eigen::Quaterniond rest = rig.nodes[1].rotation;
   rig.animations[0].channels = {cubicJawRotation(rest)};
   core::AnimationTransferOptions options;
-  options.exaggeration = 2.0;
+  options.exaggeration.gain = 2.0;
   core::Rig out = rig;
   out.animations = core::transferAnimations(rig, rig.nodes, kIdentity, unchanged, options);
   // With the tangents left as they were, the spline misses the doubled motion
@@ -131,11 +142,7 @@ TEST(AnimationTransfer, ExaggeratedCubicSplineRotationFollowsTheExaggeratedMotio
 }
 
 TEST(AnimationTransfer, JointsTurnedByThePoseTurnTheirSubtreeRootsKeys) {
-  core::AnimationChannel rotation;
-  rotation.node = 1;
-  rotation.path = core::AnimationPath::kRotation;
-  rotation.times = Eigen::VectorXd::LinSpaced(2, 0.0, 1.0);
-  rotation.values.resize(2, 4);
+  core::AnimationChannel rotation = jawRotation(2);
   core::Rig rig = oneJointRig({});
   rotation.values.row(0) = rig.nodes[1].rotation.coeffs().transpose();
   rotation.values.row(1) =
@@ -143,13 +150,7 @@ TEST(AnimationTransfer, JointsTurnedByThePoseTurnTheirSubtreeRootsKeys) {
   rig.animations[0].channels = {rotation};
   const Eigen::Quaterniond turn(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitY()));
   const auto out = core::transferAnimations(rig, rig.nodes, turn.toRotationMatrix(), unchanged, {});
-  for (int k = 0; k < 2; ++k) {
-    const Eigen::Quaterniond q(out[0].channels[0].values(k, 3), out[0].channels[0].values(k, 0),
-                               out[0].channels[0].values(k, 1), out[0].channels[0].values(k, 2));
-    const Eigen::Quaterniond source(rotation.values(k, 3), rotation.values(k, 0), rotation.values(k, 1),
-                                    rotation.values(k, 2));
-    EXPECT_LT(angleBetween(q, turn * source), 1e-12);
-  }
+  for (int k = 0; k < 2; ++k) EXPECT_LT(angleBetween(keyOf(out[0].channels[0], k), turn * keyOf(rotation, k)), 1e-12);
 }
 
 }  // namespace

@@ -255,6 +255,27 @@ TEST(TransferRig, WeightsAreNormalisedPrunedAndShapesSparseOnAnotherFace) {
   EXPECT_LT((blink.position_deltas.rowwise().norm().array() > 0).count(), out.mesh.vertexCount() / 10);
 }
 
+// The generated rig with normal deltas (those of its own mesh under each
+// shape), prepared; and the other head its tests transfer it to.
+const core::PreparedRig& preparedWithNormalDeltas() {
+  static const core::PreparedRig prepared = [] {
+    core::Rig rig = sourceRig().rig;
+    const Eigen::MatrixX3d rest = core::computeVertexNormals(rig.mesh.positions, rig.mesh.triangles);
+    for (auto& shape : rig.morph_targets) {
+      shape.normal_deltas =
+          core::computeVertexNormals(rig.mesh.positions + shape.position_deltas, rig.mesh.triangles) - rest;
+    }
+    auto p = core::prepareRig(rig, sourceRig().landmarks, "source with normal deltas");
+    EXPECT_TRUE(p) << p.error().message;
+    return std::move(*p);
+  }();
+  return prepared;
+}
+core::SyntheticRig headForNormalDeltas() {
+  const core::HeadResolution res{.columns = 70, .rows = 66, .alternate_diagonals = true, .seed = 5};
+  return core::generateRig(core::randomHeadShape(5, 0.2), res);
+}
+
 // `mesh` split down the middle (x = 0, lips included) as exporters split a
 // mesh at a UV seam: the vertices of faces on both sides get a second copy
 // (appended) for the faces on the +x side. Positions, normals and regions are
@@ -338,18 +359,11 @@ TEST(TransferRig, CopiesOfASplitPointTakeTheSameWeightsAndShapes) {
 // side's faces alone. The two sides of a hard edge (copies with their own
 // normals) keep their own.
 TEST(TransferRig, NormalDeltasShadeAUvSeamAsOneSurfaceAndKeepHardEdges) {
-  core::Rig rig = sourceRig().rig;
-  const Eigen::MatrixX3d rest = core::computeVertexNormals(rig.mesh.positions, rig.mesh.triangles);
-  for (auto& shape : rig.morph_targets) {
-    shape.normal_deltas = core::computeVertexNormals(rig.mesh.positions + shape.position_deltas, rig.mesh.triangles) - rest;
-  }
-  auto prepared = core::prepareRig(rig, sourceRig().landmarks, "source with normal deltas");
-  ASSERT_TRUE(prepared) << prepared.error().message;
-  const core::HeadResolution res{.columns = 70, .rows = 66, .alternate_diagonals = true, .seed = 5};
-  core::SyntheticRig target = core::generateRig(core::randomHeadShape(5, 0.2), res);
+  const core::PreparedRig& prepared = preparedWithNormalDeltas();
+  core::SyntheticRig target = headForNormalDeltas();
   target.rig.mesh.normals = core::computeSeamlessVertexNormals(target.rig.mesh.positions, target.rig.mesh.triangles);
   const SplitMesh seam = splitDownTheMiddle(target.rig.mesh);
-  auto split = core::transferRig(*prepared, seam.mesh, target.landmarks, "uv seam");
+  auto split = core::transferRig(prepared, seam.mesh, target.landmarks, "uv seam");
   ASSERT_TRUE(split) << split.error().message;
   const core::Mesh& mesh = seam.mesh;
   auto zeroed = [](Eigen::MatrixX3d d) {
@@ -377,7 +391,7 @@ TEST(TransferRig, NormalDeltasShadeAUvSeamAsOneSurfaceAndKeepHardEdges) {
   // faces (the normals of the split mesh computed apart).
   SplitMesh edge = splitDownTheMiddle(target.rig.mesh);
   edge.mesh.normals = core::computeVertexNormals(edge.mesh.positions, edge.mesh.triangles);
-  auto hard = core::transferRig(*prepared, edge.mesh, target.landmarks, "hard edge");
+  auto hard = core::transferRig(prepared, edge.mesh, target.landmarks, "hard edge");
   ASSERT_TRUE(hard);
   const Eigen::MatrixX3d edge_base = core::computeVertexNormals(edge.mesh.positions, edge.mesh.triangles);
   for (const auto& shape : hard->rig.morph_targets) {
@@ -686,20 +700,13 @@ TEST(TransferRig, SourceWithNormalsAgainstItsWindingGetsTheSameRig) {
 // the result must equal recomputing every vertex normal, bit for bit. The
 // target's own normals are written as they came.
 TEST(TransferRig, NormalDeltasEqualAFullRecomputeOfTheDisplacedTarget) {
-  core::Rig rig = sourceRig().rig;
-  const Eigen::MatrixX3d rest = core::computeVertexNormals(rig.mesh.positions, rig.mesh.triangles);
-  for (auto& shape : rig.morph_targets) {
-    shape.normal_deltas = core::computeVertexNormals(rig.mesh.positions + shape.position_deltas, rig.mesh.triangles) - rest;
-  }
-  auto prepared = core::prepareRig(rig, sourceRig().landmarks, "source with normal deltas");
-  ASSERT_TRUE(prepared) << prepared.error().message;
-  const core::HeadResolution res{.columns = 70, .rows = 66, .alternate_diagonals = true, .seed = 5};
-  core::SyntheticRig target = core::generateRig(core::randomHeadShape(5, 0.2), res);
+  const core::PreparedRig& prepared = preparedWithNormalDeltas();
+  core::SyntheticRig target = headForNormalDeltas();
   // Authored normals (here: the computed ones turned by 10 degrees) stay in
   // the output; the deltas are the change of the computed normals.
   const Eigen::Matrix3d turn = Eigen::AngleAxisd(0.17, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
   target.rig.mesh.normals = target.rig.mesh.normals * turn.transpose();
-  auto result = core::transferRig(*prepared, target.rig.mesh, target.landmarks, "other");
+  auto result = core::transferRig(prepared, target.rig.mesh, target.landmarks, "other");
   ASSERT_TRUE(result) << result.error().message;
   const core::Mesh& mesh = target.rig.mesh;
   EXPECT_TRUE(result->rig.mesh.normals == mesh.normals);
