@@ -140,8 +140,9 @@ std::vector<Animation> transferAnimations(const Rig& source, const std::vector<N
       if (channel.path == AnimationPath::kRotation) {
         const Eigen::Quaterniond rest = source.nodes[i].rotation.normalized();
         if (gain != 1.0) {
-          // Values first (tangents need them), each on the side of the one
-          // before so that neighbouring keys interpolate the short way.
+          // Each key on the side of the one before, so that neighbouring keys
+          // interpolate the short way; a cubic key's tangents go through the
+          // same map at the key's own value.
           Eigen::Quaterniond previous(1.0, 0.0, 0.0, 0.0);
           for (Eigen::Index r = cubic ? 1 : 0; r < channel.values.rows(); r += cubic ? 3 : 1) {
             const Eigen::Quaterniond q(channel.values(r, 3), channel.values(r, 0), channel.values(r, 1),
