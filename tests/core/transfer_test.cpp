@@ -1011,6 +1011,36 @@ TEST(TransferRig, ExaggerationScalesShapesAndAnimatedDeltas) {
   EXPECT_TRUE(matricesNear(result->rig.animations[0].channels[2].values, src.animations[0].channels[2].values, 1e-12));
 }
 
+// With joints left as they are (joints off), the clips still come with the
+// asked exaggeration: on the source's own skeleton, keys move twice as far
+// from rest (translation and rotation alike); nothing else changes.
+TEST(TransferRig, ExaggerationAppliesWithoutTransferringJoints) {
+  const core::Rig& src = sourceRig().rig;
+  core::TransferOptions options;
+  options.joints = false;
+  options.joint_exaggeration["jaw"] = 2.0;
+  auto result = core::transferRig(preparedSource(), src.mesh, sourceRig().landmarks, "self", options);
+  ASSERT_TRUE(result) << result.error().message;
+  const core::Rig& out = result->rig;
+  ASSERT_EQ(out.nodes.size(), src.nodes.size());
+  EXPECT_EQ(out.nodes[3].translation, src.nodes[3].translation);
+  const auto& rotation_in = src.animations[0].channels[0];
+  const auto& rotation_out = out.animations[0].channels[0];
+  const auto& move_in = src.animations[0].channels[1];
+  const auto& move_out = out.animations[0].channels[1];
+  const Eigen::Quaterniond rest = src.nodes[3].rotation;
+  const Eigen::RowVector3d rest_t = src.nodes[3].translation.transpose();
+  for (const Eigen::Index k : {5, 15, 25}) {
+    auto key = [](const core::AnimationChannel& c, Eigen::Index i) {
+      return Eigen::Quaterniond(c.values(i, 3), c.values(i, 0), c.values(i, 1), c.values(i, 2));
+    };
+    EXPECT_NEAR(rest.angularDistance(key(rotation_out, k)), 2.0 * rest.angularDistance(key(rotation_in, k)), 1e-9);
+    EXPECT_TRUE(matricesNear(move_out.values.row(k) - rest_t, 2.0 * (move_in.values.row(k) - rest_t), 1e-12));
+  }
+  // The head is not named: its keys are the source's, bit for bit.
+  EXPECT_TRUE(out.animations[0].channels[2].values == src.animations[0].channels[2].values);
+}
+
 TEST(TransferRig, ExaggerationOfNamesTheRigLacksIsReported) {
   const core::Rig& src = sourceRig().rig;
   core::TransferOptions options;
