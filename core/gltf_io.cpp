@@ -2709,19 +2709,35 @@ Status addSkin(tinygltf::Model& model, const Rig& rig, const RigWriteOptions& op
 int addDeltaAccessor(tinygltf::Model& model, const std::vector<float>& deltas, bool sparse, bool bounds) {
   const std::size_t count = deltas.size() / 3;
   if (!sparse) return addFloatAccessor(model, deltas, TINYGLTF_TYPE_VEC3, TINYGLTF_TARGET_ARRAY_BUFFER, bounds);
-  std::vector<std::uint32_t> rows;
-  std::vector<float> values;
+  // Which rows move, without a branch per row (moving and still rows
+  // alternate unpredictably; mispredicted compares were most of the GLB
+  // encode): a row moves when a component other than +-0 is in it.
+  std::vector<std::uint32_t> moves(count);
+  std::size_t moving = 0;
   for (std::size_t r = 0; r < count; ++r) {
-    if (deltas[3 * r] == 0.0f && deltas[3 * r + 1] == 0.0f && deltas[3 * r + 2] == 0.0f) continue;
-    rows.push_back(static_cast<std::uint32_t>(r));
-    values.insert(values.end(), deltas.begin() + static_cast<std::ptrdiff_t>(3 * r),
-                  deltas.begin() + static_cast<std::ptrdiff_t>(3 * r + 3));
+    const std::uint32_t any = (std::bit_cast<std::uint32_t>(deltas[3 * r]) | std::bit_cast<std::uint32_t>(deltas[3 * r + 1]) |
+                               std::bit_cast<std::uint32_t>(deltas[3 * r + 2])) &
+                              0x7fffffffu;
+    moves[r] = any != 0 ? 1u : 0u;
+    moving += moves[r];
   }
   const bool short_indices = count <= 65536;
   const std::size_t index_size = short_indices ? 2 : 4;
-  if (rows.size() * (index_size + 12) >= count * 12) {
+  if (moving * (index_size + 12) >= count * 12) {
     return addFloatAccessor(model, deltas, TINYGLTF_TYPE_VEC3, TINYGLTF_TARGET_ARRAY_BUFFER, bounds);
   }
+  // Compacted the same way: every row is written at the next free slot, which
+  // only a moving row keeps (one spare slot for the last still rows).
+  std::vector<std::uint32_t> rows(moving + 1);
+  std::vector<float> values(3 * (moving + 1));
+  for (std::size_t r = 0, k = 0; r < count; ++r) {
+    rows[k] = static_cast<std::uint32_t>(r);
+    std::copy_n(deltas.begin() + static_cast<std::ptrdiff_t>(3 * r), 3, values.begin() + static_cast<std::ptrdiff_t>(3 * k));
+    k += moves[r];
+    if (k == moving) break;  // the rest are still (and there is no slot past the spare)
+  }
+  rows.resize(moving);
+  values.resize(3 * moving);
   std::vector<double> min;
   std::vector<double> max;
   if (bounds) std::tie(min, max) = floatBounds(deltas, 3);
