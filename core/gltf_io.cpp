@@ -616,16 +616,19 @@ Result<AccessorValues> readAccessor(const tinygltf::Model& model, int index, con
   return out;
 }
 
-// Reads a per-vertex attribute with the expected component count.
-Result<AccessorValues> readAttribute(const tinygltf::Model& model, int index, const std::string& role,
-                                     int components, const std::string& label) {
-  auto values = readAccessor(model, index, role, label);
-  if (!values) return values;
-  if (values->components != components) {
-    return parseError(label, "accessor " + std::to_string(index) + " (" + role + ") has " +
-                                 std::to_string(values->components) + " components per element, expected " +
-                                 std::to_string(components));
+// Reads a per-vertex attribute with the expected component count, decoded
+// straight into a #count by `components` matrix.
+template <typename Matrix>
+Result<Matrix> readAttribute(const tinygltf::Model& model, int index, const std::string& role, int components,
+                             const std::string& label) {
+  auto checked = checkAccessor(model, index, role, label);
+  if (!checked) return checked.error();
+  if (checked->components != components) {
+    return parseError(label, checked->what + " has " + std::to_string(checked->components) +
+                                 " components per element, expected " + std::to_string(components));
   }
+  Matrix values(static_cast<Eigen::Index>(checked->count), components);
+  if (auto ok = decodeAccessor(*checked, {values.data(), 1, checked->count}, label); !ok) return ok.error();
   return values;
 }
 
@@ -858,27 +861,21 @@ Result<PrimitiveData> readPrimitive(const tinygltf::Model& model, const tinygltf
   PrimitiveData out;
   const auto position_it = primitive.attributes.find("POSITION");
   if (position_it == primitive.attributes.end()) return parseError(label, what + " has no POSITION attribute");
-  auto positions = readAttribute(model, position_it->second, "POSITION", 3, label);
+  auto positions = readAttribute<Eigen::MatrixX3d>(model, position_it->second, "POSITION", 3, label);
   if (!positions) return positions.error();
-  const std::size_t nv = positions->count;
-  out.positions.resize(static_cast<Eigen::Index>(nv), 3);
-  for (std::size_t v = 0; v < nv; ++v) {
-    for (int c = 0; c < 3; ++c) out.positions(static_cast<Eigen::Index>(v), c) = positions->at(v, c);
-  }
+  out.positions = std::move(*positions);
+  const auto nv = static_cast<std::size_t>(out.positions.rows());
 
-  auto read_optional = [&](const char* name, int components, auto& target) -> Status {
+  auto read_optional = [&]<typename Matrix>(const char* name, int components, Matrix& target) -> Status {
     const auto it = primitive.attributes.find(name);
     if (it == primitive.attributes.end()) return Ok{};
-    auto values = readAttribute(model, it->second, name, components, label);
+    auto values = readAttribute<Matrix>(model, it->second, name, components, label);
     if (!values) return values.error();
-    if (values->count != nv) {
-      return parseError(label, what + " " + name + " has " + std::to_string(values->count) +
+    if (static_cast<std::size_t>(values->rows()) != nv) {
+      return parseError(label, what + " " + name + " has " + std::to_string(values->rows()) +
                                    " elements but POSITION has " + std::to_string(nv));
     }
-    target.resize(static_cast<Eigen::Index>(nv), components);
-    for (std::size_t v = 0; v < nv; ++v) {
-      for (int c = 0; c < components; ++c) target(static_cast<Eigen::Index>(v), c) = values->at(v, c);
-    }
+    target = std::move(*values);
     return Ok{};
   };
   if (auto ok = read_optional("NORMAL", 3, out.normals); !ok) return ok.error();
