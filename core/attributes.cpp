@@ -1,7 +1,13 @@
 #include "core/attributes.h"
 
+#include <algorithm>
 #include <cassert>
+#include <cstdint>
+#include <limits>
 #include <map>
+#include <numeric>
+#include <optional>
+#include <unordered_map>
 
 namespace core {
 
@@ -44,10 +50,10 @@ void fillUntrustedLabels(Eigen::VectorXi& labels, std::vector<char> assigned, co
 
 }  // namespace
 
-TransferredAttributes transferAttributes(const Mesh& source_mesh, const VertexAttributes& source,
-                                         const TargetLocations& locations, const Eigen::SparseMatrix<double>& target_laplacian,
-                                         const HarmonicInpainting* mismatched, const AttributeTransferOptions& options) {
-  TransferredAttributes out;
+VertexAttributes transferAttributes(const Mesh& source_mesh, const VertexAttributes& source,
+                                    const TargetLocations& locations, const Eigen::SparseMatrix<double>& target_laplacian,
+                                    const HarmonicInpainting* mismatched) {
+  VertexAttributes out;
   const Eigen::Index nt = locations.confidence.size();
   std::vector<char> trusted(static_cast<std::size_t>(nt));
   bool any_untrusted = false;
@@ -55,19 +61,14 @@ TransferredAttributes transferAttributes(const Mesh& source_mesh, const VertexAt
     trusted[static_cast<std::size_t>(v)] = locations.mismatched(v) == 0;
     any_untrusted = any_untrusted || !trusted[static_cast<std::size_t>(v)];
   }
-  assert(!any_untrusted || (target_laplacian.rows() == nt && mismatched != nullptr));
+  assert(!any_untrusted || ((source.labels.empty() || target_laplacian.rows() == nt) &&
+                            ((source.colors.rows() == 0 && source.fields.empty()) || mismatched != nullptr)));
   auto inpaint = [&](const Eigen::MatrixXd& values) -> Eigen::MatrixXd {
     return mismatched != nullptr ? mismatched->apply(values) : values;
   };
   const Eigen::MatrixX3i& tris = source_mesh.triangles;
-  if (options.uvs) {
-    // Triangle-local interpolation: a split (seam) vertex belongs to one chart,
-    // and every source triangle references its own chart's copies.
-    if (source_mesh.uvs.rows() > 0) out.uvs = inpaint(interpolate(source_mesh.uvs, tris, locations, nt));
-    for (const auto& set : source.extra_uv_sets) out.attributes.extra_uv_sets.push_back(inpaint(interpolate(set, tris, locations, nt)));
-  }
-  if (source.colors.rows() > 0) out.attributes.colors = inpaint(interpolate(source.colors, tris, locations, nt));
-  for (const auto& [name, field] : source.fields) out.attributes.fields[name] = inpaint(interpolate(field, tris, locations, nt));
+  if (source.colors.rows() > 0) out.colors = inpaint(interpolate(source.colors, tris, locations, nt));
+  for (const auto& [name, field] : source.fields) out.fields[name] = inpaint(interpolate(field, tris, locations, nt));
   for (const auto& [name, labels] : source.labels) {
     Eigen::VectorXi result = Eigen::VectorXi::Zero(nt);
     for (Eigen::Index v = 0; v < nt; ++v) {
@@ -88,8 +89,336 @@ TransferredAttributes transferAttributes(const Mesh& source_mesh, const VertexAt
       result(v) = best;
     }
     if (any_untrusted) fillUntrustedLabels(result, trusted, target_laplacian);
-    out.attributes.labels[name] = result;
+    out.labels[name] = result;
   }
+  return out;
+}
+
+namespace {
+
+// Faces around each point of a mesh (CSR by representative vertex).
+struct FacesAroundPoints {
+  std::vector<int> point;    // #V: the representative of each vertex
+  std::vector<int> offsets;  // #V + 1, by representative
+  std::vector<int> faces;
+
+  FacesAroundPoints(const Mesh& mesh, std::vector<int> representative) : point(std::move(representative)) {
+    const Eigen::Index nv = mesh.vertexCount(), nf = mesh.triangleCount();
+    if (point.empty()) {
+      point.resize(static_cast<std::size_t>(nv));
+      std::iota(point.begin(), point.end(), 0);
+    }
+    auto cornerPoint = [&](Eigen::Index f, int k) {
+      return static_cast<std::size_t>(point[static_cast<std::size_t>(mesh.triangles(f, k))]);
+    };
+    offsets.assign(static_cast<std::size_t>(nv) + 1, 0);
+    for (Eigen::Index f = 0; f < nf; ++f) {
+      for (int k = 0; k < 3; ++k) ++offsets[cornerPoint(f, k) + 1];
+    }
+    for (std::size_t v = 0; v + 1 < offsets.size(); ++v) offsets[v + 1] += offsets[v];
+    faces.resize(static_cast<std::size_t>(offsets.back()));
+    std::vector<int> fill(offsets.begin(), offsets.end() - 1);
+    for (Eigen::Index f = 0; f < nf; ++f) {
+      for (int k = 0; k < 3; ++k) faces[static_cast<std::size_t>(fill[cornerPoint(f, k)]++)] = static_cast<int>(f);
+    }
+  }
+  // fn(face) for each face at the point of `vertex`, in ascending order.
+  template <class Fn>
+  void forEachFaceAround(int vertex, Fn&& fn) const {
+    const auto p = static_cast<std::size_t>(point[static_cast<std::size_t>(vertex)]);
+    for (int i = offsets[p]; i < offsets[p + 1]; ++i) fn(faces[static_cast<std::size_t>(i)]);
+  }
+};
+
+// Barycentric coordinates of p's projection onto the plane of (a, b, c),
+// outside the triangle too; the closest point's when the triangle is
+// degenerate.
+Eigen::Vector3d planeBarycentric(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                 const Eigen::Vector3d& c) {
+  const Eigen::Vector3d e0 = b - a, e1 = c - a, d = p - a;
+  const double d00 = e0.squaredNorm(), d01 = e0.dot(e1), d11 = e1.squaredNorm();
+  const double det = d00 * d11 - d01 * d01;
+  if (!(det > 1e-12 * d00 * d11)) return closestPointOnTriangle(p, a, b, c).barycentric;
+  const double u = (d11 * d.dot(e0) - d01 * d.dot(e1)) / det;
+  const double w = (d00 * d.dot(e1) - d01 * d.dot(e0)) / det;
+  return {1.0 - u - w, u, w};
+}
+
+// Faces across each edge of a mesh whose two ends carry one UV (uv_of:
+// vertices at one point with one UV share a representative), as CSR by face:
+// the UV layout is continuous between them.
+struct UvNeighbours {
+  std::vector<int> offsets;  // #F + 1
+  std::vector<int> faces;
+};
+UvNeighbours uvNeighbours(const Eigen::MatrixX3i& tris, const std::vector<int>& uv_of) {
+  const Eigen::Index nf = tris.rows();
+  std::vector<std::pair<std::uint64_t, int>> edges;
+  edges.reserve(static_cast<std::size_t>(3 * nf));
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) {
+      auto a = static_cast<std::uint32_t>(uv_of[static_cast<std::size_t>(tris(f, k))]);
+      auto b = static_cast<std::uint32_t>(uv_of[static_cast<std::size_t>(tris(f, (k + 1) % 3))]);
+      if (a == b) continue;
+      if (a > b) std::swap(a, b);
+      edges.emplace_back((static_cast<std::uint64_t>(a) << 32) | b, static_cast<int>(f));
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  // Every face of an edge's group is across it from every other.
+  UvNeighbours out;
+  out.offsets.assign(static_cast<std::size_t>(nf) + 1, 0);
+  auto forEachPair = [&](auto&& fn) {
+    for (std::size_t i = 0, j = 0; i < edges.size(); i = j) {
+      for (j = i + 1; j < edges.size() && edges[j].first == edges[i].first; ++j) {
+      }
+      for (std::size_t x = i; x < j; ++x) {
+        for (std::size_t y = i; y < j; ++y) {
+          if (x != y) fn(edges[x].second, edges[y].second);
+        }
+      }
+    }
+  };
+  forEachPair([&](int f, int) { ++out.offsets[static_cast<std::size_t>(f) + 1]; });
+  for (std::size_t f = 0; f + 1 < out.offsets.size(); ++f) out.offsets[f + 1] += out.offsets[f];
+  out.faces.resize(static_cast<std::size_t>(out.offsets.back()));
+  std::vector<int> fill(out.offsets.begin(), out.offsets.end() - 1);
+  forEachPair([&](int f, int g) { out.faces[static_cast<std::size_t>(fill[static_cast<std::size_t>(f)]++)] = g; });
+  return out;
+}
+
+}  // namespace
+
+Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const std::vector<Eigen::MatrixX2d>& source_sets,
+                                             const Mesh& target, const TargetLocations& locations) {
+  const Eigen::Index ns = source_mesh.vertexCount(), nt = target.vertexCount(), nf = target.triangleCount();
+  const Eigen::Index nsf = source_mesh.triangleCount();
+  const Eigen::MatrixX3i& src_tris = source_mesh.triangles;
+  const Eigen::MatrixX3d& src_positions = source_mesh.positions;
+  for (std::size_t s = 0; s < source_sets.size(); ++s) {
+    if (source_sets[s].rows() != ns) {
+      return Error{ErrorCode::kInvalidMesh, "source UV set " + std::to_string(s) + " has " +
+                                                std::to_string(source_sets[s].rows()) + " rows for " +
+                                                std::to_string(ns) + " vertices"};
+    }
+  }
+  auto at = [](auto& values, auto i) -> decltype(auto) { return values[static_cast<std::size_t>(i)]; };
+  TransferredUvLayout out;
+  out.triangles = target.triangles;
+  const Eigen::Index cols = 2 * static_cast<Eigen::Index>(source_sets.size());
+  Eigen::MatrixXd all_uvs(ns, cols);
+  for (std::size_t s = 0; s < source_sets.size(); ++s) all_uvs.middleCols(2 * static_cast<Eigen::Index>(s), 2) = source_sets[s];
+  std::vector<int> uv_of = agreeingVertexRepresentatives(src_positions, all_uvs);
+  if (uv_of.empty()) {
+    uv_of.resize(static_cast<std::size_t>(ns));
+    std::iota(uv_of.begin(), uv_of.end(), 0);
+  }
+  const FacesAroundPoints source_around(source_mesh, coincidentVertexRepresentatives(src_positions));
+  const UvNeighbours uv_neighbours = uvNeighbours(src_tris, uv_of);
+  auto corner = [&](int face, int k) -> Eigen::Vector3d { return src_positions.row(src_tris(face, k)).transpose(); };
+  // interpolateOnFace of all_uvs, as an expression (no row allocated per call)
+  auto uvsAt = [&](int face, const Eigen::Vector3d& b) {
+    return b(0) * all_uvs.row(src_tris(face, 0)) + b(1) * all_uvs.row(src_tris(face, 1)) + b(2) * all_uvs.row(src_tris(face, 2));
+  };
+  auto sourcePoint = [&](const SurfacePoint& sp) -> Eigen::Vector3d {
+    return interpolateOnFace(src_positions, src_tris, sp.face, sp.barycentric).transpose();
+  };
+  RowMatrixX3d face_centre(nsf, 3);
+  Eigen::VectorXd face_radius(nsf);
+  double uv_edges = 0.0;
+  for (Eigen::Index f = 0; f < nsf; ++f) {
+    const Eigen::Vector3d c = (corner(static_cast<int>(f), 0) + corner(static_cast<int>(f), 1) + corner(static_cast<int>(f), 2)) / 3.0;
+    face_centre.row(f) = c.transpose();
+    face_radius(f) = 0.0;
+    for (int k = 0; k < 3; ++k) {
+      face_radius(f) = std::max(face_radius(f), (corner(static_cast<int>(f), k) - c).norm());
+      uv_edges += (all_uvs.row(src_tris(f, k)) - all_uvs.row(src_tris(f, (k + 1) % 3))).norm();
+    }
+  }
+  // UVs of one vertex closer than this are one (a tenth of the source's mean
+  // UV edge): extensions of one side made from neighbouring faces differ a
+  // little, the two sides of a seam a lot.
+  const double same_uv = nsf > 0 ? 0.1 * uv_edges / static_cast<double>(3 * nsf) : 0.0;
+  // Every located vertex takes the UVs of its location, mismatched ones too
+  // (their place is off, but on the surface they face): inpainting them
+  // would blend the charts of the vertices around them.
+  std::vector<char> located(static_cast<std::size_t>(nt));
+  for (Eigen::Index v = 0; v < nt; ++v) at(located, v) = at(locations.on_source, v).found();
+
+  // Each corner's UVs in the frame of its target face: a reference source
+  // face (a corner's, or when they lie on faces that meet at no point with
+  // one UV, the one nearest their mean place). Corners on faces reachable
+  // from it across edges with one UV, near the face, interpolate their own
+  // location; the others (across a seam) extend the reference side affinely
+  // from its face nearest them.
+  Eigen::MatrixXd corner_uvs(3 * nf, cols);
+  std::vector<char> corner_extended(static_cast<std::size_t>(3 * nf), 0);
+  std::vector<int> seeds, ring, region;
+  std::vector<int> visited(static_cast<std::size_t>(nsf), 0), in_region(visited);  // stamps of searches
+  int searches = 0;
+  auto sharesUvPoint = [&](int a, int b) {
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) {
+        if (at(uv_of, src_tris(a, i)) == at(uv_of, src_tris(b, j))) return true;
+      }
+    }
+    return false;
+  };
+  auto nearestOf = [&](const Eigen::Vector3d& p, const std::vector<int>& faces) {
+    int nearest = -1;
+    double nearest_sq = std::numeric_limits<double>::infinity();
+    for (const int h : faces) {
+      const double sq = closestPointOnTriangle(p, corner(h, 0), corner(h, 1), corner(h, 2)).sq_distance;
+      if (sq < nearest_sq) {
+        nearest_sq = sq;
+        nearest = h;
+      }
+    }
+    return nearest;
+  };
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    seeds.clear();
+    for (int k = 0; k < 3; ++k) {
+      if (at(located, target.triangles(f, k))) seeds.push_back(at(locations.on_source, target.triangles(f, k)).face);
+    }
+    bool one_side = std::all_of(seeds.begin(), seeds.end(), [&](int g) { return g == seeds.front() || sharesUvPoint(g, seeds.front()); });
+    int search = 0;  // the region's stamp
+    if (!one_side) {
+      Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+      double reach = 0.0;
+      for (const int pass : {0, 1}) {
+        for (int k = 0; k < 3; ++k) {
+          const int v = target.triangles(f, k);
+          if (!at(located, v)) continue;
+          const Eigen::Vector3d p = sourcePoint(at(locations.on_source, v));
+          if (pass == 0) centre += p / static_cast<double>(seeds.size());
+          if (pass == 1) reach = std::max(reach, (p - centre).norm());
+        }
+      }
+      // Faces reachable from `start` across edges with one UV, near the face;
+      // with `until_seeds`, only until every seed face is among them.
+      auto sideOf = [&](int start, bool until_seeds) {
+        search = ++searches;
+        region.assign(1, start);
+        at(visited, start) = at(in_region, start) = search;
+        auto reached = [&] { return std::all_of(seeds.begin(), seeds.end(), [&](int g) { return at(in_region, g) == search; }); };
+        for (std::size_t q = 0; q < region.size() && !(until_seeds && reached()); ++q) {
+          const auto g = static_cast<std::size_t>(region[q]);
+          for (int i = uv_neighbours.offsets[g]; i < uv_neighbours.offsets[g + 1]; ++i) {
+            const int h = at(uv_neighbours.faces, i);
+            if (at(visited, h) == search) continue;
+            at(visited, h) = search;
+            if ((face_centre.row(h).transpose() - centre).norm() <= 1.5 * reach + face_radius(h)) {
+              region.push_back(h);
+              at(in_region, h) = search;
+            }
+          }
+        }
+      };
+      sideOf(seeds.front(), true);
+      one_side = std::all_of(seeds.begin(), seeds.end(), [&](int g) { return at(in_region, g) == search; });
+      if (!one_side) {
+        // Across a seam: the side of the face nearest the middle, among
+        // those around the corners'.
+        ring.clear();
+        ++searches;
+        for (const int g : seeds) {
+          for (int k = 0; k < 3; ++k) {
+            source_around.forEachFaceAround(src_tris(g, k), [&](int h) {
+              if (at(visited, h) != searches) ring.push_back(h);
+              at(visited, h) = searches;
+            });
+          }
+        }
+        sideOf(nearestOf(centre, ring), false);
+      }
+    }
+    for (int k = 0; k < 3; ++k) {
+      const int v = target.triangles(f, k);
+      if (!at(located, v)) continue;
+      const SurfacePoint& sp = at(locations.on_source, v);
+      const Eigen::Index row = 3 * f + k;
+      if (one_side || at(in_region, sp.face) == search) {
+        corner_uvs.row(row) = uvsAt(sp.face, sp.barycentric);
+        continue;
+      }
+      const Eigen::Vector3d p = sourcePoint(sp);
+      const int g = nearestOf(p, region);
+      corner_uvs.row(row) = uvsAt(g, planeBarycentric(p, corner(g, 0), corner(g, 1), corner(g, 2)));
+      at(corner_extended, row) = 1;
+    }
+  }
+
+  // One vertex per distinct UV of a target vertex's corners: the target's own
+  // index for the UVs of its location (else its first corner's), copies after
+  // the target's vertices for the others. Unlocated vertices stay one vertex.
+  Eigen::MatrixXd uvs(nt, cols);
+  std::vector<char> home_used(static_cast<std::size_t>(nt), 0), extended(static_cast<std::size_t>(nt), 0);
+  for (Eigen::Index v = 0; v < nt; ++v) {
+    const SurfacePoint& sp = at(locations.on_source, v);
+    if (at(located, v)) {
+      uvs.row(v) = uvsAt(sp.face, sp.barycentric);
+    } else {
+      uvs.row(v).setZero();
+    }
+  }
+  auto same = [&](const auto& a, const auto& b) { return (a - b).norm() <= same_uv; };
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int v = target.triangles(f, k);
+      if (at(located, v) && same(corner_uvs.row(3 * f + k), uvs.row(v))) at(home_used, v) = 1;
+    }
+  }
+  std::vector<char> placed(static_cast<std::size_t>(nt), 0);
+  std::vector<std::vector<int>> copies(static_cast<std::size_t>(nt));
+  std::vector<Eigen::RowVectorXd> copy_uvs;
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int v = target.triangles(f, k);
+      const Eigen::Index row = 3 * f + k;
+      if (!at(located, v)) continue;
+      if (!at(home_used, v) && !at(placed, v)) {  // the UVs of its own location are on none of its faces
+        uvs.row(v) = corner_uvs.row(row);
+        at(extended, v) = at(corner_extended, row);
+      }
+      at(placed, v) = 1;
+      if (same(corner_uvs.row(row), uvs.row(v))) continue;
+      std::vector<int>& mine = at(copies, v);
+      const auto found = std::find_if(mine.begin(), mine.end(), [&](int c) { return same(at(copy_uvs, c - nt), corner_uvs.row(row)); });
+      if (found != mine.end()) {
+        out.triangles(f, k) = *found;
+        continue;
+      }
+      const int index = static_cast<int>(nt) + static_cast<int>(out.copy_of.size());
+      out.copy_of.push_back(v);
+      copy_uvs.push_back(corner_uvs.row(row));
+      extended.push_back(at(corner_extended, row));
+      mine.push_back(index);
+      out.triangles(f, k) = index;
+    }
+  }
+  const Eigen::Index n = nt + static_cast<Eigen::Index>(out.copy_of.size());
+  uvs.conservativeResize(n, cols);
+  for (std::size_t c = 0; c < copy_uvs.size(); ++c) uvs.row(nt + static_cast<Eigen::Index>(c)) = copy_uvs[c];
+  out.extrapolated = static_cast<int>(std::count(extended.begin(), extended.end(), 1));
+
+  // Unlocated vertices inpainted on the split target, the copies of a point
+  // joined only where their UVs agree.
+  if (std::find(located.begin(), located.end(), 0) != located.end()) {
+    std::vector<char> known(located);
+    known.resize(static_cast<std::size_t>(n), 1);
+    Eigen::MatrixX3d positions(n, 3);
+    positions.topRows(nt) = target.positions;
+    for (std::size_t c = 0; c < out.copy_of.size(); ++c) {
+      positions.row(nt + static_cast<Eigen::Index>(c)) = target.positions.row(out.copy_of[c]);
+    }
+    const Eigen::SparseMatrix<double> laplacian =
+        uniformLaplacian(out.triangles, n, agreeingVertexRepresentatives(positions, uvs));
+    auto inpainted = inpaintHarmonic(laplacian, known, uvs);
+    if (!inpainted) return Error{inpainted.error().code, "inpainting UVs: " + inpainted.error().message};
+    uvs = std::move(*inpainted);
+  }
+  for (std::size_t s = 0; s < source_sets.size(); ++s) out.sets.push_back(uvs.middleCols(2 * static_cast<Eigen::Index>(s), 2));
   return out;
 }
 

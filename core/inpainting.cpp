@@ -9,13 +9,17 @@
 namespace core {
 
 Eigen::SparseMatrix<double> uniformLaplacian(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles) {
-  const Eigen::Index vertex_count = positions.rows();
   // Vertices split at one position (UV seams, hard edges) are one point of
-  // the surface: faces use the lowest-indexed copy, and every other copy
-  // hangs on it by a single edge, so an unknown copy takes its value and a
-  // known one joins its neighbourhood. Without this, the two sides of a
-  // seam were solved apart and could part when the mesh moves.
-  const std::vector<int> representative = coincidentVertexRepresentatives(positions);
+  // the surface. Without joining them, the two sides of a seam were solved
+  // apart and could part when the mesh moves.
+  return uniformLaplacian(triangles, positions.rows(), coincidentVertexRepresentatives(positions));
+}
+
+Eigen::SparseMatrix<double> uniformLaplacian(const Eigen::MatrixX3i& triangles, Eigen::Index vertex_count,
+                                             const std::vector<int>& representative) {
+  // Faces use the lowest-indexed copy, and every other copy hangs on it by a
+  // single edge, so an unknown copy takes its value and a known one joins its
+  // neighbourhood.
   auto corner = [&](Eigen::Index f, int k) {
     const int v = triangles(f, k);
     return representative.empty() ? v : representative[static_cast<std::size_t>(v)];

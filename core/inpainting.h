@@ -21,6 +21,11 @@ namespace core {
 // inpainted values agree across a seam.
 Eigen::SparseMatrix<double> uniformLaplacian(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles);
 
+// The same with the joined vertices given: representative[v] is the copy v
+// joins (itself when none; empty: every vertex its own).
+Eigen::SparseMatrix<double> uniformLaplacian(const Eigen::MatrixX3i& triangles, Eigen::Index vertex_count,
+                                             const std::vector<int>& representative);
+
 // The factorised system of one known/unknown split. Only the known vertices
 // next to unknown ones (the boundary) enter the right-hand side, so callers
 // with many value sets (every blend shape) pass #boundary rows, not #V.

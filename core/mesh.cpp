@@ -97,17 +97,18 @@ Eigen::MatrixX3d computeSeamlessVertexNormals(const Eigen::MatrixX3d& positions,
   return computeSharedVertexNormals(positions, triangles, coincidentVertexRepresentatives(positions));
 }
 
-std::vector<int> smoothVertexRepresentatives(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3d& normals) {
+std::vector<int> agreeingVertexRepresentatives(const Eigen::MatrixX3d& positions, const Eigen::MatrixXd& values) {
+  assert(values.rows() == positions.rows());
   std::vector<int> representative = coincidentVertexRepresentatives(positions);
   if (representative.empty()) return representative;
   // The copies of each point so far, in index order; a copy joins the first
-  // one with its normal.
+  // one with its values.
   std::vector<std::vector<int>> copies(representative.size());
   bool shared = false;
   for (std::size_t v = 0; v < representative.size(); ++v) {
     std::vector<int>& point = copies[static_cast<std::size_t>(representative[v])];
     const auto same = std::find_if(point.begin(), point.end(), [&](int u) {
-      return normals.row(u) == normals.row(static_cast<Eigen::Index>(v));
+      return values.row(u) == values.row(static_cast<Eigen::Index>(v));
     });
     if (same != point.end()) {
       representative[v] = *same;
@@ -119,6 +120,10 @@ std::vector<int> smoothVertexRepresentatives(const Eigen::MatrixX3d& positions, 
   }
   if (!shared) representative.clear();
   return representative;
+}
+
+std::vector<int> smoothVertexRepresentatives(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3d& normals) {
+  return agreeingVertexRepresentatives(positions, normals);
 }
 
 WindingNormals normalsAgreeingWithWinding(const Eigen::MatrixX3d& normals, const Eigen::MatrixX3d& positions,

@@ -82,9 +82,13 @@ std::vector<BoundaryLoop> boundaryLoops(const Mesh& mesh);
 Eigen::MatrixX3d computeSeamlessVertexNormals(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles);
 
 // For each vertex, the lowest-indexed vertex at exactly its position with
-// exactly its normal (itself when none): the copies of a point split at a UV
-// seam, which shade as one surface, share one; copies split at a hard edge
-// (normals that differ) stay apart. Empty when every vertex is its own.
+// exactly its row of `values` (#V by k; itself when none). Empty when every
+// vertex is its own.
+std::vector<int> agreeingVertexRepresentatives(const Eigen::MatrixX3d& positions, const Eigen::MatrixXd& values);
+
+// agreeingVertexRepresentatives by normal: the copies of a point split at a
+// UV seam, which shade as one surface, share one; copies split at a hard edge
+// (normals that differ) stay apart.
 std::vector<int> smoothVertexRepresentatives(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3d& normals);
 
 // computeVertexNormals with the vertices that share a representative (as

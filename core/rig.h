@@ -93,6 +93,12 @@ struct Rig {
   VertexAttributes attributes;
 };
 
+// Appends one vertex per entry of `copy_of`, a copy of that vertex: every
+// per-vertex array of the rig (mesh positions, normals, UVs, regions; skin
+// weights; morph deltas; attributes) grows by copy_of.size() rows. Triangles
+// are left to the caller, which re-points the corners that take the copies.
+void appendVertexCopies(Rig& rig, const std::vector<int>& copy_of);
+
 // Joint world (global rest) transforms from the nodes' local TRS: #nodes 4x4.
 std::vector<Eigen::Matrix4d> nodeWorldTransforms(const std::vector<Node>& nodes);
 

@@ -345,9 +345,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
       locations.low_confidence > 0 ? uniformLaplacian(target.positions, target.triangles)
                                    : Eigen::SparseMatrix<double>();
   const bool attributes_inpainted =
-      (options.attributes || options.uvs) &&
-      (src.attributes.colors.rows() > 0 || !src.attributes.fields.empty() ||
-       (options.uvs && (src_mesh.uvs.rows() > 0 || !src.attributes.extra_uv_sets.empty())));
+      options.attributes && (src.attributes.colors.rows() > 0 || !src.attributes.fields.empty());
   std::optional<HarmonicInpainting> mismatched;
   if (locations.mismatched.any() && ((options.shapes && !src.morph_targets.empty()) || attributes_inpainted)) {
     std::vector<char> known(static_cast<std::size_t>(target.vertexCount()));
@@ -420,20 +418,32 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   // --- attributes (+ diagnostics as data)
   if (stopBefore("attributes", 0.9)) return stopped("attributes");
   t0 = Clock::now();
-  if (options.attributes || options.uvs) {
-    AttributeTransferOptions attribute_options;
-    attribute_options.uvs = options.uvs;
-    TransferredAttributes attrs = transferAttributes(src_mesh, src.attributes, locations, target_laplacian,
-                                                     mismatched_inpainting, attribute_options);
-    if (options.uvs && attrs.uvs.rows() > 0) out.mesh.uvs = attrs.uvs;
-    if (!options.uvs) attrs.attributes.extra_uv_sets.clear();
-    if (options.attributes) out.attributes = std::move(attrs.attributes);
+  if (options.attributes) {
+    out.attributes = transferAttributes(src_mesh, src.attributes, locations, target_laplacian, mismatched_inpainting);
   }
   if (options.diagnostic_attributes) {
     out.attributes.fields["CONFIDENCE"] = locations.confidence;
     out.attributes.fields["INPAINTED"] =
         weights.inpainted.size() == target.vertexCount() ? weights.inpainted.cast<double>().eval()
                                                           : Eigen::VectorXd::Zero(target.vertexCount()).eval();
+  }
+  // Last: carrying the source's UV seams over splits target vertices, and
+  // every per-vertex value above goes with its copies.
+  std::vector<Eigen::MatrixX2d> uv_sets;
+  if (options.uvs) {
+    if (src_mesh.uvs.rows() > 0) uv_sets.push_back(src_mesh.uvs);
+    uv_sets.insert(uv_sets.end(), src.attributes.extra_uv_sets.begin(), src.attributes.extra_uv_sets.end());
+  }
+  if (!uv_sets.empty()) {
+    auto layout = transferUvLayout(src_mesh, uv_sets, target, locations);
+    if (!layout) return Error{layout.error().code, target_label + ": " + layout.error().message};
+    appendVertexCopies(out, layout->copy_of);
+    out.mesh.triangles = layout->triangles;
+    std::size_t next = 0;
+    if (src_mesh.uvs.rows() > 0) out.mesh.uvs = layout->sets[next++];
+    out.attributes.extra_uv_sets.assign(layout->sets.begin() + static_cast<std::ptrdiff_t>(next), layout->sets.end());
+    report.uv_seam_vertices = static_cast<int>(layout->copy_of.size());
+    report.uv_extended_vertices = layout->extrapolated;
   }
   report.attributes_ms = msSince(t0);
   report.total_ms = msSince(t_start);

@@ -36,8 +36,10 @@ struct TransferOptions {
   bool joints = true;
   bool shapes = true;
   bool animations = true;
-  bool attributes = true;          // labels, fields, colours (UVs only with `uvs`)
-  bool uvs = false;                // replace the target's UVs with the source's
+  bool attributes = true;          // labels, fields, colours
+  // Replace the target's UV sets with the source's (transferUvLayout): target
+  // vertices where a seam crosses are split, copies appended.
+  bool uvs = false;
   SkinWeightOptions weight_options;
   ShapeAdaptation adaptation = ShapeAdaptation::kRotation;
   // kRotation/kSimilarity: a global rotation below this angle (degrees) is
@@ -109,6 +111,11 @@ struct TransferReport {
   int joints = 0;
   int animations = 0;
   int unlocated_vertices = 0;     // target vertices with no location on the source
+  // With `uvs`: vertices added where a source UV seam crosses the target
+  // (copies of target vertices, after the target's own), and vertices whose
+  // UVs extend a chart past its seam.
+  int uv_seam_vertices = 0;
+  int uv_extended_vertices = 0;
   double global_scale = 1.0;      // similarity scale source -> target landmarks
   double global_rotation_deg = 0.0;  // similarity rotation source -> target landmarks
   // The angle a rotation must reach to be applied: min_rotation_deg (shrunk

@@ -908,74 +908,103 @@ TEST(TransferRig, FieldsAndColoursNeverCrossTheLips) {
 
 // UVs are seam-aware: a cylindrical unwrap with its seam down one side of
 // the head (the vertices of triangles across it split into a second chart, as
-// in any UV-mapped mesh) transfers so that every target vertex takes the
-// chart of the source triangle it lies on - u near 0 or near 1 at the seam,
-// never a blend of the two charts (u near 0.5).
+// in any UV-mapped mesh). Every target triangle takes one chart, so none
+// spans the atlas (u from near 0 to near 1); target vertices where the seam
+// crosses are split, each copy carrying the same weights and shapes.
 TEST(TransferRig, UvsKeepEachTriangleOnItsOwnChart) {
-  core::Rig rig;
-  rig.mesh = sourceRig().rig.mesh;
+  core::Rig rig = sourceRig().rig;
   const Eigen::RowVector3d centre =
       0.5 * (rig.mesh.positions.colwise().minCoeff() + rig.mesh.positions.colwise().maxCoeff());
   // Around the vertical axis, the seam (angle +-pi) down the side of the head.
   auto angle = [&](const Eigen::RowVector3d& p) { return std::atan2(p(2) - centre(2), -(p(0) - centre(0))); };
-  const Eigen::Index nv = rig.mesh.vertexCount();
-  std::vector<Eigen::RowVector3d> positions(static_cast<std::size_t>(nv));
-  std::vector<Eigen::RowVector2d> uvs(static_cast<std::size_t>(nv));
-  for (Eigen::Index v = 0; v < nv; ++v) {
-    positions[static_cast<std::size_t>(v)] = rig.mesh.positions.row(v);
-    uvs[static_cast<std::size_t>(v)] << angle(rig.mesh.positions.row(v)) / (2 * std::numbers::pi) + 0.5,
-        (rig.mesh.positions(v, 1) - centre(1)) / 40.0 + 0.5;
-  }
+  auto unwrap = [&](const Eigen::MatrixX3d& positions) {
+    Eigen::MatrixX2d uvs(positions.rows(), 2);
+    for (Eigen::Index v = 0; v < positions.rows(); ++v) {
+      uvs.row(v) << angle(positions.row(v)) / (2 * std::numbers::pi) + 0.5, (positions(v, 1) - centre(1)) / 40.0 + 0.5;
+    }
+    return uvs;
+  };
+  Eigen::MatrixX2d uvs = unwrap(rig.mesh.positions);
   std::map<int, int> second_chart;  // vertex -> its copy with u + 1
+  std::vector<int> copy_of;
   int crossing = 0;
   for (Eigen::Index f = 0; f < rig.mesh.triangleCount(); ++f) {
-    double lo = 1.0, hi = 0.0;
-    for (int k = 0; k < 3; ++k) {
-      const double u = uvs[static_cast<std::size_t>(rig.mesh.triangles(f, k))](0);
-      lo = std::min(lo, u);
-      hi = std::max(hi, u);
-    }
-    if (hi - lo < 0.5) continue;  // not across the seam
+    const Eigen::Vector3d u(uvs(rig.mesh.triangles(f, 0), 0), uvs(rig.mesh.triangles(f, 1), 0), uvs(rig.mesh.triangles(f, 2), 0));
+    if (u.maxCoeff() - u.minCoeff() < 0.5) continue;  // not across the seam
     ++crossing;
     for (int k = 0; k < 3; ++k) {
       const int v = rig.mesh.triangles(f, k);
-      if (uvs[static_cast<std::size_t>(v)](0) >= 0.5) continue;
-      auto [it, added] = second_chart.emplace(v, static_cast<int>(positions.size()));
-      if (added) {
-        positions.push_back(positions[static_cast<std::size_t>(v)]);
-        uvs.push_back(uvs[static_cast<std::size_t>(v)] + Eigen::RowVector2d(1.0, 0.0));
-      }
+      if (u(k) >= 0.5) continue;
+      auto [it, added] = second_chart.emplace(v, static_cast<int>(rig.mesh.vertexCount() + std::ssize(copy_of)));
+      if (added) copy_of.push_back(v);
       rig.mesh.triangles(f, k) = it->second;
     }
   }
   ASSERT_GT(crossing, 10);
-  rig.mesh.positions.resize(static_cast<Eigen::Index>(positions.size()), 3);
-  rig.mesh.uvs.resize(static_cast<Eigen::Index>(uvs.size()), 2);
-  for (std::size_t v = 0; v < positions.size(); ++v) {
-    rig.mesh.positions.row(static_cast<Eigen::Index>(v)) = positions[v];
-    rig.mesh.uvs.row(static_cast<Eigen::Index>(v)) = uvs[v];
-  }
-  rig.mesh.normals.resize(0, 3);
+  core::appendVertexCopies(rig, copy_of);
+  ASSERT_EQ(rig.mesh.positions.rows(), uvs.rows() + std::ssize(copy_of));
+  uvs.conservativeResize(rig.mesh.vertexCount(), 2);
+  for (const auto& [v, copy] : second_chart) uvs.row(copy) = uvs.row(v) + Eigen::RowVector2d(1.0, 0.0);
+  rig.mesh.uvs = uvs;
   auto prepared = core::prepareRig(rig, sourceRig().landmarks, "source with a UV seam");
   ASSERT_TRUE(prepared) << prepared.error().message;
 
   const core::SyntheticRig& target = lipTarget();
+  const Eigen::Index nt = target.rig.mesh.vertexCount();
   core::TransferOptions options;
-  options.weights = options.joints = options.shapes = options.animations = false;
   options.uvs = true;
   auto result = core::transferRig(*prepared, target.rig.mesh, target.landmarks, "other", options);
   ASSERT_TRUE(result) << result.error().message;
-  const Eigen::MatrixX2d& out = result->rig.mesh.uvs;
-  ASSERT_EQ(out.rows(), target.rig.mesh.vertexCount());
+  const core::Rig& out = result->rig;
+  const Eigen::Index added = result->report.uv_seam_vertices;
+  EXPECT_GT(added, 5);
+  EXPECT_GT(result->report.uv_extended_vertices, 5);
+  ASSERT_EQ(out.mesh.vertexCount(), nt + added);
+  ASSERT_EQ(out.mesh.uvs.rows(), nt + added);
+  ASSERT_EQ(out.weights.rows(), nt + added);
+  ASSERT_EQ(out.mesh.triangleCount(), target.rig.mesh.triangleCount());
+  // The target's vertices keep their places and order; each copy sits on the
+  // target vertex it was made from (found through the triangles) and carries
+  // its weights and shape deltas.
+  EXPECT_EQ(out.mesh.positions.topRows(nt), target.rig.mesh.positions);
+  std::vector<int> original(static_cast<std::size_t>(nt + added), -1);
+  for (Eigen::Index f = 0; f < out.mesh.triangleCount(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int v = out.mesh.triangles(f, k), was = target.rig.mesh.triangles(f, k);
+      ASSERT_TRUE(v == was || v >= nt) << "triangle " << f << " corner " << k;
+      int& o = original[static_cast<std::size_t>(v)];
+      ASSERT_TRUE(o < 0 || o == was) << "vertex " << v << " copies two target vertices";
+      o = was;
+    }
+  }
+  const Eigen::MatrixXd weights(out.weights);
+  for (Eigen::Index c = nt; c < nt + added; ++c) {
+    const int v = original[static_cast<std::size_t>(c)];
+    ASSERT_GE(v, 0) << "copy " << c << " is on no triangle";
+    EXPECT_EQ(out.mesh.positions.row(c), out.mesh.positions.row(v));
+    EXPECT_EQ(weights.row(c), weights.row(v));
+    for (const core::MorphTarget& shape : out.morph_targets) EXPECT_EQ(shape.position_deltas.row(c), shape.position_deltas.row(v));
+    // The other side of the seam: u about one apart, v the same.
+    EXPECT_NEAR(std::abs(out.mesh.uvs(c, 0) - out.mesh.uvs(v, 0)), 1.0, 0.05) << "copy " << c << " of " << v;
+    EXPECT_NEAR(out.mesh.uvs(c, 1), out.mesh.uvs(v, 1), 0.02) << "copy " << c << " of " << v;
+  }
+  // No triangle across the atlas; near the seam no blend of the two charts.
+  for (Eigen::Index f = 0; f < out.mesh.triangleCount(); ++f) {
+    const Eigen::Vector3d u(out.mesh.uvs(out.mesh.triangles(f, 0), 0), out.mesh.uvs(out.mesh.triangles(f, 1), 0),
+                            out.mesh.uvs(out.mesh.triangles(f, 2), 0));
+    ASSERT_LT(u.maxCoeff() - u.minCoeff(), 0.2) << "triangle " << f << " spans the atlas: u " << u.transpose();
+  }
   int at_seam = 0;
-  for (Eigen::Index v = 0; v < out.rows(); ++v) {
-    ASSERT_TRUE(out.row(v).allFinite()) << "vertex " << v;
-    const double theta = angle(target.rig.mesh.positions.row(v));
-    if (std::abs(theta) < 0.97 * std::numbers::pi) continue;
+  for (Eigen::Index v = 0; v < out.mesh.vertexCount(); ++v) {
+    ASSERT_TRUE(out.mesh.uvs.row(v).allFinite()) << "vertex " << v;
+    if (std::abs(angle(out.mesh.positions.row(v))) < 0.97 * std::numbers::pi) continue;
     ++at_seam;
-    EXPECT_GT(std::abs(out(v, 0) - 0.5), 0.35) << "vertex " << v << " at the seam blends the two charts: u " << out(v, 0);
+    EXPECT_GT(std::abs(out.mesh.uvs(v, 0) - 0.5), 0.35) << "vertex " << v << " at the seam blends the two charts";
   }
   EXPECT_GT(at_seam, 5);
+  const auto glb = rigport_test::makeTempDir("uv_seams") / "seams.glb";
+  ASSERT_TRUE(core::writeRigGlb(out, glb)) << glb;
+  EXPECT_GLTF_VALID(glb);
 }
 
 TEST(TransferRig, ExaggerationScalesShapesAndAnimatedDeltas) {

@@ -378,6 +378,79 @@ TEST(IctTransferSplit, IdentitySplitAtUvSeamsMatchesAsOneSurface) {
   }
 }
 
+// The ICT UV layout (source_face_uv.glb: the surface split at its seams, a
+// multi-tile atlas with charts that wrap around) carried onto an identity of
+// the source's topology: each output triangle is a source triangle, so its
+// UVs should be those the layout gives it. Per-vertex UVs alone put every
+// triangle along a seam across the atlas; splitting the target where the
+// seams cross keeps each on one chart.
+TEST(IctTransferUvs, EveryTriangleStaysOnOneChart) {
+  RIGPORT_REQUIRE_SHARED_DATA(data);
+  auto uv = core::readRig(data / "ict" / "source_face_uv.glb");
+  auto plain = core::readMesh(data / "ict" / "source_face.glb");
+  auto source_landmarks = core::readLandmarks(data / "ict" / "source_face.landmarks.json");
+  ASSERT_TRUE(uv && plain && source_landmarks);
+  const Eigen::VectorXi ict = uv->rig.attributes.fields.at("ICT_VERTEX").col(0).cast<int>();
+  // The landmarks by position (vertex indices differ on the split mesh).
+  auto at = core::resolveLandmarks(*source_landmarks, plain->mesh, "source_face.glb");
+  ASSERT_TRUE(at);
+  core::LandmarkSet by_position = *source_landmarks;
+  for (std::size_t i = 0; i < by_position.landmarks.size(); ++i) {
+    by_position.landmarks[i].kind = core::LandmarkKind::kPosition;
+    by_position.landmarks[i].position = at->row(static_cast<Eigen::Index>(i)).transpose();
+  }
+  core::Rig layout;
+  layout.mesh = uv->rig.mesh;
+  auto source = core::prepareRig(layout, by_position, "source_face_uv.glb");
+  ASSERT_TRUE(source) << source.error().message;
+  // Its triangles are source_face.glb's, corner for corner.
+  const Eigen::MatrixX3i& uv_tris = uv->rig.mesh.triangles;
+  ASSERT_EQ(uv_tris.rows(), plain->mesh.triangleCount());
+  for (Eigen::Index f = 0; f < uv_tris.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) ASSERT_EQ(ict(uv_tris(f, k)), plain->mesh.triangles(f, k)) << "triangle " << f;
+  }
+  auto span = [](const Eigen::MatrixX2d& uvs, const Eigen::MatrixX3i& tris, Eigen::Index f) {
+    Eigen::Matrix<double, 3, 2> corners;
+    for (int k = 0; k < 3; ++k) corners.row(k) = uvs.row(tris(f, k));
+    return (corners.colwise().maxCoeff() - corners.colwise().minCoeff()).maxCoeff();
+  };
+  double layout_span = 0.0;
+  for (Eigen::Index f = 0; f < uv_tris.rows(); ++f) layout_span = std::max(layout_span, span(uv->rig.mesh.uvs, uv_tris, f));
+
+  core::TransferOptions options;
+  options.weights = options.joints = options.shapes = options.animations = false;
+  options.uvs = true;
+  for (const std::string name : {"id_s01", "id_s02_remesh"}) {
+    auto target = core::readMesh(data / "ict" / "targets" / (name + ".glb"));
+    auto landmarks = core::readLandmarks(data / "ict" / "targets" / (name + ".landmarks.json"));
+    ASSERT_TRUE(target && landmarks);
+    auto result = core::transferRig(*source, target->mesh, *landmarks, name, options);
+    ASSERT_TRUE(result) << result.error().message;
+    const core::Mesh& out = result->rig.mesh;
+    const Eigen::Index nt = target->mesh.vertexCount();
+    ASSERT_EQ(out.vertexCount(), nt + result->report.uv_seam_vertices);
+    EXPECT_GT(result->report.uv_seam_vertices, 50);
+    double widest = 0.0;
+    for (Eigen::Index f = 0; f < out.triangleCount(); ++f) widest = std::max(widest, span(out.uvs, out.triangles, f));
+    std::vector<double> errors;
+    if (name == "id_s01") {
+      for (Eigen::Index f = 0; f < out.triangleCount(); ++f) {
+        for (int k = 0; k < 3; ++k) errors.push_back((out.uvs.row(out.triangles(f, k)) - uv->rig.mesh.uvs.row(uv_tris(f, k))).norm());
+      }
+      std::sort(errors.begin(), errors.end());
+    }
+    std::printf("[ %-28s ] UVs: %d vertices added at seams (%d extended), widest triangle %.3f (the layout's %.3f)\n",
+                name.c_str(), result->report.uv_seam_vertices, result->report.uv_extended_vertices, widest, layout_span);
+    EXPECT_LT(widest, 2.0 * layout_span) << name;
+    if (!errors.empty()) {
+      const double p99 = errors[errors.size() * 99 / 100];
+      std::printf("[ %-28s ] UVs: corner error against the layout's own: median %.4f, p99 %.4f\n", name.c_str(),
+                  errors[errors.size() / 2], p99);
+      EXPECT_LT(p99, 0.05) << name;
+    }
+  }
+}
+
 // Distance between the upper and lower inner-lip midpoints (papers 000 sec.
 // 5.3.1) on `rig` posed by `clip` at 61 times over 0-2 s.
 std::vector<double> innerLipGaps(const core::Rig& rig, const core::LandmarkSet& set, const core::Animation& clip) {
