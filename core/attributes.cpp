@@ -96,40 +96,6 @@ VertexAttributes transferAttributes(const Mesh& source_mesh, const VertexAttribu
 
 namespace {
 
-// Faces around each point of a mesh (CSR by representative vertex).
-struct FacesAroundPoints {
-  std::vector<int> point;    // #V: the representative of each vertex
-  std::vector<int> offsets;  // #V + 1, by representative
-  std::vector<int> faces;
-
-  FacesAroundPoints(const Mesh& mesh, std::vector<int> representative) : point(std::move(representative)) {
-    const Eigen::Index nv = mesh.vertexCount(), nf = mesh.triangleCount();
-    if (point.empty()) {
-      point.resize(static_cast<std::size_t>(nv));
-      std::iota(point.begin(), point.end(), 0);
-    }
-    auto cornerPoint = [&](Eigen::Index f, int k) {
-      return static_cast<std::size_t>(point[static_cast<std::size_t>(mesh.triangles(f, k))]);
-    };
-    offsets.assign(static_cast<std::size_t>(nv) + 1, 0);
-    for (Eigen::Index f = 0; f < nf; ++f) {
-      for (int k = 0; k < 3; ++k) ++offsets[cornerPoint(f, k) + 1];
-    }
-    for (std::size_t v = 0; v + 1 < offsets.size(); ++v) offsets[v + 1] += offsets[v];
-    faces.resize(static_cast<std::size_t>(offsets.back()));
-    std::vector<int> fill(offsets.begin(), offsets.end() - 1);
-    for (Eigen::Index f = 0; f < nf; ++f) {
-      for (int k = 0; k < 3; ++k) faces[static_cast<std::size_t>(fill[cornerPoint(f, k)]++)] = static_cast<int>(f);
-    }
-  }
-  // fn(face) for each face at the point of `vertex`, in ascending order.
-  template <class Fn>
-  void forEachFaceAround(int vertex, Fn&& fn) const {
-    const auto p = static_cast<std::size_t>(point[static_cast<std::size_t>(vertex)]);
-    for (int i = offsets[p]; i < offsets[p + 1]; ++i) fn(faces[static_cast<std::size_t>(i)]);
-  }
-};
-
 // Barycentric coordinates of p's projection onto the plane of (a, b, c),
 // outside the triangle too; the closest point's when the triangle is
 // degenerate.
@@ -144,9 +110,9 @@ Eigen::Vector3d planeBarycentric(const Eigen::Vector3d& p, const Eigen::Vector3d
   return {1.0 - u - w, u, w};
 }
 
-// Faces across each edge of a mesh whose two ends carry one UV (uv_of:
-// vertices at one point with one UV share a representative), as CSR by face:
-// the UV layout is continuous between them.
+// Faces across each edge whose two ends carry one UV (uv_of: vertices at one
+// point with one UV share a representative), as CSR by face: the UV layout
+// is continuous between them.
 struct UvNeighbours {
   std::vector<int> offsets;  // #F + 1
   std::vector<int> faces;
@@ -189,32 +155,89 @@ UvNeighbours uvNeighbours(const Eigen::MatrixX3i& tris, const std::vector<int>& 
 
 }  // namespace
 
-Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const std::vector<Eigen::MatrixX2d>& source_sets,
-                                             const Mesh& target, const TargetLocations& locations) {
-  const Eigen::Index ns = source_mesh.vertexCount(), nt = target.vertexCount(), nf = target.triangleCount();
+FacesAroundPoints::FacesAroundPoints(const Mesh& mesh, std::vector<int> representative) : point(std::move(representative)) {
+  const Eigen::Index nv = mesh.vertexCount(), nf = mesh.triangleCount();
+  if (point.empty()) {
+    point.resize(static_cast<std::size_t>(nv));
+    std::iota(point.begin(), point.end(), 0);
+  }
+  auto cornerPoint = [&](Eigen::Index f, int k) {
+    return static_cast<std::size_t>(point[static_cast<std::size_t>(mesh.triangles(f, k))]);
+  };
+  offsets.assign(static_cast<std::size_t>(nv) + 1, 0);
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) ++offsets[cornerPoint(f, k) + 1];
+  }
+  for (std::size_t v = 0; v + 1 < offsets.size(); ++v) offsets[v + 1] += offsets[v];
+  faces.resize(static_cast<std::size_t>(offsets.back()));
+  std::vector<int> fill(offsets.begin(), offsets.end() - 1);
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) faces[static_cast<std::size_t>(fill[cornerPoint(f, k)]++)] = static_cast<int>(f);
+  }
+}
+
+std::size_t SourceUvLayout::memoryBytes() const {
+  return static_cast<std::size_t>(uvs.size() + face_centres.size() + face_radii.size()) * sizeof(double) +
+         (uv_of.size() + around.point.size() + around.offsets.size() + around.faces.size() + across_offsets.size() +
+          across_faces.size()) * sizeof(int);
+}
+
+Result<SourceUvLayout> prepareUvLayout(const Mesh& source_mesh, const std::vector<Eigen::MatrixX2d>& sets,
+                                       const std::string& label) {
+  const Eigen::Index ns = source_mesh.vertexCount(), nsf = source_mesh.triangleCount();
+  const Eigen::MatrixX3i& tris = source_mesh.triangles;
+  for (std::size_t s = 0; s < sets.size(); ++s) {
+    if (sets[s].rows() != ns) {
+      return Error{ErrorCode::kInvalidMesh, label + ": UV set " + std::to_string(s) + " has " +
+                                                std::to_string(sets[s].rows()) + " rows for " + std::to_string(ns) +
+                                                " vertices"};
+    }
+  }
+  SourceUvLayout layout;
+  layout.uvs.resize(ns, 2 * static_cast<Eigen::Index>(sets.size()));
+  for (std::size_t s = 0; s < sets.size(); ++s) layout.uvs.middleCols(2 * static_cast<Eigen::Index>(s), 2) = sets[s];
+  layout.uv_of = agreeingVertexRepresentatives(source_mesh.positions, layout.uvs);
+  if (layout.uv_of.empty()) {
+    layout.uv_of.resize(static_cast<std::size_t>(ns));
+    std::iota(layout.uv_of.begin(), layout.uv_of.end(), 0);
+  }
+  layout.around = FacesAroundPoints(source_mesh, coincidentVertexRepresentatives(source_mesh.positions));
+  UvNeighbours across = uvNeighbours(tris, layout.uv_of);
+  layout.across_offsets = std::move(across.offsets);
+  layout.across_faces = std::move(across.faces);
+  layout.face_centres.resize(nsf, 3);
+  layout.face_radii.resize(nsf);
+  double uv_edges = 0.0;
+  for (Eigen::Index f = 0; f < nsf; ++f) {
+    const Eigen::RowVector3d c = (source_mesh.positions.row(tris(f, 0)) + source_mesh.positions.row(tris(f, 1)) +
+                                  source_mesh.positions.row(tris(f, 2))) / 3.0;
+    layout.face_centres.row(f) = c;
+    layout.face_radii(f) = 0.0;
+    for (int k = 0; k < 3; ++k) {
+      layout.face_radii(f) = std::max(layout.face_radii(f), (source_mesh.positions.row(tris(f, k)) - c).norm());
+      uv_edges += (layout.uvs.row(tris(f, k)) - layout.uvs.row(tris(f, (k + 1) % 3))).norm();
+    }
+  }
+  // A tenth of the mean UV edge: extensions of one side made from
+  // neighbouring faces differ a little, the two sides of a seam a lot.
+  layout.same_uv = nsf > 0 ? 0.1 * uv_edges / static_cast<double>(3 * nsf) : 0.0;
+  return layout;
+}
+
+Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const SourceUvLayout& layout, const Mesh& target,
+                                             const TargetLocations& locations) {
+  const Eigen::Index nt = target.vertexCount(), nf = target.triangleCount();
   const Eigen::Index nsf = source_mesh.triangleCount();
   const Eigen::MatrixX3i& src_tris = source_mesh.triangles;
   const Eigen::MatrixX3d& src_positions = source_mesh.positions;
-  for (std::size_t s = 0; s < source_sets.size(); ++s) {
-    if (source_sets[s].rows() != ns) {
-      return Error{ErrorCode::kInvalidMesh, "source UV set " + std::to_string(s) + " has " +
-                                                std::to_string(source_sets[s].rows()) + " rows for " +
-                                                std::to_string(ns) + " vertices"};
-    }
-  }
+  const Eigen::MatrixXd& all_uvs = layout.uvs;
+  const std::vector<int>& uv_of = layout.uv_of;
+  const FacesAroundPoints& source_around = layout.around;
+  const double same_uv = layout.same_uv;
+  const Eigen::Index cols = all_uvs.cols();
   auto at = [](auto& values, auto i) -> decltype(auto) { return values[static_cast<std::size_t>(i)]; };
   TransferredUvLayout out;
   out.triangles = target.triangles;
-  const Eigen::Index cols = 2 * static_cast<Eigen::Index>(source_sets.size());
-  Eigen::MatrixXd all_uvs(ns, cols);
-  for (std::size_t s = 0; s < source_sets.size(); ++s) all_uvs.middleCols(2 * static_cast<Eigen::Index>(s), 2) = source_sets[s];
-  std::vector<int> uv_of = agreeingVertexRepresentatives(src_positions, all_uvs);
-  if (uv_of.empty()) {
-    uv_of.resize(static_cast<std::size_t>(ns));
-    std::iota(uv_of.begin(), uv_of.end(), 0);
-  }
-  const FacesAroundPoints source_around(source_mesh, coincidentVertexRepresentatives(src_positions));
-  const UvNeighbours uv_neighbours = uvNeighbours(src_tris, uv_of);
   auto corner = [&](int face, int k) -> Eigen::Vector3d { return src_positions.row(src_tris(face, k)).transpose(); };
   // interpolateOnFace of all_uvs, as an expression (no row allocated per call)
   auto uvsAt = [&](int face, const Eigen::Vector3d& b) {
@@ -223,22 +246,6 @@ Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const std:
   auto sourcePoint = [&](const SurfacePoint& sp) -> Eigen::Vector3d {
     return interpolateOnFace(src_positions, src_tris, sp.face, sp.barycentric).transpose();
   };
-  RowMatrixX3d face_centre(nsf, 3);
-  Eigen::VectorXd face_radius(nsf);
-  double uv_edges = 0.0;
-  for (Eigen::Index f = 0; f < nsf; ++f) {
-    const Eigen::Vector3d c = (corner(static_cast<int>(f), 0) + corner(static_cast<int>(f), 1) + corner(static_cast<int>(f), 2)) / 3.0;
-    face_centre.row(f) = c.transpose();
-    face_radius(f) = 0.0;
-    for (int k = 0; k < 3; ++k) {
-      face_radius(f) = std::max(face_radius(f), (corner(static_cast<int>(f), k) - c).norm());
-      uv_edges += (all_uvs.row(src_tris(f, k)) - all_uvs.row(src_tris(f, (k + 1) % 3))).norm();
-    }
-  }
-  // UVs of one vertex closer than this are one (a tenth of the source's mean
-  // UV edge): extensions of one side made from neighbouring faces differ a
-  // little, the two sides of a seam a lot.
-  const double same_uv = nsf > 0 ? 0.1 * uv_edges / static_cast<double>(3 * nsf) : 0.0;
   // Every located vertex takes the UVs of its location, mismatched ones too
   // (their place is off, but on the surface they face): inpainting them
   // would blend the charts of the vertices around them.
@@ -304,11 +311,11 @@ Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const std:
         auto reached = [&] { return std::all_of(seeds.begin(), seeds.end(), [&](int g) { return at(in_region, g) == search; }); };
         for (std::size_t q = 0; q < region.size() && !(until_seeds && reached()); ++q) {
           const auto g = static_cast<std::size_t>(region[q]);
-          for (int i = uv_neighbours.offsets[g]; i < uv_neighbours.offsets[g + 1]; ++i) {
-            const int h = at(uv_neighbours.faces, i);
+          for (int i = layout.across_offsets[g]; i < layout.across_offsets[g + 1]; ++i) {
+            const int h = at(layout.across_faces, i);
             if (at(visited, h) == search) continue;
             at(visited, h) = search;
-            if ((face_centre.row(h).transpose() - centre).norm() <= 1.5 * reach + face_radius(h)) {
+            if ((layout.face_centres.row(h).transpose() - centre).norm() <= 1.5 * reach + layout.face_radii(h)) {
               region.push_back(h);
               at(in_region, h) = search;
             }
@@ -418,7 +425,7 @@ Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const std:
     if (!inpainted) return Error{inpainted.error().code, "inpainting UVs: " + inpainted.error().message};
     uvs = std::move(*inpainted);
   }
-  for (std::size_t s = 0; s < source_sets.size(); ++s) out.sets.push_back(uvs.middleCols(2 * static_cast<Eigen::Index>(s), 2));
+  for (Eigen::Index s = 0; s < cols / 2; ++s) out.sets.push_back(uvs.middleCols(2 * s, 2));
   return out;
 }
 

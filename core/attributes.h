@@ -3,6 +3,9 @@
 // the source's seams (the target split where a seam crosses it).
 #pragma once
 
+#include <string>
+#include <vector>
+
 #include <Eigen/SparseCore>
 
 #include "core/correspondence.h"
@@ -19,6 +22,43 @@ namespace core {
 VertexAttributes transferAttributes(const Mesh& source_mesh, const VertexAttributes& source,
                                     const TargetLocations& locations, const Eigen::SparseMatrix<double>& target_laplacian,
                                     const HarmonicInpainting* mismatched);
+
+// Faces around each point of a mesh (CSR by representative vertex).
+struct FacesAroundPoints {
+  std::vector<int> point;    // #V: the representative of each vertex
+  std::vector<int> offsets;  // #V + 1, by representative
+  std::vector<int> faces;
+
+  FacesAroundPoints() = default;
+  // representative: as from coincidentVertexRepresentatives (empty: none joined)
+  FacesAroundPoints(const Mesh& mesh, std::vector<int> representative);
+  // fn(face) for each face at the point of `vertex`, in ascending order.
+  template <class Fn>
+  void forEachFaceAround(int vertex, Fn&& fn) const {
+    const auto p = static_cast<std::size_t>(point[static_cast<std::size_t>(vertex)]);
+    for (int i = offsets[p]; i < offsets[p + 1]; ++i) fn(faces[static_cast<std::size_t>(i)]);
+  }
+};
+
+// What transferUvLayout needs of the source alone, made once per rig
+// (PreparedRig::uv_layout): its UV sets side by side, the faces around each
+// point, the faces across each edge whose two ends carry one UV in every set
+// (where the layout is continuous), and each face's centre and radius.
+struct SourceUvLayout {
+  Eigen::MatrixXd uvs;                  // #V by 2 x #sets
+  std::vector<int> uv_of;               // #V: the lowest copy of its point with its UVs
+  FacesAroundPoints around;             // by point
+  std::vector<int> across_offsets;      // #F + 1
+  std::vector<int> across_faces;        // faces across UV-continuous edges, by face
+  RowMatrixX3d face_centres;            // #F
+  Eigen::VectorXd face_radii;           // #F: farthest corner from the centre
+  double same_uv = 0.0;                 // UVs of one vertex closer than this are one
+  std::size_t memoryBytes() const;
+};
+// sets: TEXCOORD_0 and the extra sets, #V rows each (an error names the set
+// that has not).
+Result<SourceUvLayout> prepareUvLayout(const Mesh& source_mesh, const std::vector<Eigen::MatrixX2d>& sets,
+                                       const std::string& label);
 
 // The source's UV sets on the target, seams and all. Each target triangle
 // takes its UVs from one side of any source seam: a corner whose location is
@@ -38,7 +78,7 @@ struct TransferredUvLayout {
   std::vector<Eigen::MatrixX2d> sets;  // per source set: #Vt + copy_of.size() rows
   int extrapolated = 0;                // vertices whose UVs extend a side past its seam
 };
-Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const std::vector<Eigen::MatrixX2d>& source_sets,
-                                             const Mesh& target, const TargetLocations& locations);
+Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const SourceUvLayout& layout, const Mesh& target,
+                                             const TargetLocations& locations);
 
 }  // namespace core

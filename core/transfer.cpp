@@ -41,6 +41,14 @@ struct GlobalAdaptation {
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
 };
 
+// TEXCOORD_0 (when the mesh has it) and the extra UV sets, in that order.
+std::vector<Eigen::MatrixX2d> sourceUvSets(const Rig& rig) {
+  std::vector<Eigen::MatrixX2d> sets;
+  if (rig.mesh.uvs.rows() > 0) sets.push_back(rig.mesh.uvs);
+  sets.insert(sets.end(), rig.attributes.extra_uv_sets.begin(), rig.attributes.extra_uv_sets.end());
+  return sets;
+}
+
 GlobalAdaptation globalAdaptation(const Eigen::MatrixX3d& src_landmarks, const Eigen::MatrixX3d& tgt_landmarks,
                                   const TransferOptions& options, const std::string& target_label,
                                   TransferReport& report) {
@@ -187,7 +195,7 @@ double msSince(Clock::time_point t0) { return std::chrono::duration<double, std:
 }  // namespace
 
 std::size_t PreparedRig::memoryBytes() const {
-  std::size_t bytes = surface.memoryBytes();
+  std::size_t bytes = surface.memoryBytes() + (uv_layout ? uv_layout->memoryBytes() : 0);
   for (const auto& t : rig.morph_targets) bytes += static_cast<std::size_t>(t.position_deltas.size() + t.normal_deltas.size()) * sizeof(double);
   bytes += static_cast<std::size_t>(rig.weights.nonZeros()) * (sizeof(double) + sizeof(int));
   for (const auto& a : rig.animations) for (const auto& c : a.channels) bytes += static_cast<std::size_t>(c.values.size() + c.times.size()) * sizeof(double);
@@ -226,6 +234,12 @@ Result<PreparedRig> prepareRig(Rig rig, LandmarkSet landmarks, const std::string
   prepared.rig = std::move(rig);
   prepared.rig.mesh.normals = surface->mesh.normals;
   prepared.surface = std::move(*surface);
+  const std::vector<Eigen::MatrixX2d> uv_sets = sourceUvSets(prepared.rig);
+  if (!uv_sets.empty()) {
+    auto uv_layout = prepareUvLayout(prepared.surface.mesh, uv_sets, label);
+    if (!uv_layout) return uv_layout.error();
+    prepared.uv_layout = std::move(*uv_layout);
+  }
   return prepared;
 }
 
@@ -429,13 +443,8 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   }
   // Last: carrying the source's UV seams over splits target vertices, and
   // every per-vertex value above goes with its copies.
-  std::vector<Eigen::MatrixX2d> uv_sets;
-  if (options.uvs) {
-    if (src_mesh.uvs.rows() > 0) uv_sets.push_back(src_mesh.uvs);
-    uv_sets.insert(uv_sets.end(), src.attributes.extra_uv_sets.begin(), src.attributes.extra_uv_sets.end());
-  }
-  if (!uv_sets.empty()) {
-    auto layout = transferUvLayout(src_mesh, uv_sets, target, locations);
+  if (options.uvs && source.uv_layout) {
+    auto layout = transferUvLayout(src_mesh, *source.uv_layout, target, locations);
     if (!layout) return Error{layout.error().code, target_label + ": " + layout.error().message};
     appendVertexCopies(out, layout->copy_of);
     out.mesh.triangles = layout->triangles;

@@ -5,6 +5,7 @@
 
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -96,6 +97,7 @@ struct TransferOptions {
 struct PreparedRig {
   Rig rig;
   PreparedSource surface;
+  std::optional<SourceUvLayout> uv_layout;  // when the rig has UV sets (for TransferOptions::uvs)
   std::size_t memoryBytes() const;
 };
 

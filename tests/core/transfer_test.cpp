@@ -1005,6 +1005,35 @@ TEST(TransferRig, UvsKeepEachTriangleOnItsOwnChart) {
   const auto glb = rigport_test::makeTempDir("uv_seams") / "seams.glb";
   ASSERT_TRUE(core::writeRigGlb(out, glb)) << glb;
   EXPECT_GLTF_VALID(glb);
+
+  // Vertices with no location (a region label the rig lacks: the upper
+  // lids) take UVs inpainted from their located neighbours: inside the range
+  // those span, on no triangle across the atlas.
+  core::Mesh relabelled = target.rig.mesh;
+  relabelled.regions = target.rig.attributes.labels.at("REGION");
+  for (Eigen::Index v = 0; v < relabelled.regions.size(); ++v) {
+    if (relabelled.regions(v) == core::kRegionUpperLid) relabelled.regions(v) = 9;
+  }
+  auto lidless = core::transferRig(*prepared, relabelled, target.landmarks, "relabelled", options);
+  ASSERT_TRUE(lidless) << lidless.error().message;
+  EXPECT_GT(lidless->report.unlocated_vertices, 10);
+  const core::Mesh& lid_out = lidless->rig.mesh;
+  Eigen::RowVector2d lo = Eigen::RowVector2d::Constant(1e9), hi = -lo;
+  for (Eigen::Index v = 0; v < nt; ++v) {
+    if (relabelled.regions(v) == 9) continue;
+    lo = lo.cwiseMin(lid_out.uvs.row(v));
+    hi = hi.cwiseMax(lid_out.uvs.row(v));
+  }
+  for (Eigen::Index v = 0; v < nt; ++v) {
+    if (relabelled.regions(v) != 9) continue;
+    ASSERT_TRUE((lid_out.uvs.row(v).array() >= lo.array() - 1e-9).all() && (lid_out.uvs.row(v).array() <= hi.array() + 1e-9).all())
+        << "lid vertex " << v << " UV " << lid_out.uvs.row(v);
+  }
+  for (Eigen::Index f = 0; f < lid_out.triangleCount(); ++f) {
+    const Eigen::Vector3d u(lid_out.uvs(lid_out.triangles(f, 0), 0), lid_out.uvs(lid_out.triangles(f, 1), 0),
+                            lid_out.uvs(lid_out.triangles(f, 2), 0));
+    ASSERT_LT(u.maxCoeff() - u.minCoeff(), 0.2) << "triangle " << f << " spans the atlas: u " << u.transpose();
+  }
 }
 
 TEST(TransferRig, ExaggerationScalesShapesAndAnimatedDeltas) {
