@@ -172,6 +172,10 @@ int runTransfer(const TransferArgs& args) {
                "landmark rms {:.3g}, correspondence p95 {:.3f}% of diagonal, {} flipped; {:.1f} ms",
                r.joints, r.shapes, r.animations, r.inpainted_vertices, r.pruned_vertices, r.warp.landmark_rms_residual,
                100.0 * r.warp.p95_distance / r.warp.target_diagonal, r.warp.flipped_triangles, context.total_ms);
+  if (r.uv_seam_vertices > 0) {
+    spdlog::info("UVs: {} vertices added where the rig's UV seams cross the target (after its {} own)",
+                 r.uv_seam_vertices, target->mesh.vertexCount());
+  }
   spdlog::info("wrote {}{}", args.output.string(), args.diagnostics.empty() ? "" : " and " + args.diagnostics.string());
   return 0;
 }
