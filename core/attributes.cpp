@@ -6,8 +6,8 @@
 #include <limits>
 #include <map>
 #include <numeric>
-#include <optional>
-#include <unordered_map>
+#include <string>
+#include <vector>
 
 namespace core {
 
