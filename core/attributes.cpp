@@ -252,15 +252,23 @@ Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const Sour
   std::vector<char> located(static_cast<std::size_t>(nt));
   for (Eigen::Index v = 0; v < nt; ++v) at(located, v) = at(locations.on_source, v).found();
 
-  // Each corner's UVs in the frame of its target face: a reference source
-  // face (a corner's, or when they lie on faces that meet at no point with
-  // one UV, the one nearest their mean place). Corners on faces reachable
-  // from it across edges with one UV, near the face, interpolate their own
-  // location; the others (across a seam) extend the reference side affinely
-  // from its face nearest them.
+  // Each corner's UVs in the frame of its target face, from one side of any
+  // seam: the side its corners' locations are on, when they are on one
+  // (reachable from each other across source edges whose ends carry one UV,
+  // near the face); else the side of the source face nearest their mean
+  // location. Corners on that side interpolate their own location, the
+  // others (across the seam) extend it affinely from its face nearest them.
+  // A target vertex split at a point (its own UV seam) is located at the
+  // point, which may lie on the source's seam; its triangle's other corners
+  // tell the side.
+  const std::vector<int> target_point = coincidentVertexRepresentatives(target.positions);
+  std::vector<char> split_point(static_cast<std::size_t>(nt), 0);
+  for (std::size_t v = 0; v < target_point.size(); ++v) {
+    if (target_point[v] != static_cast<int>(v)) split_point[v] = split_point[static_cast<std::size_t>(target_point[v])] = 1;
+  }
   Eigen::MatrixXd corner_uvs(3 * nf, cols);
   std::vector<char> corner_extended(static_cast<std::size_t>(3 * nf), 0);
-  std::vector<int> seeds, ring, region;
+  std::vector<int> faces, sides, ring, region;  // faces: located corners'; sides: those that tell the side
   std::vector<int> visited(static_cast<std::size_t>(nsf), 0), in_region(visited);  // stamps of searches
   int searches = 0;
   auto sharesUvPoint = [&](int a, int b) {
@@ -271,10 +279,10 @@ Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const Sour
     }
     return false;
   };
-  auto nearestOf = [&](const Eigen::Vector3d& p, const std::vector<int>& faces) {
+  auto nearestOf = [&](const Eigen::Vector3d& p, const std::vector<int>& candidates) {
     int nearest = -1;
     double nearest_sq = std::numeric_limits<double>::infinity();
-    for (const int h : faces) {
+    for (const int h : candidates) {
       const double sq = closestPointOnTriangle(p, corner(h, 0), corner(h, 1), corner(h, 2)).sq_distance;
       if (sq < nearest_sq) {
         nearest_sq = sq;
@@ -284,32 +292,39 @@ Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const Sour
     return nearest;
   };
   for (Eigen::Index f = 0; f < nf; ++f) {
-    seeds.clear();
+    faces.clear();
+    sides.clear();
     for (int k = 0; k < 3; ++k) {
-      if (at(located, target.triangles(f, k))) seeds.push_back(at(locations.on_source, target.triangles(f, k)).face);
+      const int v = target.triangles(f, k);
+      if (!at(located, v)) continue;
+      faces.push_back(at(locations.on_source, v).face);
+      if (!at(split_point, v)) sides.push_back(faces.back());
     }
-    bool one_side = std::all_of(seeds.begin(), seeds.end(), [&](int g) { return g == seeds.front() || sharesUvPoint(g, seeds.front()); });
+    if (faces.empty()) continue;
+    if (sides.empty()) sides = faces;
+    const bool one_side =
+        std::all_of(faces.begin(), faces.end(), [&](int g) { return g == faces.front() || sharesUvPoint(g, faces.front()); });
     int search = 0;  // the region's stamp
     if (!one_side) {
-      Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-      double reach = 0.0;
-      for (const int pass : {0, 1}) {
-        for (int k = 0; k < 3; ++k) {
-          const int v = target.triangles(f, k);
-          if (!at(located, v)) continue;
-          const Eigen::Vector3d p = sourcePoint(at(locations.on_source, v));
-          if (pass == 0) centre += p / static_cast<double>(seeds.size());
-          if (pass == 1) reach = std::max(reach, (p - centre).norm());
-        }
+      Eigen::Vector3d centre = Eigen::Vector3d::Zero(), side_centre = Eigen::Vector3d::Zero();
+      std::vector<Eigen::Vector3d> points;
+      for (int k = 0; k < 3; ++k) {
+        const int v = target.triangles(f, k);
+        if (!at(located, v)) continue;
+        points.push_back(sourcePoint(at(locations.on_source, v)));
+        centre += points.back() / static_cast<double>(faces.size());
+        if (!at(split_point, v) || sides.size() == faces.size()) side_centre += points.back() / static_cast<double>(sides.size());
       }
+      double reach = 0.0;
+      for (const auto& p : points) reach = std::max(reach, (p - centre).norm());
       // Faces reachable from `start` across edges with one UV, near the face;
-      // with `until_seeds`, only until every seed face is among them.
-      auto sideOf = [&](int start, bool until_seeds) {
+      // with `until_reached`, only until every located corner's face is.
+      auto sideOf = [&](int start, bool until_reached) {
         search = ++searches;
         region.assign(1, start);
         at(visited, start) = at(in_region, start) = search;
-        auto reached = [&] { return std::all_of(seeds.begin(), seeds.end(), [&](int g) { return at(in_region, g) == search; }); };
-        for (std::size_t q = 0; q < region.size() && !(until_seeds && reached()); ++q) {
+        auto reached = [&] { return std::all_of(faces.begin(), faces.end(), [&](int g) { return at(in_region, g) == search; }); };
+        for (std::size_t q = 0; q < region.size() && !(until_reached && reached()); ++q) {
           const auto g = static_cast<std::size_t>(region[q]);
           for (int i = layout.across_offsets[g]; i < layout.across_offsets[g + 1]; ++i) {
             const int h = at(layout.across_faces, i);
@@ -322,14 +337,13 @@ Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const Sour
           }
         }
       };
-      sideOf(seeds.front(), true);
-      one_side = std::all_of(seeds.begin(), seeds.end(), [&](int g) { return at(in_region, g) == search; });
-      if (!one_side) {
-        // Across a seam: the side of the face nearest the middle, among
-        // those around the corners'.
+      sideOf(sides.front(), true);
+      if (!std::all_of(sides.begin(), sides.end(), [&](int g) { return at(in_region, g) == search; })) {
+        // The side-telling corners lie across a seam: the side of the face
+        // nearest their middle, among those around their faces.
         ring.clear();
         ++searches;
-        for (const int g : seeds) {
+        for (const int g : sides) {
           for (int k = 0; k < 3; ++k) {
             source_around.forEachFaceAround(src_tris(g, k), [&](int h) {
               if (at(visited, h) != searches) ring.push_back(h);
@@ -337,8 +351,8 @@ Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const Sour
             });
           }
         }
-        sideOf(nearestOf(centre, ring), false);
-      }
+        sideOf(nearestOf(side_centre, ring), false);
+      }  // else: a corner not reached left the whole side near the face in the region, to extend it from
     }
     for (int k = 0; k < 3; ++k) {
       const int v = target.triangles(f, k);

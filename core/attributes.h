@@ -66,7 +66,9 @@ Result<SourceUvLayout> prepareUvLayout(const Mesh& source_mesh, const std::vecto
 // every set) interpolates it; a corner across the seam extends that side
 // affinely from its source face nearest the corner. The side is the corners'
 // own when they lie on one, else that of the source face nearest their mean
-// location. A target vertex whose triangles give it different UVs is split:
+// location (corners at a point the target itself splits, on its own seam,
+// leave the choice to the others). A target vertex whose triangles give it
+// different UVs is split:
 // it keeps those of its own location and gets a copy per other UV, appended
 // after the target's vertices, so no triangle stretches across the atlas
 // (wrap-around charts included). Every located vertex, mismatched ones too,

@@ -449,6 +449,38 @@ TEST(IctTransferUvs, EveryTriangleStaysOnOneChart) {
       EXPECT_LT(p99, 0.05) << name;
     }
   }
+
+  // The identity already split at the layout's seams (its export's own UV
+  // copies): each copy takes its own side, so the layout comes back vertex
+  // for vertex and hardly any vertex needs a further copy.
+  auto identity = core::readMesh(data / "ict" / "targets" / "id_s01.glb");
+  auto landmarks = core::readLandmarks(data / "ict" / "targets" / "id_s01.landmarks.json");
+  ASSERT_TRUE(identity && landmarks);
+  core::Mesh split = uv->rig.mesh;
+  split.normals.resize(0, 3);
+  split.uvs.resize(0, 2);
+  for (Eigen::Index v = 0; v < split.vertexCount(); ++v) split.positions.row(v) = identity->mesh.positions.row(ict(v));
+  auto target_at = core::resolveLandmarks(*landmarks, identity->mesh, "id_s01");
+  ASSERT_TRUE(target_at);
+  core::LandmarkSet target_by_position = *landmarks;
+  for (std::size_t i = 0; i < target_by_position.landmarks.size(); ++i) {
+    target_by_position.landmarks[i].kind = core::LandmarkKind::kPosition;
+    target_by_position.landmarks[i].position = target_at->row(static_cast<Eigen::Index>(i)).transpose();
+  }
+  auto result = core::transferRig(*source, split, target_by_position, "id_s01 split", options);
+  ASSERT_TRUE(result) << result.error().message;
+  const core::Mesh& out = result->rig.mesh;
+  std::vector<double> errors;
+  for (Eigen::Index v = 0; v < split.vertexCount(); ++v) errors.push_back((out.uvs.row(v) - uv->rig.mesh.uvs.row(v)).norm());
+  std::sort(errors.begin(), errors.end());
+  double widest = 0.0;
+  for (Eigen::Index f = 0; f < out.triangleCount(); ++f) widest = std::max(widest, span(out.uvs, out.triangles, f));
+  std::printf("[ %-28s ] UVs onto the identity split at the layout's seams: %d vertices added, widest triangle %.3f, "
+              "vertex error median %.4f, p99 %.4f\n",
+              "id_s01 split", result->report.uv_seam_vertices, widest, errors[errors.size() / 2],
+              errors[errors.size() * 99 / 100]);
+  EXPECT_LT(widest, 2.0 * layout_span);
+  EXPECT_LT(errors[errors.size() * 99 / 100], 0.05);
 }
 
 // Distance between the upper and lower inner-lip midpoints (papers 000 sec.
