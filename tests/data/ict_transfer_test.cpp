@@ -21,6 +21,29 @@
 
 namespace {
 
+// The landmarks of `mesh` given by position (for a mesh whose vertex indices
+// differ: the surface split at its UV seams).
+core::LandmarkSet landmarksByPosition(const core::LandmarkSet& landmarks, const core::Mesh& mesh, const std::string& label) {
+  auto at = core::resolveLandmarks(landmarks, mesh, label);
+  EXPECT_TRUE(at) << label << ": " << at.error().message;
+  core::LandmarkSet by_position = landmarks;
+  for (std::size_t i = 0; at && i < by_position.landmarks.size(); ++i) {
+    by_position.landmarks[i].kind = core::LandmarkKind::kPosition;
+    by_position.landmarks[i].position = at->row(static_cast<Eigen::Index>(i)).transpose();
+  }
+  return by_position;
+}
+
+// The topology of source_face_uv.glb (ICT vertex `ict(v)` at vertex v) with
+// the positions of a mesh of the ICT topology, no normals or UVs.
+core::Mesh splitAtUvSeams(const core::Mesh& layout, const Eigen::VectorXi& ict, const core::Mesh& whole) {
+  core::Mesh split = layout;
+  split.normals.resize(0, 3);
+  split.uvs.resize(0, 2);
+  for (Eigen::Index v = 0; v < split.vertexCount(); ++v) split.positions.row(v) = whole.positions.row(ict(v));
+  return split;
+}
+
 const core::PreparedRig* ictRig(const std::filesystem::path& data) {
   static std::optional<core::PreparedRig> prepared;
   static bool tried = false;
@@ -331,17 +354,8 @@ TEST(IctTransferSplit, IdentitySplitAtUvSeamsMatchesAsOneSurface) {
     auto landmarks = core::readLandmarks(data / "ict" / "targets" / (name + ".landmarks.json"));
     auto gt = core::readRig(data / "ict" / "targets" / (name + ".gt.glb"));
     ASSERT_TRUE(identity && landmarks && gt);
-    core::Mesh split = uv->rig.mesh;
-    split.normals.resize(0, 3);
-    for (Eigen::Index v = 0; v < split.vertexCount(); ++v) split.positions.row(v) = identity->mesh.positions.row(ict(v));
-    // The same landmarks, by position (vertex indices differ on the split mesh).
-    auto at = core::resolveLandmarks(*landmarks, identity->mesh, name);
-    ASSERT_TRUE(at);
-    core::LandmarkSet by_position = *landmarks;
-    for (std::size_t i = 0; i < by_position.landmarks.size(); ++i) {
-      by_position.landmarks[i].kind = core::LandmarkKind::kPosition;
-      by_position.landmarks[i].position = at->row(static_cast<Eigen::Index>(i)).transpose();
-    }
+    const core::Mesh split = splitAtUvSeams(uv->rig.mesh, ict, identity->mesh);
+    const core::LandmarkSet by_position = landmarksByPosition(*landmarks, identity->mesh, name);
     auto whole = core::transferRig(*source, identity->mesh, *landmarks, name);
     auto parts = core::transferRig(*source, split, by_position, name + " split");
     ASSERT_TRUE(whole && parts);
@@ -391,14 +405,7 @@ TEST(IctTransferUvs, EveryTriangleStaysOnOneChart) {
   auto source_landmarks = core::readLandmarks(data / "ict" / "source_face.landmarks.json");
   ASSERT_TRUE(uv && plain && source_landmarks);
   const Eigen::VectorXi ict = uv->rig.attributes.fields.at("ICT_VERTEX").col(0).cast<int>();
-  // The landmarks by position (vertex indices differ on the split mesh).
-  auto at = core::resolveLandmarks(*source_landmarks, plain->mesh, "source_face.glb");
-  ASSERT_TRUE(at);
-  core::LandmarkSet by_position = *source_landmarks;
-  for (std::size_t i = 0; i < by_position.landmarks.size(); ++i) {
-    by_position.landmarks[i].kind = core::LandmarkKind::kPosition;
-    by_position.landmarks[i].position = at->row(static_cast<Eigen::Index>(i)).transpose();
-  }
+  const core::LandmarkSet by_position = landmarksByPosition(*source_landmarks, plain->mesh, "source_face.glb");
   core::Rig layout;
   layout.mesh = uv->rig.mesh;
   auto source = core::prepareRig(layout, by_position, "source_face_uv.glb");
@@ -456,18 +463,9 @@ TEST(IctTransferUvs, EveryTriangleStaysOnOneChart) {
   auto identity = core::readMesh(data / "ict" / "targets" / "id_s01.glb");
   auto landmarks = core::readLandmarks(data / "ict" / "targets" / "id_s01.landmarks.json");
   ASSERT_TRUE(identity && landmarks);
-  core::Mesh split = uv->rig.mesh;
-  split.normals.resize(0, 3);
-  split.uvs.resize(0, 2);
-  for (Eigen::Index v = 0; v < split.vertexCount(); ++v) split.positions.row(v) = identity->mesh.positions.row(ict(v));
-  auto target_at = core::resolveLandmarks(*landmarks, identity->mesh, "id_s01");
-  ASSERT_TRUE(target_at);
-  core::LandmarkSet target_by_position = *landmarks;
-  for (std::size_t i = 0; i < target_by_position.landmarks.size(); ++i) {
-    target_by_position.landmarks[i].kind = core::LandmarkKind::kPosition;
-    target_by_position.landmarks[i].position = target_at->row(static_cast<Eigen::Index>(i)).transpose();
-  }
-  auto result = core::transferRig(*source, split, target_by_position, "id_s01 split", options);
+  const core::Mesh split = splitAtUvSeams(uv->rig.mesh, ict, identity->mesh);
+  auto result = core::transferRig(*source, split, landmarksByPosition(*landmarks, identity->mesh, "id_s01"), "id_s01 split",
+                                  options);
   ASSERT_TRUE(result) << result.error().message;
   const core::Mesh& out = result->rig.mesh;
   std::vector<double> errors;
