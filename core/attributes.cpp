@@ -421,7 +421,7 @@ Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const Sour
   const Eigen::Index n = nt + static_cast<Eigen::Index>(out.copy_of.size());
   uvs.conservativeResize(n, cols);
   for (std::size_t c = 0; c < copy_uvs.size(); ++c) uvs.row(nt + static_cast<Eigen::Index>(c)) = copy_uvs[c];
-  out.extrapolated = static_cast<int>(std::count(extended.begin(), extended.end(), 1));
+  out.extended_vertices = static_cast<int>(std::count(extended.begin(), extended.end(), 1));
 
   // Unlocated vertices inpainted on the split target, the copies of a point
   // joined only where their UVs agree.

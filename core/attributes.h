@@ -78,7 +78,7 @@ struct TransferredUvLayout {
   Eigen::MatrixX3i triangles;          // the target's, corners re-pointed to their copies
   std::vector<int> copy_of;            // the target vertex each appended vertex copies
   std::vector<Eigen::MatrixX2d> sets;  // per source set: #Vt + copy_of.size() rows
-  int extrapolated = 0;                // vertices whose UVs extend a side past its seam
+  int extended_vertices = 0;           // vertices whose UVs extend a side past its seam
 };
 Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const SourceUvLayout& layout, const Mesh& target,
                                              const TargetLocations& locations);

@@ -452,7 +452,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
     if (src_mesh.uvs.rows() > 0) out.mesh.uvs = layout->sets[next++];
     out.attributes.extra_uv_sets.assign(layout->sets.begin() + static_cast<std::ptrdiff_t>(next), layout->sets.end());
     report.uv_seam_vertices = static_cast<int>(layout->copy_of.size());
-    report.uv_extended_vertices = layout->extrapolated;
+    report.uv_extended_vertices = layout->extended_vertices;
   }
   report.attributes_ms = msSince(t0);
   report.total_ms = msSince(t_start);
