@@ -443,6 +443,10 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   }
   // Last: carrying the source's UV seams over splits target vertices, and
   // every per-vertex value above goes with its copies.
+  if (options.uvs && !source.uv_layout) {
+    report.warnings.push_back("uvs: " + source.surface.label + " has no UV set to transfer; " + target_label +
+                              " keeps its own UVs");
+  }
   if (options.uvs && source.uv_layout) {
     auto layout = transferUvLayout(src_mesh, *source.uv_layout, target, locations);
     if (!layout) return Error{layout.error().code, target_label + ": " + layout.error().message};

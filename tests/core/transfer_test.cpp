@@ -1006,6 +1006,15 @@ TEST(TransferRig, UvsKeepEachTriangleOnItsOwnChart) {
   ASSERT_TRUE(core::writeRigGlb(out, glb)) << glb;
   EXPECT_GLTF_VALID(glb);
 
+  // A rig without UVs: said, and the target keeps its own.
+  auto without = core::transferRig(preparedSource(), target.rig.mesh, target.landmarks, "other", options);
+  ASSERT_TRUE(without) << without.error().message;
+  EXPECT_EQ(without->rig.mesh.uvs, target.rig.mesh.uvs);
+  EXPECT_EQ(without->rig.mesh.vertexCount(), nt);
+  EXPECT_NE(std::find(without->report.warnings.begin(), without->report.warnings.end(),
+                      "uvs: " + preparedSource().surface.label + " has no UV set to transfer; other keeps its own UVs"),
+            without->report.warnings.end());
+
   // Vertices with no location (a region label the rig lacks: the upper
   // lids) take UVs inpainted from their located neighbours: inside the range
   // those span, on no triangle across the atlas.
