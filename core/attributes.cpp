@@ -302,8 +302,17 @@ Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const Sour
     }
     if (faces.empty()) continue;
     if (sides.empty()) sides = faces;
-    const bool one_side =
-        std::all_of(faces.begin(), faces.end(), [&](int g) { return g == faces.front() || sharesUvPoint(g, faces.front()); });
+    // First without a search: faces that meet the first at a point with one
+    // UV, or meet one of the faces across its UV-continuous edges so.
+    auto nextToFirst = [&](int g) {
+      if (g == faces.front() || sharesUvPoint(g, faces.front())) return true;
+      const auto first = static_cast<std::size_t>(faces.front());
+      for (int i = layout.across_offsets[first]; i < layout.across_offsets[first + 1]; ++i) {
+        if (sharesUvPoint(g, at(layout.across_faces, i))) return true;
+      }
+      return false;
+    };
+    const bool one_side = std::all_of(faces.begin(), faces.end(), nextToFirst);
     int search = 0;  // the region's stamp
     if (!one_side) {
       Eigen::Vector3d centre = Eigen::Vector3d::Zero(), side_centre = Eigen::Vector3d::Zero();
