@@ -946,6 +946,8 @@ TEST(TransferRig, UvsKeepEachTriangleOnItsOwnChart) {
   uvs.conservativeResize(rig.mesh.vertexCount(), 2);
   for (const auto& [v, copy] : second_chart) uvs.row(copy) = uvs.row(v) + Eigen::RowVector2d(1.0, 0.0);
   rig.mesh.uvs = uvs;
+  // A second set without seams (a planar projection, as a lightmap might be).
+  rig.attributes.extra_uv_sets = {rig.mesh.positions.leftCols(2) / 40.0};
   auto prepared = core::prepareRig(rig, sourceRig().landmarks, "source with a UV seam");
   ASSERT_TRUE(prepared) << prepared.error().message;
 
@@ -962,6 +964,8 @@ TEST(TransferRig, UvsKeepEachTriangleOnItsOwnChart) {
   ASSERT_EQ(out.mesh.vertexCount(), nt + added);
   ASSERT_EQ(out.mesh.uvs.rows(), nt + added);
   ASSERT_EQ(out.weights.rows(), nt + added);
+  ASSERT_EQ(out.attributes.extra_uv_sets.size(), 1u);
+  ASSERT_EQ(out.attributes.extra_uv_sets[0].rows(), nt + added);
   ASSERT_EQ(out.mesh.triangleCount(), target.rig.mesh.triangleCount());
   // The target's vertices keep their places and order; each copy sits on the
   // target vertex it was made from (found through the triangles) and carries
@@ -984,9 +988,11 @@ TEST(TransferRig, UvsKeepEachTriangleOnItsOwnChart) {
     EXPECT_EQ(out.mesh.positions.row(c), out.mesh.positions.row(v));
     EXPECT_EQ(weights.row(c), weights.row(v));
     for (const core::MorphTarget& shape : out.morph_targets) EXPECT_EQ(shape.position_deltas.row(c), shape.position_deltas.row(v));
-    // The other side of the seam: u about one apart, v the same.
+    // The other side of the seam: u about one apart, v the same; the
+    // seamless set about the same.
     EXPECT_NEAR(std::abs(out.mesh.uvs(c, 0) - out.mesh.uvs(v, 0)), 1.0, 0.05) << "copy " << c << " of " << v;
     EXPECT_NEAR(out.mesh.uvs(c, 1), out.mesh.uvs(v, 1), 0.02) << "copy " << c << " of " << v;
+    EXPECT_LT((out.attributes.extra_uv_sets[0].row(c) - out.attributes.extra_uv_sets[0].row(v)).norm(), 1e-3) << "copy " << c;
   }
   // No triangle across the atlas; near the seam no blend of the two charts.
   for (Eigen::Index f = 0; f < out.mesh.triangleCount(); ++f) {
@@ -1005,6 +1011,18 @@ TEST(TransferRig, UvsKeepEachTriangleOnItsOwnChart) {
   const auto glb = rigport_test::makeTempDir("uv_seams") / "seams.glb";
   ASSERT_TRUE(core::writeRigGlb(out, glb)) << glb;
   EXPECT_GLTF_VALID(glb);
+
+  // A layout without seams (a planar projection): nothing to split, and every
+  // vertex takes the UVs of its location (linear in x and y).
+  core::Rig planar = sourceRig().rig;
+  planar.mesh.uvs = planar.mesh.positions.leftCols(2) / 40.0;
+  auto planar_source = core::prepareRig(planar, sourceRig().landmarks, "planar");
+  ASSERT_TRUE(planar_source) << planar_source.error().message;
+  auto flat = core::transferRig(*planar_source, target.rig.mesh, target.landmarks, "other", options);
+  ASSERT_TRUE(flat) << flat.error().message;
+  EXPECT_EQ(flat->report.uv_seam_vertices, 0);
+  ASSERT_EQ(flat->rig.mesh.vertexCount(), nt);
+  EXPECT_EQ(flat->rig.mesh.triangles, target.rig.mesh.triangles);
 
   // A rig without UVs: said, and the target keeps its own.
   auto without = core::transferRig(preparedSource(), target.rig.mesh, target.landmarks, "other", options);
