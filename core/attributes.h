@@ -68,12 +68,11 @@ Result<SourceUvLayout> prepareUvLayout(const Mesh& source_mesh, const std::vecto
 // own when they lie on one, else that of the source face nearest their mean
 // location (corners at a point the target itself splits, on its own seam,
 // leave the choice to the others). A target vertex whose triangles give it
-// different UVs is split:
-// it keeps those of its own location and gets a copy per other UV, appended
-// after the target's vertices, so no triangle stretches across the atlas
-// (wrap-around charts included). Every located vertex, mismatched ones too,
-// takes the UVs of its location; vertices with none are inpainted on the
-// split mesh.
+// different UVs is split: it keeps those of its own location and gets a copy
+// per other UV, appended after the target's vertices, so no triangle
+// stretches across the atlas (wrap-around charts included). Every located
+// vertex, mismatched ones too, takes the UVs of its location; vertices with
+// none are inpainted on the split mesh.
 struct TransferredUvLayout {
   Eigen::MatrixX3i triangles;          // the target's, corners re-pointed to their copies
   std::vector<int> copy_of;            // the target vertex each appended vertex copies

@@ -115,7 +115,7 @@ struct TransferReport {
   int unlocated_vertices = 0;     // target vertices with no location on the source
   // With `uvs`: vertices added where a source UV seam crosses the target
   // (copies of target vertices, after the target's own), and vertices whose
-  // UVs extend a chart past its seam.
+  // UVs extend one side of a seam past it.
   int uv_seam_vertices = 0;
   int uv_extended_vertices = 0;
   double global_scale = 1.0;      // similarity scale source -> target landmarks
