@@ -155,27 +155,6 @@ UvNeighbours uvNeighbours(const Eigen::MatrixX3i& tris, const std::vector<int>& 
 
 }  // namespace
 
-FacesAroundPoints::FacesAroundPoints(const Mesh& mesh, std::vector<int> representative) : point(std::move(representative)) {
-  const Eigen::Index nv = mesh.vertexCount(), nf = mesh.triangleCount();
-  if (point.empty()) {
-    point.resize(static_cast<std::size_t>(nv));
-    std::iota(point.begin(), point.end(), 0);
-  }
-  auto cornerPoint = [&](Eigen::Index f, int k) {
-    return static_cast<std::size_t>(point[static_cast<std::size_t>(mesh.triangles(f, k))]);
-  };
-  offsets.assign(static_cast<std::size_t>(nv) + 1, 0);
-  for (Eigen::Index f = 0; f < nf; ++f) {
-    for (int k = 0; k < 3; ++k) ++offsets[cornerPoint(f, k) + 1];
-  }
-  for (std::size_t v = 0; v + 1 < offsets.size(); ++v) offsets[v + 1] += offsets[v];
-  faces.resize(static_cast<std::size_t>(offsets.back()));
-  std::vector<int> fill(offsets.begin(), offsets.end() - 1);
-  for (Eigen::Index f = 0; f < nf; ++f) {
-    for (int k = 0; k < 3; ++k) faces[static_cast<std::size_t>(fill[cornerPoint(f, k)]++)] = static_cast<int>(f);
-  }
-}
-
 std::size_t SourceUvLayout::memoryBytes() const {
   return static_cast<std::size_t>(uvs.size() + face_centres.size() + face_radii.size()) * sizeof(double) +
          (uv_of.size() + around.point.size() + around.offsets.size() + around.faces.size() + across_offsets.size() +
@@ -249,8 +228,15 @@ Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const Sour
   // Every located vertex takes the UVs of its location, mismatched ones too
   // (their place is off, but on the surface they face): inpainting them
   // would blend the charts of the vertices around them.
+  // uvs: the UVs of each vertex's own location (0 when it has none), then
+  // rows for the copies.
   std::vector<char> located(static_cast<std::size_t>(nt));
-  for (Eigen::Index v = 0; v < nt; ++v) at(located, v) = at(locations.on_source, v).found();
+  Eigen::MatrixXd uvs = Eigen::MatrixXd::Zero(nt, cols);
+  for (Eigen::Index v = 0; v < nt; ++v) {
+    const SurfacePoint& sp = at(locations.on_source, v);
+    at(located, v) = sp.found();
+    if (sp.found()) uvs.row(v) = uvsAt(sp.face, sp.barycentric);
+  }
 
   // Each corner's UVs in the frame of its target face, from one side of any
   // seam: the side its corners' locations are on, when they are on one
@@ -369,7 +355,7 @@ Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const Sour
       const SurfacePoint& sp = at(locations.on_source, v);
       const Eigen::Index row = 3 * f + k;
       if (one_side || at(in_region, sp.face) == search) {
-        corner_uvs.row(row) = uvsAt(sp.face, sp.barycentric);
+        corner_uvs.row(row) = uvs.row(v);
         continue;
       }
       const Eigen::Vector3d p = sourcePoint(sp);
@@ -382,16 +368,7 @@ Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const Sour
   // One vertex per distinct UV of a target vertex's corners: the target's own
   // index for the UVs of its location (else its first corner's), copies after
   // the target's vertices for the others. Unlocated vertices stay one vertex.
-  Eigen::MatrixXd uvs(nt, cols);
   std::vector<char> home_used(static_cast<std::size_t>(nt), 0), extended(static_cast<std::size_t>(nt), 0);
-  for (Eigen::Index v = 0; v < nt; ++v) {
-    const SurfacePoint& sp = at(locations.on_source, v);
-    if (at(located, v)) {
-      uvs.row(v) = uvsAt(sp.face, sp.barycentric);
-    } else {
-      uvs.row(v).setZero();
-    }
-  }
   auto same = [&](const auto& a, const auto& b) { return (a - b).norm() <= same_uv; };
   for (Eigen::Index f = 0; f < nf; ++f) {
     for (int k = 0; k < 3; ++k) {

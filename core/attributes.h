@@ -23,23 +23,6 @@ VertexAttributes transferAttributes(const Mesh& source_mesh, const VertexAttribu
                                     const TargetLocations& locations, const Eigen::SparseMatrix<double>& target_laplacian,
                                     const HarmonicInpainting* mismatched);
 
-// Faces around each point of a mesh (CSR by representative vertex).
-struct FacesAroundPoints {
-  std::vector<int> point;    // #V: the representative of each vertex
-  std::vector<int> offsets;  // #V + 1, by representative
-  std::vector<int> faces;
-
-  FacesAroundPoints() = default;
-  // representative: as from coincidentVertexRepresentatives (empty: none joined)
-  FacesAroundPoints(const Mesh& mesh, std::vector<int> representative);
-  // fn(face) for each face at the point of `vertex`, in ascending order.
-  template <class Fn>
-  void forEachFaceAround(int vertex, Fn&& fn) const {
-    const auto p = static_cast<std::size_t>(point[static_cast<std::size_t>(vertex)]);
-    for (int i = offsets[p]; i < offsets[p + 1]; ++i) fn(faces[static_cast<std::size_t>(i)]);
-  }
-};
-
 // What transferUvLayout needs of the source alone, made once per rig
 // (PreparedRig::uv_layout): its UV sets side by side, the faces around each
 // point, the faces across each edge whose two ends carry one UV in every set

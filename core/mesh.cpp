@@ -193,6 +193,27 @@ VertexAdjacency vertexAdjacency(const Eigen::MatrixX3i& triangles, Eigen::Index 
   return out;
 }
 
+FacesAroundPoints::FacesAroundPoints(const Mesh& mesh, std::vector<int> representative) : point(std::move(representative)) {
+  const Eigen::Index nv = mesh.vertexCount(), nf = mesh.triangleCount();
+  if (point.empty()) {
+    point.resize(static_cast<std::size_t>(nv));
+    std::iota(point.begin(), point.end(), 0);
+  }
+  auto cornerPoint = [&](Eigen::Index f, int k) {
+    return static_cast<std::size_t>(point[static_cast<std::size_t>(mesh.triangles(f, k))]);
+  };
+  offsets.assign(static_cast<std::size_t>(nv) + 1, 0);
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) ++offsets[cornerPoint(f, k) + 1];
+  }
+  for (std::size_t v = 0; v + 1 < offsets.size(); ++v) offsets[v + 1] += offsets[v];
+  faces.resize(static_cast<std::size_t>(offsets.back()));
+  std::vector<int> fill(offsets.begin(), offsets.end() - 1);
+  for (Eigen::Index f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) faces[static_cast<std::size_t>(fill[cornerPoint(f, k)]++)] = static_cast<int>(f);
+  }
+}
+
 VertexSample independentVertexSample(const VertexAdjacency& adjacency) {
   const std::size_t n = adjacency.offsets.empty() ? 0 : adjacency.offsets.size() - 1;
   VertexSample out;

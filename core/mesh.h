@@ -118,6 +118,23 @@ struct VertexAdjacency {
 };
 VertexAdjacency vertexAdjacency(const Eigen::MatrixX3i& triangles, Eigen::Index vertex_count);
 
+// Faces around each point of a mesh (CSR by representative vertex).
+struct FacesAroundPoints {
+  std::vector<int> point;    // #V: the representative of each vertex
+  std::vector<int> offsets;  // #V + 1, by representative
+  std::vector<int> faces;
+
+  FacesAroundPoints() = default;
+  // representative: as from coincidentVertexRepresentatives (empty: none joined)
+  FacesAroundPoints(const Mesh& mesh, std::vector<int> representative);
+  // fn(face) for each face at the point of `vertex`, in ascending order.
+  template <class Fn>
+  void forEachFaceAround(int vertex, Fn&& fn) const {
+    const auto p = static_cast<std::size_t>(point[static_cast<std::size_t>(vertex)]);
+    for (int i = offsets[p]; i < offsets[p + 1]; ++i) fn(faces[static_cast<std::size_t>(i)]);
+  }
+};
+
 // A maximal independent set of the adjacency, greedy in index order
 // (deterministic): every vertex is in it or next to one that is. weight[k]:
 // how many vertices vertices[k] stands for (itself and the neighbours it was

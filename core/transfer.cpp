@@ -446,8 +446,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   if (options.uvs && !source.uv_layout) {
     report.warnings.push_back("uvs: " + source.surface.label + " has no UV set to transfer; " + target_label +
                               " keeps its own UVs");
-  }
-  if (options.uvs && source.uv_layout) {
+  } else if (options.uvs) {
     auto layout = transferUvLayout(src_mesh, *source.uv_layout, target, locations);
     if (!layout) return Error{layout.error().code, target_label + ": " + layout.error().message};
     appendVertexCopies(out, layout->copy_of);
