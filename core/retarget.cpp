@@ -605,9 +605,9 @@ Result<RetargetOutput> retargetMocap(const Mesh& mesh, const MarkerDistances& di
     if (out) out->report.markers_not_in_clip = std::move(absent);
     return out;
   }
-  for (const std::string& name : clip.marker_names) {
-    if (std::find(distances.marker_names.begin(), distances.marker_names.end(), name) == distances.marker_names.end()) {
-      report.unused_clip_markers.push_back(name);
+  for (std::size_t c = 0; c < clip.marker_names.size(); ++c) {
+    if (std::find(column.begin(), column.end(), static_cast<int>(c)) == column.end()) {
+      report.unused_clip_markers.push_back(clip.marker_names[c]);
     }
   }
 

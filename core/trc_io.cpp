@@ -346,7 +346,17 @@ int MarkerTrajectories::markerIndex(std::string_view name) const {
   for (std::size_t i = 0; i < marker_names.size(); ++i) {
     if (marker_names[i] == name) return static_cast<int>(i);
   }
-  return -1;
+  // Vicon exports name markers "Subject:Marker": the one marker whose name is
+  // some prefix, a colon and `name` (none, or several subjects: absent).
+  int found = -1;
+  for (std::size_t i = 0; i < marker_names.size(); ++i) {
+    const std::string_view m = marker_names[i];
+    const std::size_t colon = m.rfind(':');
+    if (colon == std::string_view::npos || colon == 0 || m.substr(colon + 1) != name) continue;
+    if (found >= 0) return -1;
+    found = static_cast<int>(i);
+  }
+  return found;
 }
 
 Result<MarkerTrajectories> parseTrc(std::string_view text, const std::string& label, const TrcReadOptions& options) {

@@ -43,7 +43,9 @@ struct MarkerTrajectories {
 
   int frameCount() const { return static_cast<int>(positions.rows()); }
   int markerCount() const { return static_cast<int>(marker_names.size()); }
-  int markerIndex(std::string_view name) const;  // -1 when absent
+  // The marker called `name`, or else the one called "<subject>:<name>" (as
+  // Vicon exports name them); -1 when absent or when several subjects have it.
+  int markerIndex(std::string_view name) const;
 };
 
 struct TrcReadOptions {

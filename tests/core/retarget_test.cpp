@@ -463,6 +463,24 @@ TEST(Retarget, APlacedMarkerTheClipLacksIsLeftOutAndNamed) {
   EXPECT_GT(out->rig.morph_targets.size(), 0u);
 }
 
+// A clip whose markers carry a subject prefix ("Actor1:chin") drives the
+// mesh as the same clip without it, and no marker is reported unused.
+TEST(Retarget, SubjectPrefixedClipMarkersDriveTheirPlacedMarkers) {
+  const core::MarkerTrajectories clip = jawOpenClip(markerSet(), 6);
+  core::MarkerTrajectories prefixed = clip;
+  for (auto& name : prefixed.marker_names) name = "Actor1:" + name;
+  const core::MarkerDistances& d = distancesFor(core::DistanceMethod::kEuclidean);
+  auto plain = core::retargetMocap(head().mesh, d, clip, jawOptions());
+  auto out = core::retargetMocap(head().mesh, d, prefixed, jawOptions());
+  ASSERT_TRUE(plain && out) << (out ? plain.error().message : out.error().message);
+  EXPECT_TRUE(out->report.unused_clip_markers.empty());
+  EXPECT_TRUE(out->report.markers_not_in_clip.empty());
+  ASSERT_EQ(out->rig.morph_targets.size(), plain->rig.morph_targets.size());
+  for (std::size_t t = 0; t < out->rig.morph_targets.size(); ++t) {
+    EXPECT_TRUE(out->rig.morph_targets[t].position_deltas == plain->rig.morph_targets[t].position_deltas) << t;
+  }
+}
+
 TEST(Retarget, BadInputsGiveClearErrors) {
   const core::MarkerDistances& d = distancesFor(core::DistanceMethod::kEuclidean);
   core::MarkerTrajectories clip = jawOpenClip(markerSet(), 5);

@@ -57,6 +57,22 @@ std::string replaceAll(std::string s, const std::string& from, const std::string
   return s;
 }
 
+// Vicon exports name markers "Subject:Marker": found by the marker's own
+// name, an exact name first, never a guess between two subjects.
+TEST(TrcIo, SubjectPrefixedMarkersAreFoundByTheirOwnName) {
+  auto traj = core::parseTrc(trcHeader(1, {"Actor1:A", "Actor1:B", "B", "S1:C", "S2:C", ":D"}) +
+                                 "1\t0.00\t0\t0\t0\t1\t0\t0\t2\t0\t0\t3\t0\t0\t4\t0\t0\t5\t0\t0\n",
+                             "prefixed.trc");
+  ASSERT_TRUE(traj) << traj.error().message;
+  EXPECT_EQ(traj->markerIndex("A"), 0);
+  EXPECT_EQ(traj->markerIndex("Actor1:A"), 0);
+  EXPECT_EQ(traj->markerIndex("B"), 2);  // the exact name wins over Actor1:B
+  EXPECT_EQ(traj->markerIndex("C"), -1); // two subjects carry it
+  EXPECT_EQ(traj->markerIndex("S2:C"), 4);
+  EXPECT_EQ(traj->markerIndex("D"), -1); // an empty subject is no subject
+  EXPECT_EQ(traj->markerIndex("1:A"), -1);
+}
+
 TEST(TrcIo, ParsesHandWrittenFile) {
   auto traj = core::parseTrc(kSmallTrc, "small.trc");
   ASSERT_TRUE(traj) << traj.error().message;
