@@ -241,15 +241,16 @@ namespace {
 // pass over b, column by column (three axpys per column, which GCC
 // vectorises; Eigen's product repacked b on every call, ~40% of the time).
 // Each output lane sums in a fixed order: the same result on every machine.
-RIGPORT_VECTOR_CLONES
-void timesPoints(const double* b, std::ptrdiff_t m, const double* y, double* out) {
-  std::fill(out, out + 3 * m, 0.0);
-  double* out_x = out;
-  double* out_y = out + m;
-  double* out_z = out + 2 * m;
+// Inlined into each clone below, so that every target vectorises it.
+template <class Scalar>
+[[gnu::always_inline]] inline void timesPointsBody(const Scalar* b, std::ptrdiff_t m, const Scalar* y, Scalar* out) {
+  std::fill(out, out + 3 * m, Scalar{0});
+  Scalar* out_x = out;
+  Scalar* out_y = out + m;
+  Scalar* out_z = out + 2 * m;
   for (std::ptrdiff_t j = 0; j < m; ++j) {
-    const double* column = b + j * m;
-    const double yx = y[j], yy = y[m + j], yz = y[2 * m + j];
+    const Scalar* column = b + j * m;
+    const Scalar yx = y[j], yy = y[m + j], yz = y[2 * m + j];
     for (std::ptrdiff_t i = 0; i < m; ++i) {
       out_x[i] += yx * column[i];
       out_y[i] += yy * column[i];
@@ -258,25 +259,14 @@ void timesPoints(const double* b, std::ptrdiff_t m, const double* y, double* out
   }
 }
 
-// The same in float, for the conjugate-gradient products of the sliding
-// block (halves the bytes streamed per product: the ICT rig's 465 x 465 block
-// fits the 1 MB L2 in float, not in double).
 RIGPORT_VECTOR_CLONES
-void timesPoints(const float* b, std::ptrdiff_t m, const float* y, float* out) {
-  std::fill(out, out + 3 * m, 0.0f);
-  float* out_x = out;
-  float* out_y = out + m;
-  float* out_z = out + 2 * m;
-  for (std::ptrdiff_t j = 0; j < m; ++j) {
-    const float* column = b + j * m;
-    const float yx = y[j], yy = y[m + j], yz = y[2 * m + j];
-    for (std::ptrdiff_t i = 0; i < m; ++i) {
-      out_x[i] += yx * column[i];
-      out_y[i] += yy * column[i];
-      out_z[i] += yz * column[i];
-    }
-  }
-}
+void timesPoints(const double* b, std::ptrdiff_t m, const double* y, double* out) { timesPointsBody(b, m, y, out); }
+
+// In float for the conjugate-gradient products of the sliding block: half the
+// bytes streamed per product (the ICT rig's 465 x 465 block fits the 1 MB L2
+// in float, not in double).
+RIGPORT_VECTOR_CLONES
+void timesPoints(const float* b, std::ptrdiff_t m, const float* y, float* out) { timesPointsBody(b, m, y, out); }
 
 }  // namespace
 
