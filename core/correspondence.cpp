@@ -146,18 +146,7 @@ TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_
   // would disagree with a curved surface's vertex normal by a few degrees.
   const Eigen::MatrixX3d guide_normals = computeVertexNormals(guide_positions, source_triangles);
   const double max_distance = options.low_confidence_distance * boundingBoxDiagonal(target.positions);
-  // Mean incident edge length per target point (edges counted from both faces).
-  Eigen::VectorXd edge_sum = Eigen::VectorXd::Zero(n), edge_count = Eigen::VectorXd::Zero(n);
-  for (Eigen::Index f = 0; f < target.triangles.rows(); ++f) {
-    for (int k = 0; k < 3; ++k) {
-      const Eigen::Index a = pointOf(target.triangles(f, k)), b = pointOf(target.triangles(f, (k + 1) % 3));
-      const double len = (target.positions.row(a) - target.positions.row(b)).norm();
-      edge_sum(a) += len;
-      edge_sum(b) += len;
-      edge_count(a) += 1;
-      edge_count(b) += 1;
-    }
-  }
+  const Eigen::VectorXd edge = meanIncidentEdgeLengths(target, representative);
   const double cos_limit = std::cos(options.low_confidence_angle_deg * std::numbers::pi / 180.0);
   for (Eigen::Index v = 0; v < n; ++v) {
     const SurfacePoint& sp = out.on_source[static_cast<std::size_t>(v)];
@@ -174,9 +163,7 @@ TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_
     out.normal_cosine(v) = c;
     const double distance_term = max_distance > 0.0 ? std::max(0.0, 1.0 - d / max_distance) : (d == 0.0 ? 1.0 : 0.0);
     const double angle_term = cos_limit < 1.0 ? std::clamp((c - cos_limit) / (1.0 - cos_limit), 0.0, 1.0) : 1.0;
-    const Eigen::Index point = pointOf(v);
-    const double edge = edge_count(point) > 0 ? edge_sum(point) / edge_count(point) : 0.0;
-    const bool jumped = options.max_relative_distance > 0.0 && edge > 0.0 && d > options.max_relative_distance * edge;
+    const bool jumped = options.max_relative_distance > 0.0 && edge(v) > 0.0 && d > options.max_relative_distance * edge(v);
     out.confidence(v) = jumped ? 0.0 : distance_term * angle_term;
     out.mismatched(v) = jumped ? 1 : 0;
     if (d > max_distance || c < cos_limit || jumped) ++out.low_confidence;

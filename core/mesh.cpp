@@ -304,6 +304,30 @@ Status validateMesh(const Mesh& mesh, const std::string& label) {
   return Ok{};
 }
 
+Eigen::VectorXd meanIncidentEdgeLengths(const Mesh& mesh, const std::vector<int>& representative) {
+  const Eigen::Index n = mesh.vertexCount();
+  auto pointOf = [&](Eigen::Index v) -> Eigen::Index {
+    return representative.empty() ? v : representative[static_cast<std::size_t>(v)];
+  };
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(n), count = Eigen::VectorXd::Zero(n);
+  for (Eigen::Index f = 0; f < mesh.triangles.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Index a = pointOf(mesh.triangles(f, k)), b = pointOf(mesh.triangles(f, (k + 1) % 3));
+      const double length = (mesh.positions.row(a) - mesh.positions.row(b)).norm();
+      sum(a) += length;
+      sum(b) += length;
+      count(a) += 1;
+      count(b) += 1;
+    }
+  }
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(n);
+  for (Eigen::Index v = 0; v < n; ++v) {
+    const Eigen::Index p = pointOf(v);
+    if (count(p) > 0) mean(v) = sum(p) / count(p);
+  }
+  return mean;
+}
+
 Mesh weldedTopology(const Mesh& mesh, const std::vector<int>& representative) {
   Mesh welded;
   welded.positions = mesh.positions;

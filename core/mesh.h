@@ -56,6 +56,12 @@ struct BoundaryLoop {
   double length = 0.0;        // geometric length (with the closing edge when closed)
 };
 
+// Mean length of the edges around each vertex (an edge counted once per face
+// it bounds), 0 on no face. With `representative` (as from
+// coincidentVertexRepresentatives) around each point instead, copies split at
+// it included: every copy's row holds its point's value.
+Eigen::VectorXd meanIncidentEdgeLengths(const Mesh& mesh, const std::vector<int>& representative = {});
+
 // Positions and triangles with every corner re-pointed to its point's
 // representative (coincidentVertexRepresentatives; empty: a plain copy):
 // split points (UV seams, hard edges) joined for topology.

@@ -160,6 +160,26 @@ RimVertices rimVertices(const std::vector<Rim>& rims, const Mesh& mesh, const st
   return out;
 }
 
+int addNearRimVertices(RimVertices& on_rim, const Mesh& mesh, double fraction) {
+  const Eigen::VectorXd edge = meanIncidentEdgeLengths(mesh);
+  const std::vector<int> rim = on_rim.rim;  // the rims as given: no chains of near vertices
+  int joined = 0;
+  for (Eigen::Index f = 0; f < mesh.triangles.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      for (const bool reversed : {false, true}) {
+        const int a = mesh.triangles(f, reversed ? (k + 1) % 3 : k), b = mesh.triangles(f, reversed ? k : (k + 1) % 3);
+        const auto ua = static_cast<std::size_t>(a), ub = static_cast<std::size_t>(b);
+        if (rim[ua] < 0 || rim[ub] >= 0 || on_rim.rim[ub] >= 0) continue;
+        if ((mesh.positions.row(a) - mesh.positions.row(b)).norm() >= fraction * edge(a)) continue;
+        on_rim.rim[ub] = rim[ua];
+        on_rim.tangent.row(b) = on_rim.tangent.row(a);
+        ++joined;
+      }
+    }
+  }
+  return joined;
+}
+
 bool rimNearPoints(const Rim& rim, const Eigen::MatrixX3d& positions, const Eigen::MatrixX3d& points, double distance) {
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
     const Eigen::Vector3d p = points.row(i).transpose();

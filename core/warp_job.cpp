@@ -366,7 +366,10 @@ int locateRimVertices(TargetLocations& locations, const Mesh& target, const std:
                       const std::vector<int>& target_representative, const PreparedSource& source,
                       const Eigen::MatrixX3d& guide_positions, const std::vector<std::uint64_t>& target_masks,
                       double target_diagonal, const WarpOptions& options) {
-  const RimVertices on_rim = rimVertices(target_rims, target, target_representative);
+  // A vertex a tenth of an edge from a rim vertex is a rim point too.
+  constexpr double kNearRim = 0.1;
+  RimVertices on_rim = rimVertices(target_rims, target, target_representative);
+  addNearRimVertices(on_rim, target, kNearRim);
   const Eigen::MatrixX3i& triangles = source.mesh.triangles;
   const double max_distance = options.rim_location_max_distance * target_diagonal;
   // A hair's breadth, so that a vertex on both the rim and the surface (a

@@ -604,6 +604,103 @@ TEST(Correspondence, RimVerticesAreLocatedOnTheGuidesRims) {
   EXPECT_LT(error_on, 0.5 * error_off);
 }
 
+// A remesher can leave a vertex a few percent of an edge from a rim vertex
+// (a sliver at the constrained border). It stands off the surface as the rim
+// does and is located as a rim point: beside its rim vertex on the guide's
+// rim, not on the curled margin.
+TEST(Correspondence, VerticesAtARimAreLocatedAsRimPoints) {
+  const auto source = core::generateHead();
+  core::SyntheticHead target = source;
+  const std::vector<core::Rim> rims =
+      core::meshRims(source.mesh, core::coincidentVertexRepresentatives(source.mesh.positions));
+  ASSERT_EQ(rims.size(), 3u);
+  std::vector<char> on_rim(static_cast<std::size_t>(source.mesh.vertexCount()), 0);
+  for (const core::Rim& rim : rims) {
+    for (int v : rim.vertices) on_rim[static_cast<std::size_t>(v)] = 1;
+  }
+  std::vector<char> has_landmark(static_cast<std::size_t>(source.mesh.triangles.rows()), 0);
+  for (const core::Landmark& l : source.landmarks.landmarks) has_landmark[static_cast<std::size_t>(l.face)] = 1;
+  // Eye rims curled off as in RimVerticesAreLocatedOnTheGuidesRims.
+  for (std::size_t r = 1; r < rims.size(); ++r) {
+    const core::Rim& rim = rims[r];
+    Eigen::RowVector3d centre = Eigen::RowVector3d::Zero();
+    for (int v : rim.vertices) centre += source.mesh.positions.row(v);
+    centre /= static_cast<double>(rim.vertices.size());
+    const double step = 0.3 * rim.length / static_cast<double>(rim.vertices.size());
+    for (int v : rim.vertices) {
+      const Eigen::RowVector3d n = source.mesh.normals.row(v);
+      Eigen::RowVector3d away = source.mesh.positions.row(v) - centre;
+      away -= away.dot(n) * n;
+      target.mesh.positions.row(v) += step * (away.normalized() + n);
+    }
+  }
+  // Every fourth eye-rim vertex gets a sliver: a new vertex 5% of the way
+  // from it to the centroid of a face it has with two off-rim corners, moved
+  // with it; the face is split in three.
+  std::vector<Eigen::Index> slivers;
+  std::vector<Eigen::RowVector3d> truth;  // the sliver's point on the source
+  std::vector<Eigen::Vector3i> added;
+  const Eigen::Index nv = source.mesh.vertexCount();
+  std::vector<Eigen::RowVector3d> positions;
+  std::vector<int> sliver_of;  // its rim vertex
+  for (std::size_t r = 1; r < rims.size(); ++r) {
+    for (std::size_t i = 0; i < rims[r].vertices.size(); i += 4) {
+      const int v = rims[r].vertices[i];
+      for (Eigen::Index f = 0; f < source.mesh.triangles.rows(); ++f) {
+        const Eigen::Vector3i t = source.mesh.triangles.row(f).transpose();
+        int k = 0;
+        while (k < 3 && t(k) != v) ++k;
+        if (k == 3 || has_landmark[static_cast<std::size_t>(f)] || on_rim[static_cast<std::size_t>(t((k + 1) % 3))] ||
+            on_rim[static_cast<std::size_t>(t((k + 2) % 3))]) {
+          continue;
+        }
+        auto sliver = [&](const Eigen::MatrixX3d& p) {
+          const Eigen::RowVector3d centroid = (p.row(t(0)) + p.row(t(1)) + p.row(t(2))) / 3.0;
+          return Eigen::RowVector3d(p.row(v) + 0.05 * (centroid - p.row(v)));
+        };
+        const auto w = static_cast<int>(nv + static_cast<Eigen::Index>(positions.size()));
+        truth.push_back(sliver(source.mesh.positions));
+        positions.push_back(sliver(source.mesh.positions) + target.mesh.positions.row(v) - source.mesh.positions.row(v));
+        slivers.push_back(w);
+        sliver_of.push_back(v);
+        target.mesh.triangles.row(f) << t(0), t(1), w;
+        added.push_back({t(1), t(2), w});
+        added.push_back({t(2), t(0), w});
+        has_landmark[static_cast<std::size_t>(f)] = 1;  // split once
+        break;
+      }
+    }
+  }
+  ASSERT_GT(slivers.size(), 4u);
+  target.mesh.positions.conservativeResize(nv + static_cast<Eigen::Index>(positions.size()), 3);
+  target.mesh.regions.conservativeResize(target.mesh.positions.rows());
+  for (std::size_t i = 0; i < positions.size(); ++i) {
+    target.mesh.positions.row(nv + static_cast<Eigen::Index>(i)) = positions[i];
+    target.mesh.regions(nv + static_cast<Eigen::Index>(i)) = source.mesh.regions(sliver_of[i]);
+  }
+  ASSERT_EQ(target.mesh.uvs.rows(), 0);
+  const Eigen::Index nf = target.mesh.triangles.rows();
+  target.mesh.triangles.conservativeResize(nf + static_cast<Eigen::Index>(added.size()), 3);
+  for (std::size_t i = 0; i < added.size(); ++i) target.mesh.triangles.row(nf + static_cast<Eigen::Index>(i)) = added[i].transpose();
+  target.mesh.normals = core::computeVertexNormals(target.mesh.positions, target.mesh.triangles);
+
+  auto [off, on] = warpOffAndOn(&core::WarpOptions::rim_location, source, target.mesh, target.landmarks);
+  ASSERT_TRUE(off && on) << (off ? on.error().message : off.error().message);
+  auto error = [&](const core::WarpResult& r) {
+    double sum = 0.0;
+    for (std::size_t i = 0; i < slivers.size(); ++i) {
+      const core::SurfacePoint& at = r.locations.on_source[static_cast<std::size_t>(slivers[i])];
+      EXPECT_TRUE(at.found()) << "sliver " << slivers[i];
+      if (at.found()) sum += (core::interpolateOnFace(source.mesh.positions, source.mesh.triangles, at.face, at.barycentric) - truth[i]).norm();
+    }
+    return sum / static_cast<double>(slivers.size());
+  };
+  const double error_off = error(*off), error_on = error(*on);
+  std::printf("[ slivers at curled eye rims ] %zu slivers, mean distance from their true source point %.5f -> %.5f\n",
+              slivers.size(), error_off, error_on);
+  EXPECT_LT(error_on, 0.5 * error_off);
+}
+
 // A scan with holes of its own (here: 40 small ones on the back of the
 // head) keeps their vertices where the surface location put them: no source
 // rim is near them.
