@@ -567,15 +567,13 @@ TEST(Correspondence, SlidingCentresLocateASparselyLandmarkedTargetCloser) {
 // border, so its closest point on the guide falls inside the lid, short of
 // the border it is. Located on the guide's rim instead, it lands next to its
 // true point. Same topology: target vertex v is source vertex v.
-TEST(Correspondence, RimVerticesAreLocatedOnTheGuidesRims) {
-  const auto source = core::generateHead();
-  core::SyntheticHead target = source;
-  const std::vector<core::Rim> rims =
-      core::meshRims(source.mesh, core::coincidentVertexRepresentatives(source.mesh.positions));
-  ASSERT_EQ(rims.size(), 3u);  // the open back and neck, two eye holes (the lips are closed)
-  // Each eye-rim vertex moved away from its hole along the surface by 0.3 of
-  // the rim's mean edge and lifted off the surface by as much.
-  std::vector<Eigen::Index> eye_rims;
+// The generated head's eye rims (rims 1 and 2; rim 0 is the open back and
+// neck) curled off like a lid margin: each rim vertex moved away from its
+// hole along the surface by 0.3 of the rim's mean edge and lifted off the
+// surface by as much. Returns the moved vertices.
+std::vector<Eigen::Index> curlEyeRims(const core::SyntheticHead& source, const std::vector<core::Rim>& rims,
+                                      core::SyntheticHead& target) {
+  std::vector<Eigen::Index> moved;
   for (std::size_t r = 1; r < rims.size(); ++r) {
     const core::Rim& rim = rims[r];
     Eigen::RowVector3d centre = Eigen::RowVector3d::Zero();
@@ -587,9 +585,19 @@ TEST(Correspondence, RimVerticesAreLocatedOnTheGuidesRims) {
       Eigen::RowVector3d away = source.mesh.positions.row(v) - centre;
       away -= away.dot(n) * n;
       target.mesh.positions.row(v) += step * (away.normalized() + n);
-      eye_rims.push_back(v);
+      moved.push_back(v);
     }
   }
+  return moved;
+}
+
+TEST(Correspondence, RimVerticesAreLocatedOnTheGuidesRims) {
+  const auto source = core::generateHead();
+  core::SyntheticHead target = source;
+  const std::vector<core::Rim> rims =
+      core::meshRims(source.mesh, core::coincidentVertexRepresentatives(source.mesh.positions));
+  ASSERT_EQ(rims.size(), 3u);  // the open back and neck, two eye holes (the lips are closed)
+  const std::vector<Eigen::Index> eye_rims = curlEyeRims(source, rims, target);
   target.mesh.normals = core::computeVertexNormals(target.mesh.positions, target.mesh.triangles);
   auto [off, on] = warpOffAndOn(&core::WarpOptions::rim_location, source, target.mesh, target.landmarks);
   ASSERT_TRUE(off && on);
@@ -620,20 +628,7 @@ TEST(Correspondence, VerticesAtARimAreLocatedAsRimPoints) {
   }
   std::vector<char> has_landmark(static_cast<std::size_t>(source.mesh.triangles.rows()), 0);
   for (const core::Landmark& l : source.landmarks.landmarks) has_landmark[static_cast<std::size_t>(l.face)] = 1;
-  // Eye rims curled off as in RimVerticesAreLocatedOnTheGuidesRims.
-  for (std::size_t r = 1; r < rims.size(); ++r) {
-    const core::Rim& rim = rims[r];
-    Eigen::RowVector3d centre = Eigen::RowVector3d::Zero();
-    for (int v : rim.vertices) centre += source.mesh.positions.row(v);
-    centre /= static_cast<double>(rim.vertices.size());
-    const double step = 0.3 * rim.length / static_cast<double>(rim.vertices.size());
-    for (int v : rim.vertices) {
-      const Eigen::RowVector3d n = source.mesh.normals.row(v);
-      Eigen::RowVector3d away = source.mesh.positions.row(v) - centre;
-      away -= away.dot(n) * n;
-      target.mesh.positions.row(v) += step * (away.normalized() + n);
-    }
-  }
+  curlEyeRims(source, rims, target);
   // Every fourth eye-rim vertex gets a sliver: a new vertex 5% of the way
   // from it to the centroid of a face it has with two off-rim corners, moved
   // with it; the face is split in three.
