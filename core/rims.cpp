@@ -160,22 +160,32 @@ RimVertices rimVertices(const std::vector<Rim>& rims, const Mesh& mesh, const st
   return out;
 }
 
-int addNearRimVertices(RimVertices& on_rim, const Mesh& mesh, double fraction) {
-  const Eigen::VectorXd edge = meanIncidentEdgeLengths(mesh);
-  const std::vector<int> rim = on_rim.rim;  // the rims as given: no chains of near vertices
-  int joined = 0;
+int addNearRimVertices(RimVertices& on_rim, const Mesh& mesh, const std::vector<int>& representative, double fraction) {
+  auto pointOf = [&](int v) {
+    return static_cast<std::size_t>(representative.empty() ? v : representative[static_cast<std::size_t>(v)]);
+  };
+  const Eigen::VectorXd edge = meanIncidentEdgeLengths(mesh, representative);
+  const std::vector<int> rim = on_rim.rim;  // the rims as given: no chains of near points
   for (Eigen::Index f = 0; f < mesh.triangles.rows(); ++f) {
     for (int k = 0; k < 3; ++k) {
       for (const bool reversed : {false, true}) {
         const int a = mesh.triangles(f, reversed ? (k + 1) % 3 : k), b = mesh.triangles(f, reversed ? k : (k + 1) % 3);
-        const auto ua = static_cast<std::size_t>(a), ub = static_cast<std::size_t>(b);
-        if (rim[ua] < 0 || rim[ub] >= 0 || on_rim.rim[ub] >= 0) continue;
+        const std::size_t pb = pointOf(b);
+        if (rim[static_cast<std::size_t>(a)] < 0 || rim[pb] >= 0 || on_rim.rim[pb] >= 0) continue;
         if ((mesh.positions.row(a) - mesh.positions.row(b)).norm() >= fraction * edge(a)) continue;
-        on_rim.rim[ub] = rim[ua];
-        on_rim.tangent.row(b) = on_rim.tangent.row(a);
-        ++joined;
+        on_rim.rim[pb] = rim[static_cast<std::size_t>(a)];
+        on_rim.tangent.row(static_cast<Eigen::Index>(pb)) = on_rim.tangent.row(a);
       }
     }
+  }
+  // Copies take their point's (representatives come first in index order).
+  int joined = 0;
+  for (std::size_t v = 0; v < rim.size(); ++v) {
+    const std::size_t p = pointOf(static_cast<int>(v));
+    if (rim[v] >= 0 || on_rim.rim[p] < 0) continue;
+    on_rim.rim[v] = on_rim.rim[p];
+    on_rim.tangent.row(static_cast<Eigen::Index>(v)) = on_rim.tangent.row(static_cast<Eigen::Index>(p));
+    ++joined;
   }
   return joined;
 }

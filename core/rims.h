@@ -56,11 +56,12 @@ struct RimVertices {
 };
 RimVertices rimVertices(const std::vector<Rim>& rims, const Mesh& mesh, const std::vector<int>& representative);
 
-// Vertices off the rims but joined by an edge to a rim vertex and within
-// `fraction` of that vertex's mean edge length of it (a sliver a remesher
+// Points off the rims but joined by an edge to a rim point and within
+// `fraction` of that point's mean edge length of it (a sliver a remesher
 // left at a constrained border: one at 6% of an edge on a remeshed ICT eye)
-// join its rim with its tangent. Returns how many joined.
-int addNearRimVertices(RimVertices& on_rim, const Mesh& mesh, double fraction);
+// join its rim with its tangent, every copy of them alike (`representative`
+// as for rimVertices). Returns how many vertices joined.
+int addNearRimVertices(RimVertices& on_rim, const Mesh& mesh, const std::vector<int>& representative, double fraction);
 
 // Closest point of `p` on the rim's polyline among the edges running the way
 // of `tangent` (dot > 0), as a point on the face owning that edge

@@ -369,7 +369,7 @@ int locateRimVertices(TargetLocations& locations, const Mesh& target, const std:
   // A vertex a tenth of an edge from a rim vertex is a rim point too.
   constexpr double kNearRim = 0.1;
   RimVertices on_rim = rimVertices(target_rims, target, target_representative);
-  addNearRimVertices(on_rim, target, kNearRim);
+  addNearRimVertices(on_rim, target, target_representative, kNearRim);
   const Eigen::MatrixX3i& triangles = source.mesh.triangles;
   const double max_distance = options.rim_location_max_distance * target_diagonal;
   // A hair's breadth, so that a vertex on both the rim and the surface (a
