@@ -255,6 +255,28 @@ TEST(TransferRig, WeightsAreNormalisedPrunedAndShapesSparseOnAnotherFace) {
   EXPECT_LT((blink.position_deltas.rowwise().norm().array() > 0).count(), out.mesh.vertexCount() / 10);
 }
 
+// The service runs a job with its own thread count and the CLI with the
+// machine's, and both must hand a TD the same file: every parallel stage
+// writes by index and sums in a fixed order, so the GLB's bytes do not
+// depend on the threads (3 is more than this machine has: other chunks).
+TEST(TransferRig, OutputBytesDoNotDependOnTheThreadCount) {
+  const core::HeadResolution res{.columns = 70, .rows = 66, .alternate_diagonals = true, .jitter = 0.25, .seed = 9};
+  const core::SyntheticRig target = core::generateRig(core::randomHeadShape(9, 0.2), res);
+  std::vector<std::vector<std::uint8_t>> glbs;
+  for (const int threads : {1, 2, 3}) {
+    core::TransferOptions options;
+    options.threads = threads;
+    options.diagnostic_attributes = true;
+    auto result = core::transferRig(preparedSource(), target.rig.mesh, target.landmarks, "other", options);
+    ASSERT_TRUE(result) << result.error().message;
+    auto glb = core::encodeRigGlb(result->rig);
+    ASSERT_TRUE(glb) << glb.error().message;
+    glbs.push_back(std::move(*glb));
+  }
+  EXPECT_EQ(glbs[1], glbs[0]) << "2 threads against 1";
+  EXPECT_EQ(glbs[2], glbs[0]) << "3 threads against 1";
+}
+
 // The generated rig with normal deltas (those of its own mesh under each
 // shape), prepared; and the other head its tests transfer it to.
 const core::PreparedRig& preparedWithNormalDeltas() {
