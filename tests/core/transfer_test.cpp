@@ -43,6 +43,16 @@ const core::SyntheticRig& lipTarget() {
   return target;
 }
 
+// Another head of other proportions and topology (jittered, alternating
+// diagonals), for the tests that need just some other face.
+const core::SyntheticRig& otherHead() {
+  static const core::SyntheticRig target = [] {
+    const core::HeadResolution res{.columns = 70, .rows = 66, .alternate_diagonals = true, .jitter = 0.25, .seed = 9};
+    return core::generateRig(core::randomHeadShape(9, 0.2), res);
+  }();
+  return target;
+}
+
 Eigen::MatrixX3d jointWorldPositions(const core::Rig& rig) {
   const auto world = core::nodeWorldTransforms(rig.nodes);
   Eigen::MatrixX3d p(static_cast<Eigen::Index>(rig.skin->joints.size()), 3);
@@ -227,8 +237,7 @@ TEST(TransferRig, ShapesAndJointsFollowAFaceStretchedAsAWhole) {
 }
 
 TEST(TransferRig, WeightsAreNormalisedPrunedAndShapesSparseOnAnotherFace) {
-  const core::HeadResolution res{.columns = 70, .rows = 66, .alternate_diagonals = true, .jitter = 0.25, .seed = 9};
-  const core::SyntheticRig target = core::generateRig(core::randomHeadShape(9, 0.2), res);
+  const core::SyntheticRig& target = otherHead();
   core::TransferOptions options;
   options.weight_options.max_influences = 2;
   options.diagnostic_attributes = true;
@@ -260,8 +269,7 @@ TEST(TransferRig, WeightsAreNormalisedPrunedAndShapesSparseOnAnotherFace) {
 // writes by index and sums in a fixed order, so the GLB's bytes do not
 // depend on the threads (3 is more than this machine has: other chunks).
 TEST(TransferRig, OutputBytesDoNotDependOnTheThreadCount) {
-  const core::HeadResolution res{.columns = 70, .rows = 66, .alternate_diagonals = true, .jitter = 0.25, .seed = 9};
-  const core::SyntheticRig target = core::generateRig(core::randomHeadShape(9, 0.2), res);
+  const core::SyntheticRig& target = otherHead();
   std::vector<std::vector<std::uint8_t>> glbs;
   for (const int threads : {1, 2, 3}) {
     core::TransferOptions options;
