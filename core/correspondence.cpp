@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <numbers>
 
 #include "core/vector_clones.h"
@@ -173,7 +174,7 @@ TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_
 
 namespace {
 
-// One farthest-point step over all points: sq = min(sq, |x - p|^2), and the
+// One farthest-point step over a run of points: sq = min(sq, |x - p|^2), and the
 // first index of the largest sq afterwards, in one pass. Written with GCC
 // vector types (four lanes, each keeping its largest value and the first
 // index where it occurs; comparisons are exact, so the answer does not depend
@@ -327,6 +328,29 @@ Eigen::MatrixX3d slideInTangentPlanes(const Eigen::MatrixXd& bending, const Eige
   return moved;
 }
 
+namespace {
+
+// A candidate for the next farthest point: the larger squared distance wins,
+// then the lower vertex index (the first of equal maxima in vertex order).
+struct FarthestCandidate {
+  double sq = -1.0;
+  std::ptrdiff_t vertex = -1;
+  bool beats(const FarthestCandidate& other) const {
+    return sq > other.sq || (sq == other.sq && vertex >= 0 && (other.vertex < 0 || vertex < other.vertex));
+  }
+};
+
+}  // namespace
+
+// Exact farthest-point sampling with the points bucketed in a uniform grid:
+// a new sample p can only lower sq[v] for points nearer p than the current
+// largest distance R (every sq[v] <= R^2), so only grid cells whose points'
+// box comes within R are visited (late samples touch a few cells, not all
+// points). A cell is skipped only when the squared distance from p to its
+// points' box exceeds R^2; that distance is computed with the same operations
+// as a point's and rounding is monotonic, so no skipped point could have
+// changed: the sample is the one of the plain O(n k) loop, ties included.
+// The largest sq is kept per cell and over cells in a tournament tree.
 std::vector<int> farthestPointSample(const Eigen::MatrixX3d& positions, int count) {
   const Eigen::Index n = positions.rows();
   std::vector<int> chosen;
@@ -335,14 +359,103 @@ std::vector<int> farthestPointSample(const Eigen::MatrixX3d& positions, int coun
   const Eigen::RowVector3d centroid = positions.colwise().mean();
   Eigen::Index first = 0;
   (positions.rowwise() - centroid).rowwise().squaredNorm().minCoeff(&first);
-  std::vector<double> sq(static_cast<std::size_t>(n), std::numeric_limits<double>::infinity());
-  const double* x = positions.col(0).data();
-  const double* y = positions.col(1).data();
-  const double* z = positions.col(2).data();
+
+  // Grid of about n / 32 cells over the bounding box (at most 64 per axis):
+  // enough points per cell for the vectorised update to pay.
+  const Eigen::Array3d lo = positions.colwise().minCoeff().transpose().array();
+  const Eigen::Array3d extent = (positions.colwise().maxCoeff().transpose().array() - lo).cwiseMax(0.0);
+  const double volume = std::max(extent.prod(), 1e-300);
+  double cell = std::cbrt(32.0 * volume / static_cast<double>(n));
+  if (!(cell > 0.0) || !std::isfinite(cell)) cell = std::max(extent.maxCoeff(), 1.0);
+  Eigen::Array3i dims;
+  for (int a = 0; a < 3; ++a) {
+    dims(a) = std::clamp(static_cast<int>(extent(a) / cell) + 1, 1, 64);
+  }
+  const Eigen::Array3d inverse_size = dims.cast<double>() / extent.cwiseMax(1e-300);
+  auto axisCell = [&](double coordinate, int a) {
+    const double at = (coordinate - lo(a)) * inverse_size(a);
+    if (!(at > 0.0)) return 0;
+    return at >= dims(a) - 1 ? dims(a) - 1 : static_cast<int>(at);
+  };
+  const std::size_t cells = static_cast<std::size_t>(dims.prod());
+  std::vector<int> cell_of(static_cast<std::size_t>(n));
+  std::vector<int> start(cells + 1, 0);
+  for (Eigen::Index v = 0; v < n; ++v) {
+    const int c = axisCell(positions(v, 0), 0) + dims(0) * (axisCell(positions(v, 1), 1) + dims(1) * axisCell(positions(v, 2), 2));
+    cell_of[static_cast<std::size_t>(v)] = c;
+    ++start[static_cast<std::size_t>(c) + 1];
+  }
+  for (std::size_t c = 0; c < cells; ++c) start[c + 1] += start[c];
+  // Points in cell order, each cell's in vertex order; the cell's box.
+  std::vector<std::ptrdiff_t> vertex(static_cast<std::size_t>(n));
+  std::vector<double> x(static_cast<std::size_t>(n)), y(x.size()), z(x.size());
+  std::vector<double> sq(x.size(), std::numeric_limits<double>::infinity());
+  std::vector<Eigen::Array3d> box_lo(cells, Eigen::Array3d::Constant(std::numeric_limits<double>::infinity()));
+  std::vector<Eigen::Array3d> box_hi(cells, Eigen::Array3d::Constant(-std::numeric_limits<double>::infinity()));
+  {
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (Eigen::Index v = 0; v < n; ++v) {
+      const auto c = static_cast<std::size_t>(cell_of[static_cast<std::size_t>(v)]);
+      const auto at = static_cast<std::size_t>(fill[c]++);
+      vertex[at] = v;
+      x[at] = positions(v, 0);
+      y[at] = positions(v, 1);
+      z[at] = positions(v, 2);
+      box_lo[c] = box_lo[c].min(positions.row(v).transpose().array());
+      box_hi[c] = box_hi[c].max(positions.row(v).transpose().array());
+    }
+  }
+  std::size_t leaves = 1;
+  while (leaves < cells) leaves *= 2;
+  std::vector<FarthestCandidate> tree(2 * leaves);
+  auto better = [](const FarthestCandidate& a, const FarthestCandidate& b) { return a.beats(b) ? a : b; };
+
+  std::vector<std::size_t> touched;
   Eigen::Index next = first;
+  double reach = std::numeric_limits<double>::infinity();  // squared: the largest sq before this step
   for (int k = 0; k < count; ++k) {
     chosen.push_back(static_cast<int>(next));
-    next = nearestSampleUpdate(x, y, z, sq.data(), n, x[next], y[next], z[next]);  // lowest index among ties
+    const double px = positions(next, 0), py = positions(next, 1), pz = positions(next, 2);
+    const double radius = std::sqrt(reach);
+    Eigen::Array3i from, to;
+    for (int a = 0; a < 3; ++a) {
+      const double p = positions(next, a);
+      from(a) = std::isfinite(radius) ? axisCell(p - radius, a) : 0;
+      to(a) = std::isfinite(radius) ? axisCell(p + radius, a) : dims(a) - 1;
+    }
+    for (int cz = from(2); cz <= to(2); ++cz) {
+      for (int cy = from(1); cy <= to(1); ++cy) {
+        for (int cx = from(0); cx <= to(0); ++cx) {
+          const auto c = static_cast<std::size_t>(cx + dims(0) * (cy + dims(1) * cz));
+          if (start[c] == start[c + 1]) continue;
+          const double gx = std::max({box_lo[c](0) - px, 0.0, px - box_hi[c](0)});
+          const double gy = std::max({box_lo[c](1) - py, 0.0, py - box_hi[c](1)});
+          const double gz = std::max({box_lo[c](2) - pz, 0.0, pz - box_hi[c](2)});
+          if (gx * gx + gy * gy + gz * gz > reach) continue;
+          // The cell's points are in vertex order: its first largest is the lowest vertex.
+          const std::ptrdiff_t at = start[c];
+          const std::ptrdiff_t largest =
+              at + nearestSampleUpdate(x.data() + at, y.data() + at, z.data() + at, sq.data() + at, start[c + 1] - at, px, py, pz);
+          tree[leaves + c] = {sq[static_cast<std::size_t>(largest)], vertex[static_cast<std::size_t>(largest)]};
+          touched.push_back(leaves + c);
+        }
+      }
+    }
+    // Cells were visited in increasing order, so each level's parents come
+    // sorted: shared ancestors are recomputed once.
+    while (!touched.empty() && touched.front() > 1) {
+      std::size_t kept = 0;
+      for (std::size_t node : touched) {
+        const std::size_t parent = node / 2;
+        if (kept > 0 && touched[kept - 1] == parent) continue;
+        tree[parent] = better(tree[2 * parent], tree[2 * parent + 1]);
+        touched[kept++] = parent;
+      }
+      touched.resize(kept);
+    }
+    touched.clear();
+    reach = tree[1].sq;
+    next = tree[1].vertex;
   }
   return chosen;
 }

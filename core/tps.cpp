@@ -234,34 +234,96 @@ struct TpsFactorization::Data {
 
 namespace {
 
-// Q2 M^-1 Q2^T (#n by #n, n > 4) from M = L L^T: M^-1 = L^-T L^-1, both
-// steps blocked so the zeros of the triangles are skipped (~n^3/2 flops
-// instead of ~3n^3/2 for a solve against Q2^T and its square: 11 -> 5 ms at
-// n = 465), then Q [0 0; 0 M^-1] Q^T by the 4 Householder reflections.
-Eigen::MatrixXd q2InverseQ2t(const TpsFactorization::Data& d) {
-  const Eigen::Index n = d.centres.rows(), m = n - 4;
+// The 4 reflections of the QR of P as one block, Q = H_0 H_1 H_2 H_3 =
+// I - V T V^T (compact WY form, T upper triangular), so that conjugating a
+// #n by #n matrix by Q is a few rank-4 products instead of 8 passes of
+// single reflections (0.5 against 1.0 ms at n = 465).
+struct BlockReflector {
+  Eigen::MatrixX4d v;
+  Eigen::Matrix4d t = Eigen::Matrix4d::Zero();
+};
+
+BlockReflector blockReflector(const Eigen::HouseholderQR<Eigen::MatrixXd>& qr) {
+  const Eigen::Index n = qr.matrixQR().rows();
+  BlockReflector r;
+  r.v = Eigen::MatrixX4d::Zero(n, 4);
+  for (Eigen::Index i = 0; i < 4; ++i) {
+    r.v(i, i) = 1.0;
+    r.v.col(i).tail(n - i - 1) = qr.matrixQR().col(i).tail(n - i - 1);
+    const double tau = qr.hCoeffs()(i);
+    r.t(i, i) = tau;
+    if (i > 0) {
+      const Eigen::VectorXd vtv = r.v.leftCols(i).transpose() * r.v.col(i);
+      const Eigen::VectorXd tv = r.t.topLeftCorner(i, i) * vtv;  // T is upper triangular
+      r.t.col(i).head(i) = -tau * tv;
+    }
+  }
+  return r;
+}
+
+// U^T A U for symmetric A with U = I - V T V^T: A - Y V^T - V Z^T, where
+// Y = A V T and Z = Y - V (Y^T V) T. With T: Q^T A Q; with T^T: Q A Q^T.
+void conjugateSymmetric(Eigen::MatrixXd& a, const Eigen::MatrixX4d& v, const Eigen::Matrix4d& t) {
+  const Eigen::MatrixX4d y = (a * v) * t;
+  const Eigen::Matrix4d ytv = y.transpose() * v;
+  const Eigen::MatrixX4d z = y - v * (ytv * t);
+  Eigen::Matrix<double, Eigen::Dynamic, 8> left(a.rows(), 8), right(a.rows(), 8);
+  left << y, v;
+  right << v, z;
+  a.noalias() -= left * right.transpose();
+}
+
+// M^-1 (m by m) from M = L L^T: M^-1 = L^-T L^-1, both steps blocked so the
+// zeros of the triangles are skipped (~2m^3/3 flops instead of ~2m^3 for a
+// solve against the identity: 11 -> 5 ms at m = 461).
+template <class Scalar>
+Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic> inverseFromCholesky(
+    const Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic>& l) {
+  using Matrix = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic>;
+  const Eigen::Index m = l.rows();
   constexpr Eigen::Index kBlock = 64;
   // X = L^-1, block column by block column: rows above the block are zero.
-  Eigen::MatrixXd x = Eigen::MatrixXd::Zero(m, m);
+  Matrix x = Matrix::Zero(m, m);
   for (Eigen::Index c = 0; c < m; c += kBlock) {
     const Eigen::Index b = std::min(kBlock, m - c);
     x.block(c, c, b, b).setIdentity();
-    d.llt.matrixLLT().bottomRightCorner(m - c, m - c).triangularView<Eigen::Lower>().solveInPlace(
-        x.block(c, c, m - c, b));
+    l.bottomRightCorner(m - c, m - c).template triangularView<Eigen::Lower>().solveInPlace(x.block(c, c, m - c, b));
   }
   // M^-1 = X^T X, lower part of each block column: rows r >= c only need
   // X's rows >= c (X is lower triangular).
-  Eigen::MatrixXd full = Eigen::MatrixXd::Zero(n, n);
-  auto inverse = full.bottomRightCorner(m, m);
+  Matrix inverse(m, m);
   for (Eigen::Index c = 0; c < m; c += kBlock) {
     const Eigen::Index b = std::min(kBlock, m - c);
     inverse.block(c, c, m - c, b).noalias() =
-        x.bottomRightCorner(m - c, m - c).triangularView<Eigen::Lower>().transpose() * x.block(c, c, m - c, b);
+        x.bottomRightCorner(m - c, m - c).template triangularView<Eigen::Lower>().transpose() * x.block(c, c, m - c, b);
   }
   for (Eigen::Index j = 1; j < m; ++j) inverse.col(j).head(j) = inverse.row(j).head(j).transpose();
-  const auto householder = d.qr.householderQ();
-  full.applyOnTheLeft(householder);
-  full.applyOnTheRight(householder.adjoint());
+  return inverse;
+}
+
+// Q2 M^-1 Q2^T (#n by #n, n > 4): Q [0 0; 0 M^-1] Q^T. With `single`, M^-1
+// is formed in float (twice the SIMD lanes: ~6 -> ~3 ms at n = 465) when that
+// keeps it accurate: its product with a fixed v must be within 1e-5
+// (relative) of the double solve M^-1 v, else it is formed in double. The
+// regularised dense maps' M is well conditioned (condition ~2e3 for the ICT
+// rig's 465 centres: entries within 2e-7 of the double inverse).
+Eigen::MatrixXd q2InverseQ2t(const TpsFactorization::Data& d, bool single) {
+  const Eigen::Index n = d.centres.rows(), m = n - 4;
+  Eigen::MatrixXd full = Eigen::MatrixXd::Zero(n, n);
+  auto inverse = full.bottomRightCorner(m, m);
+  bool formed = false;
+  if (single) {
+    inverse = inverseFromCholesky<float>(d.llt.matrixLLT().cast<float>()).cast<double>();
+    Eigen::VectorXd v(m);
+    for (Eigen::Index i = 0; i < m; ++i) v(i) = static_cast<double>((i * 7919) % 13) - 5.5;  // all frequencies
+    const Eigen::VectorXd z = inverse * v;
+    const Eigen::VectorXd back = d.llt.matrixL() * (d.llt.matrixU() * z);
+    const Eigen::VectorXd error = d.llt.solve(back - v);  // z - M^-1 v, in double
+    formed = error.norm() <= 1e-5 * z.norm();
+  }
+  if (!formed) inverse = inverseFromCholesky<double>(d.llt.matrixLLT());
+  const BlockReflector q = blockReflector(d.qr);
+  conjugateSymmetric(full, q.v, q.t.transpose());
   return full;
 }
 
@@ -328,7 +390,10 @@ Result<TpsFactorization> TpsFactorization::create(const Eigen::MatrixX3d& centre
   P.col(3).setOnes();
   data->qr.compute(P);
 
-  // B = lambda I - K, then M = Q2^T B Q2 via Q^T B Q.
+  // B = lambda I - K, then M = Q2^T B Q2 via Q^T B Q. Reflection by
+  // reflection, as always: the block form (conjugateSymmetric) would save
+  // ~0.5 ms at n = 465 but round every fit differently, moving transfers by
+  // up to ~0.5 mm through the sliding (no more accurate either way).
   Eigen::MatrixXd B(n, n);
   for (Eigen::Index i = 0; i < n; ++i) {
     B(i, i) = data->lambda_normal;
@@ -355,19 +420,19 @@ Result<TpsFactorization> TpsFactorization::create(const Eigen::MatrixX3d& centre
     }
   }
 
-  if (options.leave_one_out && n > 4) data->loo_diagonal = -q2InverseQ2t(*data).diagonal();
+  if (options.leave_one_out && n > 4) data->loo_diagonal = -q2InverseQ2t(*data, false).diagonal();
 
   TpsFactorization f;
   f.data_ = std::move(data);
   return f;
 }
 
-Eigen::MatrixXd TpsFactorization::bendingEnergyMatrix() const {
+Eigen::MatrixXd TpsFactorization::bendingEnergyMatrix(BendingPrecision precision) const {
   // Weights are w = -Q2 M^-1 Q2^T q in normalised units and w / s in model
   // units.
   const Data& d = *data_;
   if (d.centres.rows() <= 4) return Eigen::MatrixXd::Zero(d.centres.rows(), d.centres.rows());
-  return q2InverseQ2t(d) / d.scale;
+  return q2InverseQ2t(d, precision == BendingPrecision::kSingle) / d.scale;
 }
 
 int TpsFactorization::size() const { return static_cast<int>(data_->centres.rows()); }

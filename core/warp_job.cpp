@@ -520,7 +520,9 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
     auto f = TpsFactorization::create(prepared.dense_centres, dense);
     if (!f) return Error{f.error().code, label + ": dense map: " + f.error().message};
     prepared.dense_factorization = std::move(*f);
-    prepared.dense_bending = prepared.dense_factorization->bendingEnergyMatrix();
+    // The sliding's products run in float (slideInTangentPlanes).
+    prepared.dense_bending =
+        prepared.dense_factorization->bendingEnergyMatrix(TpsFactorization::BendingPrecision::kSingle);
   }
   // Vertex adjacency for smoothing on the source; the projection sample is a
   // maximal independent set of it (every vertex sampled or next to a sampled one).

@@ -183,13 +183,14 @@ TEST(Correspondence, TargetWithReversedWindingIsMatchedAsIfTurned) {
   EXPECT_NE(reversed->report.warnings[0].find("inside_out.glb: its faces face the opposite way"), std::string::npos)
       << reversed->report.warnings[0];
   // Matched as if the faces were turned: the same guide and locations (up to
-  // the rounding of swapped corners), where unturned matching would reject
+  // the rounding of swapped corners, which the sliding's float products carry
+  // to ~1e-9), where unturned matching would reject
   // nearly every face by its normal.
   const double diag = plain->report.target_diagonal;
   EXPECT_TRUE(rigport_test::matricesNear(reversed->guide.positions, plain->guide.positions, 1e-9 * diag));
   EXPECT_EQ(reversed->report.low_confidence_vertices, plain->report.low_confidence_vertices);
   EXPECT_LT(plain->report.low_confidence_vertices, target.mesh.vertexCount() / 20);
-  EXPECT_TRUE(rigport_test::matricesNear(reversed->locations.confidence, plain->locations.confidence, 1e-9));
+  EXPECT_TRUE(rigport_test::matricesNear(reversed->locations.confidence, plain->locations.confidence, 1e-8));
 }
 
 TEST(Correspondence, MirroringWarpAndInconsistentWindingAreWarned) {
@@ -805,6 +806,55 @@ TEST(Correspondence, FarthestPointSampleIsSpreadAndDeterministic) {
   EXPECT_EQ(a, b);
   std::set<int> unique(a.begin(), a.end());
   EXPECT_EQ(unique.size(), 50u);
+}
+
+// The plain O(n k) farthest-point loop the bucketed sample must reproduce,
+// ties (first vertex among equal distances) included.
+std::vector<int> farthestPointSampleByScan(const Eigen::MatrixX3d& positions, int count) {
+  const Eigen::Index n = positions.rows();
+  std::vector<int> chosen;
+  const Eigen::RowVector3d centroid = positions.colwise().mean();
+  Eigen::Index next = 0;
+  (positions.rowwise() - centroid).rowwise().squaredNorm().minCoeff(&next);
+  std::vector<double> sq(static_cast<std::size_t>(n), std::numeric_limits<double>::infinity());
+  for (int k = 0; k < std::min<Eigen::Index>(count, n); ++k) {
+    chosen.push_back(static_cast<int>(next));
+    const Eigen::RowVector3d p = positions.row(next);
+    double best = -1.0;
+    for (Eigen::Index v = 0; v < n; ++v) {
+      const double dx = positions(v, 0) - p(0), dy = positions(v, 1) - p(1), dz = positions(v, 2) - p(2);
+      const double d = dx * dx + dy * dy + dz * dz;
+      auto& s = sq[static_cast<std::size_t>(v)];
+      s = d < s ? d : s;
+      if (s > best) {
+        best = s;
+        next = v;
+      }
+    }
+  }
+  return chosen;
+}
+
+TEST(Correspondence, FarthestPointSampleMatchesThePlainScan) {
+  const auto head = core::generateHead(core::HeadShape{}, core::HeadResolution{48, 48});
+  EXPECT_EQ(core::farthestPointSample(head.mesh.positions, 465), farthestPointSampleByScan(head.mesh.positions, 465));
+  // Integer lattice points: many exactly equal distances, so ties decide.
+  Eigen::MatrixX3d lattice(9 * 7 * 5, 3);
+  int row = 0;
+  for (int i = 0; i < 9; ++i)
+    for (int j = 0; j < 7; ++j)
+      for (int k = 0; k < 5; ++k) lattice.row(row++) << i, j, k;
+  EXPECT_EQ(core::farthestPointSample(lattice, 315), farthestPointSampleByScan(lattice, 315));
+  // Flat (all z equal), with duplicated points, and scattered at random.
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-10.0, 10.0);
+  Eigen::MatrixX3d flat(400, 3);
+  for (Eigen::Index v = 0; v < flat.rows(); ++v) flat.row(v) << u(rng), u(rng), 2.0;
+  flat.bottomRows(50) = flat.topRows(50);
+  EXPECT_EQ(core::farthestPointSample(flat, 400), farthestPointSampleByScan(flat, 400));
+  Eigen::MatrixX3d cloud(3000, 3);
+  for (Eigen::Index v = 0; v < cloud.rows(); ++v) cloud.row(v) << u(rng), 0.1 * u(rng), u(rng) * u(rng);
+  EXPECT_EQ(core::farthestPointSample(cloud, 700), farthestPointSampleByScan(cloud, 700));
 }
 
 TEST(Correspondence, RejectsPointCloudTargetsAndBadLandmarks) {

@@ -92,6 +92,29 @@ TEST(Tps, BendingEnergyMatrixGivesTheWeightsAndTheEnergyOfAFit) {
   }
 }
 
+TEST(Tps, SinglePrecisionBendingMatrixIsCloseToTheDoubleOne) {
+  // Regularised as the dense maps are (well conditioned): formed in float.
+  const Eigen::MatrixX3d p = randomPoints(300, 31, 10.0);
+  core::TpsOptions options;
+  options.regularization = 0.05;
+  auto regularised = core::TpsFactorization::create(p, options);
+  ASSERT_TRUE(regularised);
+  using Precision = core::TpsFactorization::BendingPrecision;
+  const Eigen::MatrixXd b = regularised->bendingEnergyMatrix();
+  const Eigen::MatrixXd single = regularised->bendingEnergyMatrix(Precision::kSingle);
+  EXPECT_FALSE(single == b) << "the float inverse was not used";
+  EXPECT_LT((single - b).cwiseAbs().maxCoeff(), 1e-5 * b.cwiseAbs().maxCoeff());
+  // Unregularised, every centre with a twin 2e-5 away (near the duplicate
+  // tolerance): whichever way the inverse is formed, B stays close.
+  Eigen::MatrixX3d clustered(600, 3);
+  clustered << p, p.array() + 2e-5;
+  auto plain = core::TpsFactorization::create(clustered);
+  ASSERT_TRUE(plain);
+  const Eigen::MatrixXd b_plain = plain->bendingEnergyMatrix();
+  EXPECT_LT((plain->bendingEnergyMatrix(Precision::kSingle) - b_plain).cwiseAbs().maxCoeff(),
+            1e-5 * b_plain.cwiseAbs().maxCoeff());
+}
+
 TEST(Tps, JacobianMatchesFiniteDifferences) {
   const Eigen::MatrixX3d p = randomPoints(20, 21, 3.0);
   auto warp = core::fitTps(p, bend(p));

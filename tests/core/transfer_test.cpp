@@ -633,7 +633,8 @@ TEST(TransferRig, RotationFeignedByShapeIsNotAppliedButAPoseIs) {
 
 // Some exporters write faces inside out (corners in clockwise order). The
 // transfer must see the same surface: the same weights and shapes as onto the
-// correctly wound mesh, which the output keeps as it came.
+// correctly wound mesh, which the output keeps as it came. (Swapped corners
+// round differently; the sliding's float products carry that to ~1e-9.)
 TEST(TransferRig, TargetWithReversedWindingGetsTheSameRig) {
   const core::SyntheticRig& target = lipTarget();
   core::Mesh inside_out = target.rig.mesh;
@@ -647,12 +648,12 @@ TEST(TransferRig, TargetWithReversedWindingGetsTheSameRig) {
   EXPECT_TRUE(turned->report.warp.target_turned);
   EXPECT_FALSE(plain->report.warp.target_turned);
   const double diag = core::boundingBoxDiagonal(target.rig.mesh.positions);
-  EXPECT_TRUE(matricesNear(Eigen::MatrixXd(turned->rig.weights), Eigen::MatrixXd(plain->rig.weights), 1e-9));
+  EXPECT_TRUE(matricesNear(Eigen::MatrixXd(turned->rig.weights), Eigen::MatrixXd(plain->rig.weights), 1e-8));
   EXPECT_EQ(turned->report.inpainted_vertices, plain->report.inpainted_vertices);
   ASSERT_EQ(turned->rig.morph_targets.size(), plain->rig.morph_targets.size());
   for (std::size_t k = 0; k < plain->rig.morph_targets.size(); ++k) {
     EXPECT_TRUE(matricesNear(turned->rig.morph_targets[k].position_deltas, plain->rig.morph_targets[k].position_deltas,
-                             1e-9 * diag))
+                             1e-8 * diag))
         << plain->rig.morph_targets[k].name;
   }
   EXPECT_EQ(turned->rig.mesh.triangles, inside_out.triangles);
@@ -687,12 +688,12 @@ TEST(TransferRig, TargetWithNormalsAgainstItsWindingGetsTheSameRig) {
       warned = warned || w.find("vertex normals (100%) point against its faces' winding") != std::string::npos;
     }
     EXPECT_TRUE(warned);
-    EXPECT_TRUE(matricesNear(Eigen::MatrixXd(r.rig.weights), Eigen::MatrixXd(plain->rig.weights), 1e-9));
+    EXPECT_TRUE(matricesNear(Eigen::MatrixXd(r.rig.weights), Eigen::MatrixXd(plain->rig.weights), 1e-8));
     EXPECT_EQ(r.report.inpainted_vertices, plain->report.inpainted_vertices);
     ASSERT_EQ(r.rig.morph_targets.size(), plain->rig.morph_targets.size());
     for (std::size_t k = 0; k < plain->rig.morph_targets.size(); ++k) {
       EXPECT_TRUE(matricesNear(r.rig.morph_targets[k].position_deltas, plain->rig.morph_targets[k].position_deltas,
-                               1e-9 * diag))
+                               1e-8 * diag))
           << plain->rig.morph_targets[k].name;
     }
   }
