@@ -86,8 +86,6 @@ std::vector<Corners> cornerTable(const Eigen::MatrixX3i& source_triangles, const
   return corners;
 }
 
-// One shape's deltas at the located target vertices: interpolated, adapted,
-// scaled by `gain`. `moving` is scratch space.
 // mark[i] = 1 where (x, y, z)[i] has a non-zero coordinate. Cloned: the
 // baseline build leaves the 64-to-8-bit narrowing scalar, the AVX2 and
 // AVX-512F clones vectorise it.
@@ -101,6 +99,8 @@ void markMoving(const double* __restrict x, const double* __restrict y, const do
   }
 }
 
+// One shape's deltas at the located target vertices: interpolated, adapted,
+// scaled by `gain`. `moving` is scratch space.
 Eigen::MatrixX3d gatherDeltas(const MorphTarget& s, const std::vector<Corners>& corners,
                               const std::vector<Eigen::Matrix3d>& adaptation, double gain,
                               std::vector<unsigned char>& moving) {

@@ -301,18 +301,18 @@ Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic> inverseFromCholesky(
   return inverse;
 }
 
-// Q2 M^-1 Q2^T (#n by #n, n > 4): Q [0 0; 0 M^-1] Q^T. With `single`, M^-1
+// Q2 M^-1 Q2^T (#n by #n, n > 4): Q [0 0; 0 M^-1] Q^T. With kSingle, M^-1
 // is formed in float (twice the SIMD lanes: ~6 -> ~3 ms at n = 465) when that
 // keeps it accurate: its product with a fixed v must be within 1e-5
 // (relative) of the double solve M^-1 v, else it is formed in double. The
 // regularised dense maps' M is well conditioned (condition ~2e3 for the ICT
 // rig's 465 centres: entries within 2e-7 of the double inverse).
-Eigen::MatrixXd q2InverseQ2t(const TpsFactorization::Data& d, bool single) {
+Eigen::MatrixXd q2InverseQ2t(const TpsFactorization::Data& d, TpsFactorization::BendingPrecision precision) {
   const Eigen::Index n = d.centres.rows(), m = n - 4;
   Eigen::MatrixXd full = Eigen::MatrixXd::Zero(n, n);
   auto inverse = full.bottomRightCorner(m, m);
   bool formed = false;
-  if (single) {
+  if (precision == TpsFactorization::BendingPrecision::kSingle) {
     inverse = inverseFromCholesky<float>(d.llt.matrixLLT().cast<float>()).cast<double>();
     Eigen::VectorXd v(m);
     for (Eigen::Index i = 0; i < m; ++i) v(i) = static_cast<double>((i * 7919) % 13) - 5.5;  // all frequencies
@@ -420,7 +420,7 @@ Result<TpsFactorization> TpsFactorization::create(const Eigen::MatrixX3d& centre
     }
   }
 
-  if (options.leave_one_out && n > 4) data->loo_diagonal = -q2InverseQ2t(*data, false).diagonal();
+  if (options.leave_one_out && n > 4) data->loo_diagonal = -q2InverseQ2t(*data, BendingPrecision::kDouble).diagonal();
 
   TpsFactorization f;
   f.data_ = std::move(data);
@@ -432,7 +432,7 @@ Eigen::MatrixXd TpsFactorization::bendingEnergyMatrix(BendingPrecision precision
   // units.
   const Data& d = *data_;
   if (d.centres.rows() <= 4) return Eigen::MatrixXd::Zero(d.centres.rows(), d.centres.rows());
-  return q2InverseQ2t(d, precision == BendingPrecision::kSingle) / d.scale;
+  return q2InverseQ2t(d, precision) / d.scale;
 }
 
 int TpsFactorization::size() const { return static_cast<int>(data_->centres.rows()); }
