@@ -1080,10 +1080,7 @@ Result<LoadedMesh> buildMesh(const tinygltf::Model& model, const MeshChoice& cho
   report.point_cloud = mesh.triangleCount() == 0;
   finishNormals(*parts, mesh_name, mesh, report);
 
-  const double diagonal = boundingBoxDiagonal(mesh.positions);
-  for (Eigen::Index f = 0; f < mesh.triangles.rows(); ++f) {
-    if (isDegenerateTriangle(mesh.positions, mesh.triangles.row(f).transpose(), diagonal)) ++report.degenerate_triangles;
-  }
+  report.degenerate_triangles = countDegenerateTriangles(mesh);
   return loaded;
 }
 

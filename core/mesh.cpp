@@ -250,6 +250,15 @@ bool isDegenerateTriangle(const Eigen::MatrixX3d& positions, const Eigen::Vector
   return (b - a).cross(c - a).norm() <= eps * eps;
 }
 
+int countDegenerateTriangles(const Mesh& mesh) {
+  const double diagonal = boundingBoxDiagonal(mesh.positions);
+  int count = 0;
+  for (Eigen::Index f = 0; f < mesh.triangles.rows(); ++f) {
+    if (isDegenerateTriangle(mesh.positions, mesh.triangles.row(f).transpose(), diagonal)) ++count;
+  }
+  return count;
+}
+
 Eigen::Index firstInvalidRegionLabel(const Eigen::VectorXi& labels) {
   for (Eigen::Index v = 0; v < labels.size(); ++v) {
     if (labels(v) < 0 || labels(v) > kMaxRegionLabel) return v;

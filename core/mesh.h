@@ -173,6 +173,9 @@ double boundingBoxDiagonal(const Eigen::MatrixX3d& positions);
 // True when triangle f repeats a vertex or has (numerically) zero area relative
 // to the mesh scale `diagonal`.
 bool isDegenerateTriangle(const Eigen::MatrixX3d& positions, const Eigen::Vector3i& triangle, double diagonal);
+// How many of the mesh's triangles are degenerate (isDegenerateTriangle at the
+// mesh's own diagonal): kept by the readers, skipped by the algorithms.
+int countDegenerateTriangles(const Mesh& mesh);
 
 // Index of the first label outside [0, kMaxRegionLabel], or -1 when all are usable.
 Eigen::Index firstInvalidRegionLabel(const Eigen::VectorXi& labels);

@@ -549,10 +549,7 @@ Result<LoadedMesh> readPly(std::span<const std::uint8_t> bytes, const std::strin
     report.normals_computed = true;
   }
   if (auto ok = validateMesh(mesh, label); !ok) return ok.error();
-  const double diagonal = boundingBoxDiagonal(mesh.positions);
-  for (Eigen::Index f = 0; f < mesh.triangles.rows(); ++f) {
-    if (isDegenerateTriangle(mesh.positions, mesh.triangles.row(f).transpose(), diagonal)) ++report.degenerate_triangles;
-  }
+  report.degenerate_triangles = countDegenerateTriangles(mesh);
   return loaded;
 }
 

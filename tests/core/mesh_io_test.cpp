@@ -827,6 +827,29 @@ TEST(ObjRead, VerticesWithoutFacesAreAPointCloud) {
   EXPECT_EQ(loaded->mesh.triangleCount(), 0);
 }
 
+// Degenerate faces (a repeated corner, three collinear corners) are kept and
+// counted, the same by every reader.
+TEST(MeshRead, DegenerateTrianglesAreKeptAndCountedByEveryReader) {
+  const std::string obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 2\nf 1 2 4\n";
+  auto from_obj = core::readObj(toBytes(obj), "flat.obj");
+  ASSERT_TRUE(from_obj.ok()) << from_obj.error().message;
+  EXPECT_EQ(from_obj->mesh.triangleCount(), 3);
+  EXPECT_EQ(from_obj->report.degenerate_triangles, 2);
+  const std::string ply =
+      "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 3\nproperty list uchar int vertex_indices\nend_header\n"
+      "0 0 0\n1 0 0\n0 1 0\n2 0 0\n3 0 1 2\n3 0 1 1\n3 0 1 3\n";
+  auto from_ply = core::readPly(toBytes(ply), "flat.ply");
+  ASSERT_TRUE(from_ply.ok()) << from_ply.error().message;
+  EXPECT_EQ(from_ply->report.degenerate_triangles, 2);
+  auto glb = core::encodeMeshGlb(from_obj->mesh);
+  ASSERT_TRUE(glb.ok()) << glb.error().message;
+  auto from_glb = core::readGltf(*glb, "flat.glb", true);
+  ASSERT_TRUE(from_glb.ok()) << from_glb.error().message;
+  EXPECT_EQ(from_glb->mesh.triangleCount(), 3);
+  EXPECT_EQ(from_glb->report.degenerate_triangles, 2);
+}
+
 TEST(ObjRead, GarbageIsAParseError) {
   EXPECT_READ_ERROR(core::readObj(toBytes(""), "g.obj"), ErrorCode::kParse, "g.obj", "no vertices");
   EXPECT_READ_ERROR(core::readObj(toBytes("hello world\nthis is not a mesh\n"), "g.obj"), ErrorCode::kParse, "g.obj",
