@@ -204,6 +204,7 @@ struct ClosestPointIndex::Impl {
   std::vector<Face> faces;
   std::vector<std::uint64_t> labels;  // label bit set per slot; empty: no labels given
   std::uint64_t present_labels = 0;   // union of the indexed faces' label sets
+  Eigen::Index face_count = 0;        // faces of the mesh (indexed or not)
   std::vector<std::unique_ptr<Level>> levels;  // finest first
   Vec3 origin = Vec3::Zero();                  // sample coordinates are relative to it
   double origin_max_abs = 0.0;
@@ -384,6 +385,7 @@ ClosestPointIndex::ClosestPointIndex(const Eigen::MatrixX3d& positions, const Ei
   Impl& m = *impl_;
   const Eigen::Index nf = triangles.rows();
   assert(face_labels.empty() || static_cast<Eigen::Index>(face_labels.size()) == nf);
+  m.face_count = nf;
   const double diagonal = boundingBoxDiagonal(positions);
   const double max_abs = positions.rows() > 0 ? positions.cwiseAbs().maxCoeff() : 0.0;
   // Absolute slack on covering radii: distances to points ~max_abs from the
@@ -478,12 +480,18 @@ ClosestPointIndex::ClosestPointIndex(const Eigen::MatrixX3d& positions, const Ei
     }
   }
   assert(m.faces.size() == faces.size());
-  if (!face_labels.empty() && static_cast<Eigen::Index>(face_labels.size()) == nf) {
-    m.labels.resize(m.faces.size());
-    for (std::size_t i = 0; i < m.faces.size(); ++i) {
-      m.labels[i] = face_labels[static_cast<std::size_t>(m.faces[i].id)];
-      m.present_labels |= m.labels[i];
-    }
+  setFaceLabels(std::move(face_labels));
+}
+
+void ClosestPointIndex::setFaceLabels(std::vector<std::uint64_t> face_labels) {
+  Impl& m = *impl_;
+  m.labels.clear();
+  m.present_labels = 0;
+  if (face_labels.empty() || static_cast<Eigen::Index>(face_labels.size()) != m.face_count) return;
+  m.labels.resize(m.faces.size());
+  for (std::size_t i = 0; i < m.faces.size(); ++i) {
+    m.labels[i] = face_labels[static_cast<std::size_t>(m.faces[i].id)];
+    m.present_labels |= m.labels[i];
   }
 }
 

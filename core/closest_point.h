@@ -51,6 +51,10 @@ class ClosestPointIndex {
   ClosestPointIndex(const ClosestPointIndex&) = delete;
   ClosestPointIndex& operator=(const ClosestPointIndex&) = delete;
 
+  // Replaces the face label sets (as given to the constructor; empty: no
+  // labels) without rebuilding the hierarchy. Not thread-safe: before queries.
+  void setFaceLabels(std::vector<std::uint64_t> face_labels);
+
   // Unfiltered query (const, thread-safe).
   SurfacePoint closestPoint(const Eigen::Vector3d& query) const;
 

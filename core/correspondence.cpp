@@ -89,10 +89,12 @@ FoldReport countFolds(const Eigen::MatrixX3d& warped_positions, const Eigen::Mat
 
 TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_positions,
                               const MovingMeshIndex& guide_faces, const LocateOptions& options,
-                              const std::vector<std::uint64_t>& source_face_regions) {
-  const bool by_region = !source_face_regions.empty();
+                              const std::vector<std::uint64_t>& source_face_labels,
+                              const std::vector<std::uint64_t>& target_masks, const std::vector<int>& target_sides) {
+  const bool labelled = !source_face_labels.empty() && !target_masks.empty();
   const Eigen::MatrixX3i& source_triangles = guide_faces.triangles();
-  const MovingMeshIndex::Fitted guide_index = guide_faces.fit(guide_positions, source_face_regions);
+  const MovingMeshIndex::Fitted guide_index =
+      guide_faces.fit(guide_positions, labelled ? source_face_labels : std::vector<std::uint64_t>());
   const Eigen::Index n = target.positions.rows();
   // The copies of a split point (UV seams, hard edges) are one point of the
   // surface: matched with one normal (their average where theirs differ) and
@@ -134,7 +136,7 @@ TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_
   cp.threads = options.threads;
   ClosestPointFilters filters;
   filters.normals = normals;
-  if (by_region) filters.label_masks = vertexRegionBits(target.regions);
+  if (labelled) filters.label_masks = target_masks;
 
   TargetLocations out;
   out.on_source = guide_index.closestPoints(target.positions, cp, filters);
@@ -149,6 +151,40 @@ TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_
   const double max_distance = options.low_confidence_distance * boundingBoxDiagonal(target.positions);
   const Eigen::VectorXd edge = meanIncidentEdgeLengths(target, representative);
   const double cos_limit = std::cos(options.low_confidence_angle_deg * std::numbers::pi / 180.0);
+  // Near an opening, a location whose normal disagrees may be the other lip
+  // or lid, a hair away where they touch near a corner (the sides are not
+  // sure there): one within an edge farther whose normal agrees is taken
+  // instead.
+  if (!target_sides.empty() && options.opening_normal_angle_deg < options.max_normal_angle_deg) {
+    const double cos_opening = std::cos(options.opening_normal_angle_deg * std::numbers::pi / 180.0);
+    std::vector<int> retry;
+    for (Eigen::Index v = 0; v < n; ++v) {
+      const SurfacePoint& sp = out.on_source[static_cast<std::size_t>(v)];
+      if (!sp.found() || target_sides[static_cast<std::size_t>(v)] != kBetweenSides) continue;
+      const Eigen::RowVector3d gn = interpolateOnFace(guide_normals, source_triangles, sp.face, sp.barycentric);
+      const double len = gn.norm();
+      if (!(len > 0.0 && gn.dot(normals.row(v)) / len >= cos_opening)) retry.push_back(static_cast<int>(v));
+    }
+    if (!retry.empty()) {
+      ClosestPointOptions strict = cp;
+      strict.max_normal_angle_deg = options.opening_normal_angle_deg;
+      ClosestPointFilters again_filters;
+      again_filters.normals.resize(static_cast<Eigen::Index>(retry.size()), 3);
+      Eigen::MatrixX3d queries(static_cast<Eigen::Index>(retry.size()), 3);
+      for (std::size_t i = 0; i < retry.size(); ++i) {
+        queries.row(static_cast<Eigen::Index>(i)) = target.positions.row(retry[i]);
+        again_filters.normals.row(static_cast<Eigen::Index>(i)) = normals.row(retry[i]);
+        if (labelled) again_filters.label_masks.push_back(target_masks[static_cast<std::size_t>(retry[i])]);
+      }
+      const std::vector<SurfacePoint> again = guide_index.closestPoints(queries, strict, again_filters);
+      for (std::size_t i = 0; i < retry.size(); ++i) {
+        SurfacePoint& sp = out.on_source[static_cast<std::size_t>(retry[i])];
+        if (!again[i].found() || std::sqrt(again[i].sq_distance) > std::sqrt(sp.sq_distance) + edge(retry[i])) continue;
+        if (labelled && (source_face_labels[static_cast<std::size_t>(sp.face)] & source_face_labels[static_cast<std::size_t>(again[i].face)]) != 0) continue;
+        sp = again[i];
+      }
+    }
+  }
   for (Eigen::Index v = 0; v < n; ++v) {
     const SurfacePoint& sp = out.on_source[static_cast<std::size_t>(v)];
     if (!sp.found()) {

@@ -12,6 +12,7 @@
 #include "core/closest_point.h"
 #include "core/moving_mesh_index.h"
 #include "core/mesh.h"
+#include "core/opening_sides.h"
 
 namespace core {
 
@@ -100,6 +101,12 @@ struct LocateOptions {
   // right match is (nearly) on it; a vertex matched across a thin gap (the
   // other lip or lid) is a gap-width away. 0 disables.
   double max_relative_distance = 0.5;
+  // A target vertex near an opening (target_sides) whose location's normal
+  // differs more than this takes, when there is one, a location at most one
+  // of its edges farther whose normal is within it: where lips or lids touch
+  // near a corner the other side's surface can be nearest (measured on
+  // other ICT identities: 4-26 lip vertices a fang's length off without it).
+  double opening_normal_angle_deg = 45.0;
   int threads = 0;
 };
 
@@ -121,12 +128,18 @@ struct TargetLocations {
 };
 
 // guide_faces: the source's faces (MovingMeshIndex, built once per rig), whose
-// vertices are at guide_positions. source_face_regions: empty, or
-// faceRegionSets of the source (then target.regions must be set): each target
-// vertex is located only on guide faces touching its region.
+// vertices are at guide_positions. source_face_labels and target_masks: both
+// empty, or the source's face label sets and each target vertex's label bits
+// (faceRegionSets and vertexRegionBits, or sideFaceSets and sideMasks): each
+// target vertex is located only on guide faces sharing a bit with it.
+// target_sides: empty, or openingSides of the target (vertices near an
+// opening take a location whose normal agrees, see
+// LocateOptions::opening_normal_angle_deg).
 TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_positions,
                               const MovingMeshIndex& guide_faces, const LocateOptions& options,
-                              const std::vector<std::uint64_t>& source_face_regions = {});
+                              const std::vector<std::uint64_t>& source_face_labels = {},
+                              const std::vector<std::uint64_t>& target_masks = {},
+                              const std::vector<int>& target_sides = {});
 
 // Farthest-point sample of `count` vertices (deterministic, starting from the
 // vertex nearest the centroid). Used for the dense-map centres.

@@ -354,10 +354,13 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
 
   // One graph Laplacian of the target for every stage that inpaints
   // untrusted vertices (mismatched vertices are also low-confidence), and one
-  // factorisation of the mismatched split for shapes and attributes.
-  const Eigen::SparseMatrix<double> target_laplacian =
-      locations.low_confidence > 0 ? uniformLaplacian(target.positions, target.triangles)
-                                   : Eigen::SparseMatrix<double>();
+  // factorisation of the mismatched split for shapes and attributes. Cut
+  // across the openings' sides: a lip takes values from its own side only.
+  Eigen::SparseMatrix<double> target_laplacian;
+  if (locations.low_confidence > 0) {
+    target_laplacian = uniformLaplacian(target.positions, target.triangles);
+    if (!warp->target_sides.empty()) target_laplacian = cutAcrossSides(target_laplacian, warp->target_sides);
+  }
   const bool attributes_inpainted =
       options.attributes && (src.attributes.colors.rows() > 0 || !src.attributes.fields.empty());
   std::optional<HarmonicInpainting> mismatched;

@@ -170,6 +170,7 @@ Eigen::MatrixX3d smoothedPulls(const PreparedSource& source, std::vector<Pull> a
 // quarter of the queries of the whole target (mean of the nine ICT targets'
 // E medians 0.0685 against 0.0676 with every vertex).
 TargetPulls matchTargetPulls(const PreparedSource& source, const Eigen::MatrixX3d& warped, const Mesh& target,
+                             const std::vector<std::uint64_t>& source_face_labels,
                              const std::vector<std::uint64_t>& target_masks, const std::vector<int>& detached,
                              const WarpReport& report, const WarpOptions& options) {
   TargetPulls out;
@@ -181,7 +182,7 @@ TargetPulls matchTargetPulls(const PreparedSource& source, const Eigen::MatrixX3
     out.weight.push_back(sample.weight[k]);
   }
   const MovingMeshIndex::Fitted on_warped =
-      source.guide_index->fit(warped, report.region_matching ? source.face_regions : std::vector<std::uint64_t>());
+      source.guide_index->fit(warped, target_masks.empty() ? std::vector<std::uint64_t>() : source_face_labels);
   ClosestPointOptions cp;
   cp.max_normal_angle_deg = options.target_pull_max_angle_deg;
   cp.max_distance = options.target_pull_max_distance * report.target_diagonal;
@@ -358,14 +359,16 @@ std::vector<int> detachedPieces(const Mesh& target, const std::vector<int>& repr
 // on; from the vertex itself, near a slit's corner, a staircase rim's step
 // of the other side can be nearer. A vertex the location refused (its
 // surface point across a thin gap) searches from itself and is taken back
-// when the rim point is on another face. `target_masks`: per target vertex region
-// bits, or empty (no region matching). Confidence there is the distance
+// when the rim point is on another face. `source_face_labels`,
+// `target_masks`: the source faces' label sets and each target vertex's bits
+// (region labels or opening sides), or empty (no filter). Confidence there is the distance
 // term alone: a rim vertex's normal averages the faces of one side only
 // (normal_cosine keeps the surface location's). Returns how many moved.
 int locateRimVertices(TargetLocations& locations, const Mesh& target, const std::vector<Rim>& target_rims,
                       const std::vector<int>& target_representative, const PreparedSource& source,
-                      const Eigen::MatrixX3d& guide_positions, const std::vector<std::uint64_t>& target_masks,
-                      double target_diagonal, const WarpOptions& options) {
+                      const Eigen::MatrixX3d& guide_positions, const std::vector<std::uint64_t>& source_face_labels,
+                      const std::vector<std::uint64_t>& target_masks, double target_diagonal,
+                      const WarpOptions& options) {
   // A vertex a tenth of an edge from a rim vertex is a rim point too.
   constexpr double kNearRim = 0.1;
   RimVertices on_rim = rimVertices(target_rims, target, target_representative);
@@ -402,7 +405,7 @@ int locateRimVertices(TargetLocations& locations, const Mesh& target, const std:
       if (rim_boxes[r].exteriorDistance(p) > max_distance) continue;
       const SurfacePoint sp = closestPointOnRim(from, tangent, source.rims[r], guide_positions);
       if (!sp.found() || sp.sq_distance >= best.sq_distance) continue;
-      if (!target_masks.empty() && (source.face_regions[static_cast<std::size_t>(sp.face)] &
+      if (!target_masks.empty() && (source_face_labels[static_cast<std::size_t>(sp.face)] &
                                     target_masks[static_cast<std::size_t>(v)]) == 0) {
         continue;
       }
@@ -426,6 +429,31 @@ int locateRimVertices(TargetLocations& locations, const Mesh& target, const std:
   return moved;
 }
 
+// The target's openings: each source opening whose rim matched a target rim
+// (rim_match), split at the target rim's vertices nearest to where the
+// source's anchors land under the landmark warp (a shared landmark lands on
+// the target's own), so that side s is side s on both. Per target vertex its
+// side (openingSides, numbered as the source's), or empty when no opening
+// matched. Counts them in the report.
+std::vector<int> targetOpeningSides(const PreparedSource& source, const TpsWarp& landmark_warp,
+                                    const std::vector<int>& rim_match, const std::vector<Rim>& target_rims,
+                                    const Mesh& target, const std::vector<int>& representative,
+                                    const OpeningSideOptions& options, WarpReport& report) {
+  std::vector<Opening> openings(source.openings.size());
+  for (std::size_t k = 0; k < source.openings.size(); ++k) {
+    const Opening& opening = source.openings[k];
+    const int t = rim_match[static_cast<std::size_t>(opening.rim)];
+    if (t < 0) continue;
+    const Eigen::Matrix<double, 2, 3> anchors = landmark_warp.apply(Eigen::MatrixX3d(opening.anchors));
+    openings[k] = openingAtCorners(target_rims[static_cast<std::size_t>(t)], t, target.positions, anchors);
+    report.sided_openings += openings[k].rim >= 0 ? 1 : 0;
+  }
+  if (report.sided_openings == 0) return {};
+  std::vector<int> sides = openingSides(target, representative, target_rims, openings, options);
+  report.sided_target_vertices = static_cast<int>(std::count_if(sides.begin(), sides.end(), [](int s) { return s >= 0; }));
+  return sides;
+}
+
 }  // namespace
 
 WarpOptions plainWarpOptions() {
@@ -434,6 +462,7 @@ WarpOptions plainWarpOptions() {
   options.local_rounds = 0;
   options.rim_matching = false;
   options.rim_location = false;
+  options.side_matching = false;
   return options;
 }
 
@@ -532,6 +561,12 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
     const std::vector<int> representative = coincidentVertexRepresentatives(prepared.mesh.positions);
     prepared.rims = meshRims(prepared.mesh, representative);
     if (!prepared.rims.empty()) prepared.rim_vertices = rimVertices(prepared.rims, prepared.mesh, representative);
+    prepared.openings = findOpenings(prepared.mesh, prepared.rims, prepared.landmark_positions);
+    if (!prepared.openings.empty()) {
+      prepared.vertex_sides = openingSides(prepared.mesh, representative, prepared.rims, prepared.openings);
+      prepared.side_masks = sideMasks(prepared.vertex_sides);
+      prepared.side_face_sets = sideFaceSets(prepared.vertex_sides, prepared.mesh.triangles);
+    }
   }
   if (prepared.mesh.regions.size() > 0) {
     prepared.face_regions = faceRegionSets(prepared.mesh.regions, prepared.mesh.triangles);
@@ -581,10 +616,6 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
       report.region_matching ? faceRegionSets(target.regions, target.triangles) : std::vector<std::uint64_t>();
   ClosestPointIndex target_index(target.positions, target.triangles, target_face_regions);
   const std::vector<std::uint64_t> no_masks;
-  const std::vector<std::uint64_t>& source_masks = report.region_matching ? source.region_bits : no_masks;
-  // Per target vertex region bits (the turned copy below keeps the regions).
-  const std::vector<std::uint64_t> target_masks =
-      report.region_matching ? vertexRegionBits(target.regions) : std::vector<std::uint64_t>();
   auto target_positions = resolveLandmarks(target_landmarks, target, target_label, &target_index);
   if (!target_positions) return target_positions.error();
   const std::vector<int> target_representative = coincidentVertexRepresentatives(target.positions);
@@ -725,22 +756,42 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   // side of the target's, where projection would keep it. In the dense-map
   // rounds every matched rim's centres are put on the target's rim (the slide
   // along a tube that projection cannot see).
+  const bool sides_wanted = options.side_matching && !report.region_matching && !source.openings.empty();
   std::vector<Rim> target_rims;
-  if ((options.rim_matching || options.rim_location) && !source.rims.empty()) {
+  if ((options.rim_matching || options.rim_location || sides_wanted) && !source.rims.empty()) {
     target_rims = meshRims(*matched, target_representative);
   }
   std::vector<int> rim_match(source.rims.size(), -1);
-  if (options.rim_matching && !source.rims.empty()) {
-    // The source's rim vertices as the landmarks warp them (the only rows
-    // matchRims and pairRimPoints read; the others keep source positions).
-    Eigen::MatrixX3d rims_warped = source.mesh.positions;
-    {
-      std::vector<int> rows;
-      for (const Rim& rim : source.rims) rows.insert(rows.end(), rim.vertices.begin(), rim.vertices.end());
-      const Eigen::MatrixX3d warped = result.landmark_warp.apply(selectRows(source.mesh.positions, rows));
-      for (std::size_t k = 0; k < rows.size(); ++k) rims_warped.row(rows[k]) = warped.row(static_cast<Eigen::Index>(k));
-    }
+  // The source's rim vertices as the landmarks warp them (the only rows
+  // matchRims, pairRimPoints and the openings read; the others keep source
+  // positions).
+  Eigen::MatrixX3d rims_warped;
+  if ((options.rim_matching || sides_wanted) && !source.rims.empty()) {
+    rims_warped = source.mesh.positions;
+    std::vector<int> rows;
+    for (const Rim& rim : source.rims) rows.insert(rows.end(), rim.vertices.begin(), rim.vertices.end());
+    const Eigen::MatrixX3d warped = result.landmark_warp.apply(selectRows(source.mesh.positions, rows));
+    for (std::size_t k = 0; k < rows.size(); ++k) rims_warped.row(rows[k]) = warped.row(static_cast<Eigen::Index>(k));
     rim_match = matchRims(source.rims, rims_warped, target_rims, matched->positions, options.rims);
+  }
+  // Lips and lids kept to their sides (WarpOptions::side_matching): the
+  // openings' sides filter every match from here on, as _REGION labels do.
+  std::vector<std::uint64_t> source_masks = report.region_matching ? source.region_bits : no_masks;
+  std::vector<std::uint64_t> source_face_labels = report.region_matching ? source.face_regions : no_masks;
+  std::vector<std::uint64_t> target_masks =
+      report.region_matching ? vertexRegionBits(target.regions) : std::vector<std::uint64_t>();
+  if (sides_wanted) {
+    result.target_sides = targetOpeningSides(source, result.landmark_warp, rim_match, target_rims, *matched,
+                                             target_representative, options.sides, report);
+    if (!result.target_sides.empty()) {
+      source_masks = source.side_masks;
+      source_face_labels = source.side_face_sets;
+      target_masks = sideMasks(result.target_sides);
+      target_index.setFaceLabels(sideFaceSets(result.target_sides, matched->triangles));
+    }
+  }
+  if (!options.rim_matching) std::fill(rim_match.begin(), rim_match.end(), -1);
+  if (options.rim_matching && !source.rims.empty()) {
     report.matched_rims =
         static_cast<int>(std::count_if(rim_match.begin(), rim_match.end(), [](int t) { return t >= 0; }));
     if (options.rim_warp_points > 0) {
@@ -859,7 +910,8 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   const double trust = options.refine_max_distance * report.target_diagonal;
   TargetPulls target_pulls;
   if (options.local_rounds > 0 && options.target_pulls) {
-    target_pulls = matchTargetPulls(source, result.warped_positions, *matched, target_masks, detached, report, options);
+    target_pulls = matchTargetPulls(source, result.warped_positions, *matched, source_face_labels, target_masks,
+                                    detached, report, options);
     report.target_pulls = static_cast<int>(target_pulls.vertices.size());
   }
   for (int round = 0; round < options.local_rounds; ++round) {
@@ -914,12 +966,12 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   }
   LocateOptions locate = options.locate;
   locate.threads = options.threads;
-  result.locations = locateOnGuide(*matched, located_on, *source.guide_index, locate,
-                                   report.region_matching ? source.face_regions : std::vector<std::uint64_t>());
+  result.locations = locateOnGuide(*matched, located_on, *source.guide_index, locate, source_face_labels, target_masks,
+                                   result.target_sides);
   if (options.rim_location && !target_rims.empty()) {
     report.rim_located_vertices = locateRimVertices(
-        result.locations, *matched, target_rims, target_representative, source, located_on, target_masks,
-        report.target_diagonal, options);
+        result.locations, *matched, target_rims, target_representative, source, located_on, source_face_labels,
+        target_masks, report.target_diagonal, options);
   }
   for (Eigen::Index v = 0; v < target.vertexCount() && !detached.empty(); ++v) {
     if (detached[static_cast<std::size_t>(v)] < 0) continue;

@@ -14,6 +14,7 @@
 #include "core/landmarks.h"
 #include "core/mesh.h"
 #include "core/moving_mesh_index.h"
+#include "core/opening_sides.h"
 #include "core/rims.h"
 #include "core/tps.h"
 
@@ -59,6 +60,13 @@ struct PreparedSource {
   // (rimVertices; empty without rims).
   std::vector<Rim> rims;
   RimVertices rim_vertices;
+  // Openings (the mouth, the eyes: rims a source landmark lies on, split at
+  // their corners), each vertex's side of them (openingSides), and those as
+  // closest-point label bits (sideMasks, sideFaceSets); empty without openings.
+  std::vector<Opening> openings;
+  std::vector<int> vertex_sides;
+  std::vector<std::uint64_t> side_masks;
+  std::vector<std::uint64_t> side_face_sets;
   // Source vertex normals that pointed against the faces' winding and were
   // replaced by the face normal in `mesh` (normalsAgreeingWithWinding).
   int normals_against_winding = 0;
@@ -118,6 +126,14 @@ struct WarpOptions {
   // match (projection, refinement, location) stays within compatible regions;
   // see faceRegionSets. false: labels are ignored.
   bool region_matching = true;
+  // The source's openings (the mouth, the eyes) are matched to the target's
+  // rims, both split into their two sides (upper and lower lip, upper and
+  // lower lid), and every match (projection, refinement, target pulls,
+  // location) stays on its own side: a lower-lip vertex never takes the
+  // upper lip's motion, however close the lips are. _REGION labels on both,
+  // when region_matching uses them, take the sides' place. false: no sides.
+  bool side_matching = true;
+  OpeningSideOptions sides;
   // Source rims (neck cut, mouth, eyes) matched to target rims after the
   // landmark warp (matchRims); those no landmark pins join the warp (below),
   // and in the refinement every matched rim pulls its dense centres onto its
@@ -198,6 +214,8 @@ struct WarpReport {
   int slid_centres = 0;               // dense centres slid along the target in the last refinement round
   double mean_slide = 0.0;            // mean slide in the first round (the largest), target units
   bool region_matching = false;       // matches were region-constrained
+  int sided_openings = 0;             // source openings matched on the target with their two sides (side_matching)
+  int sided_target_vertices = 0;      // target vertices on one side of an opening
   // faceOrientationAgreement of the target after the landmark warp (+1: its
   // faces face as the source's); below 0 the target was matched with its
   // faces turned (target_turned) and a warning says so.
@@ -234,6 +252,10 @@ struct WarpResult {
   // vectors. Empty (no centres) when the source was prepared without them.
   std::optional<TpsWarp> dense_map;
   TargetLocations locations;
+  // #Vt: each target vertex's side of an opening, numbered as the source's
+  // (PreparedSource::vertex_sides), or -1; empty when no opening was matched
+  // with its sides.
+  std::vector<int> target_sides;
   WarpReport report;
 };
 

@@ -86,7 +86,8 @@ TEST(Correspondence, RegionLabelsKeepCloseSheetsApart) {
   const core::MovingMeshIndex sheet_faces(sheets.positions, sheets.triangles);
   const auto plain = core::locateOnGuide(probe, sheets.positions, sheet_faces, locate);
   const auto constrained = core::locateOnGuide(probe, sheets.positions, sheet_faces, locate,
-                                               core::faceRegionSets(sheets.regions, sheets.triangles));
+                                               core::faceRegionSets(sheets.regions, sheets.triangles),
+                                               core::vertexRegionBits(probe.regions));
   for (int v = 0; v < 3; ++v) {
     EXPECT_EQ(sheet(plain.on_source[static_cast<std::size_t>(v)].face), 1) << "vertex " << v;
     EXPECT_EQ(sheet(constrained.on_source[static_cast<std::size_t>(v)].face), 2) << "vertex " << v;

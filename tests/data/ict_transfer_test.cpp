@@ -6,6 +6,8 @@
 // the data is absent.
 #include <algorithm>
 #include <cstdio>
+#include <map>
+#include <string_view>
 #include <numbers>
 
 #include <gtest/gtest.h>
@@ -64,6 +66,35 @@ struct Errors {
   double median() const { auto s = e; std::sort(s.begin(), s.end()); return s[s.size() / 2]; }
   double worst() const { return *std::max_element(e.begin(), e.end()); }
 };
+
+// The worst vertex of each shape (issue [5]): spike = max_v |d_out - d_gt| /
+// max_v |d_gt|, and the vertices whose error exceeds half the shape's largest
+// true displacement (a lip left behind: a fang), with the shapes they are in.
+struct Spikes {
+  std::vector<double> spike;       // per shape
+  int torn = 0;                    // vertices over half the largest displacement, all shapes
+  std::string torn_shapes;         // "name:count ..." of the shapes that have any
+  std::string worst_shape;
+  double worst() const { return *std::max_element(spike.begin(), spike.end()); }
+};
+
+Spikes shapeSpikes(const core::Rig& out, const core::Rig& gt) {
+  Spikes s;
+  double worst = -1.0;
+  for (std::size_t k = 0; k < gt.morph_targets.size(); ++k) {
+    const Eigen::VectorXd e = (out.morph_targets[k].position_deltas - gt.morph_targets[k].position_deltas).rowwise().norm();
+    const double largest = gt.morph_targets[k].position_deltas.rowwise().norm().maxCoeff();
+    s.spike.push_back(largest > 0.0 ? e.maxCoeff() / largest : 0.0);
+    const int torn = static_cast<int>((e.array() > 0.5 * largest).count());
+    s.torn += torn;
+    if (torn > 0) s.torn_shapes += gt.morph_targets[k].name + ":" + std::to_string(torn) + " ";
+    if (s.spike.back() > worst) {
+      worst = s.spike.back();
+      s.worst_shape = gt.morph_targets[k].name;
+    }
+  }
+  return s;
+}
 
 Errors shapeErrors(const core::Rig& out, const core::Rig& gt) {
   Errors errors;
@@ -143,6 +174,9 @@ TEST_P(IctTransfer, ShapesBeatThePlainMethodAndOutputIsValid) {
   ASSERT_TRUE(plain) << plain.error().message;
 
   const Errors e = shapeErrors(ours->rig, gt->rig), p = shapeErrors(plain->rig, gt->rig);
+  const Spikes spikes = shapeSpikes(ours->rig, gt->rig), plain_spikes = shapeSpikes(plain->rig, gt->rig);
+  std::printf("[ %-28s ] spike worst %.3f (%s), torn vertices %d %s| plain %.3f, %d\n", name.c_str(), spikes.worst(),
+              spikes.worst_shape.c_str(), spikes.torn, spikes.torn_shapes.c_str(), plain_spikes.worst(), plain_spikes.torn);
   const double jaw = stillnessError(ours->rig, gt->rig, "jawOpen");
   const double blink = std::max(stillnessError(ours->rig, gt->rig, "eyeBlink_L"), stillnessError(ours->rig, gt->rig, "eyeBlink_R"));
   const double jaw_p = stillnessError(plain->rig, gt->rig, "jawOpen");
@@ -173,6 +207,21 @@ TEST_P(IctTransfer, ShapesBeatThePlainMethodAndOutputIsValid) {
   if (name.starts_with("sparse")) {
     EXPECT_LE(e.median(), 0.08) << "median with 10 landmarks";
   }
+  // The worst vertex (issue [5]): no shape leaves a vertex behind by more
+  // than half its largest true displacement (a fang). Before the lips' and
+  // lids' sides were matched sparse10_s01 had 25 such vertices (spike 0.97);
+  // measured now 0.18-0.46, none.
+  EXPECT_LE(spikes.worst(), 0.5) << spikes.worst_shape;
+  EXPECT_EQ(spikes.torn, 0) << spikes.torn_shapes;
+  // And no median or worst E lost for it (docs/ACCURACY.md, measured before
+  // the sides; the margin is rounding between builds).
+  const std::map<std::string, std::pair<double, double>> before = {
+      {"id_s01", {0.0341, 0.0698}},        {"id_s02", {0.0378, 0.1042}},        {"id_s03", {0.0352, 0.0660}},
+      {"stylized_s01_cartoon", {0.1362, 0.3046}}, {"id_s01_remesh", {0.0349, 0.1026}}, {"id_s02_remesh", {0.0451, 0.1032}},
+      {"id_s03_remesh", {0.0516, 0.1042}}, {"stylized_s01_cartoon_remesh", {0.1559, 0.3097}},
+      {"sparse10_s01", {0.0792, 0.1485}}};
+  EXPECT_LE(e.median(), before.at(name).first + 0.0005);
+  EXPECT_LE(e.worst(), before.at(name).second + 0.0005);
 
   // Skin rules and the Khronos validator on the written GLB.
   const auto dir = rigport_test::makeTempDir("out");
@@ -229,9 +278,19 @@ TEST(IctOtherIdentities, ShapesBeatThePlainMethod) {
     ASSERT_TRUE(ours) << ours.error().message;
     ASSERT_TRUE(plain) << plain.error().message;
     const Errors e = shapeErrors(ours->rig, truth), p = shapeErrors(plain->rig, truth);
-    std::printf("[ %-24s ] E median %.4f worst %.4f | plain %.4f / %.4f | inpainted %d\n", identity.name, e.median(),
-                e.worst(), p.median(), p.worst(), ours->report.inpainted_vertices);
+    const Spikes spikes = shapeSpikes(ours->rig, truth);
+    std::printf("[ %-24s ] E median %.4f worst %.4f | plain %.4f / %.4f | inpainted %d | spike %.3f (%s) torn %d %s\n",
+                identity.name, e.median(), e.worst(), p.median(), p.worst(), ours->report.inpainted_vertices,
+                spikes.worst(), spikes.worst_shape.c_str(), spikes.torn, spikes.torn_shapes.c_str());
     EXPECT_LT(e.median(), p.median()) << identity.name;
+    // No lip or lid left behind on the identities of the model's own range
+    // (before the sides were matched: 4-31 such vertices on 5 of the 8). The
+    // identities exaggerated 3x are registered a centimetre off in places
+    // (s03_x3: hundreds of vertices, not an opening's side): printed only.
+    if (!std::string_view(identity.name).ends_with("_x3")) {
+      EXPECT_LE(spikes.worst(), 0.5) << identity.name << " " << spikes.worst_shape;
+      EXPECT_EQ(spikes.torn, 0) << identity.name << " " << spikes.torn_shapes;
+    }
     worst_sum += e.worst();
     plain_worst_sum += p.worst();
   }

@@ -1,0 +1,220 @@
+#include "core/opening_sides.h"
+
+#include <algorithm>
+#include <cassert>
+#include <functional>
+#include <limits>
+#include <queue>
+#include <utility>
+
+namespace core {
+
+namespace {
+
+constexpr double kUnreached = std::numeric_limits<double>::infinity();
+
+// Distances along the mesh's edges from the vertices `seeds` (0 there), up
+// to `radius`: vertices beyond it stay unreached. Bounded Dijkstra, so the
+// cost is the zone's, not the mesh's.
+void edgeDistances(const VertexAdjacency& adjacency, const Eigen::MatrixX3d& positions, const std::vector<int>& seeds,
+                   double radius, std::vector<double>& distance) {
+  std::fill(distance.begin(), distance.end(), kUnreached);
+  using Entry = std::pair<double, int>;
+  std::priority_queue<Entry, std::vector<Entry>, std::greater<>> queue;
+  for (const int s : seeds) {
+    distance[static_cast<std::size_t>(s)] = 0.0;
+    queue.emplace(0.0, s);
+  }
+  while (!queue.empty()) {
+    const auto [d, v] = queue.top();
+    queue.pop();
+    if (d > distance[static_cast<std::size_t>(v)]) continue;
+    for (int k = adjacency.offsets[static_cast<std::size_t>(v)]; k < adjacency.offsets[static_cast<std::size_t>(v) + 1]; ++k) {
+      const int u = adjacency.indices[static_cast<std::size_t>(k)];
+      const double du = d + (positions.row(u) - positions.row(v)).norm();
+      if (du > radius || du >= distance[static_cast<std::size_t>(u)]) continue;
+      distance[static_cast<std::size_t>(u)] = du;
+      queue.emplace(du, u);
+    }
+  }
+}
+
+}  // namespace
+
+Opening openingAtCorners(const Rim& rim, int rim_index, const Eigen::MatrixX3d& positions,
+                         const Eigen::Matrix<double, 2, 3>& corner_points) {
+  Opening opening;
+  opening.anchors = corner_points;
+  for (int c = 0; c < 2; ++c) {
+    double nearest = kUnreached;
+    for (std::size_t i = 0; i < rim.vertices.size(); ++i) {
+      const double d = (positions.row(rim.vertices[i]) - corner_points.row(c)).squaredNorm();
+      if (d < nearest) {
+        nearest = d;
+        opening.corners[static_cast<std::size_t>(c)] = static_cast<int>(i);
+      }
+    }
+  }
+  if (rim.vertices.empty() || opening.corners[0] == opening.corners[1]) return opening;
+  opening.rim = rim_index;
+  opening.width = (positions.row(rim.vertices[static_cast<std::size_t>(opening.corners[0])]) -
+                   positions.row(rim.vertices[static_cast<std::size_t>(opening.corners[1])]))
+                      .norm();
+  return opening;
+}
+
+std::vector<Opening> findOpenings(const Mesh& mesh, const std::vector<Rim>& rims, const Eigen::MatrixX3d& landmarks,
+                                  const OpeningSideOptions& options) {
+  std::vector<Opening> openings;
+  const double near = options.landmark_distance * boundingBoxDiagonal(mesh.positions);
+  for (std::size_t r = 0; r < rims.size() && openings.size() < kMaxOpenings; ++r) {
+    const Rim& rim = rims[r];
+    if (rim.vertices.size() < 3 || !rimNearPoints(rim, mesh.positions, landmarks, near)) continue;
+    // The rim's own extent (its two vertices farthest apart) says how far
+    // its landmarks may lie.
+    double widest = 0.0;
+    std::array<int, 2> across{0, 0};
+    for (std::size_t a = 0; a < rim.vertices.size(); ++a) {
+      for (std::size_t b = a + 1; b < rim.vertices.size(); ++b) {
+        const double d = (mesh.positions.row(rim.vertices[a]) - mesh.positions.row(rim.vertices[b])).squaredNorm();
+        if (d > widest) {
+          widest = d;
+          across = {static_cast<int>(a), static_cast<int>(b)};
+        }
+      }
+    }
+    Eigen::Matrix<double, 2, 3> anchors;
+    for (int c = 0; c < 2; ++c) anchors.row(c) = mesh.positions.row(rim.vertices[static_cast<std::size_t>(across[static_cast<std::size_t>(c)])]);
+    // The opening's landmarks: the two farthest apart are its corners (a
+    // rounded rim's farthest points wander along its ends from one face to
+    // another; landmarks are placed where the corners are).
+    std::vector<Eigen::Index> own;
+    for (Eigen::Index l = 0; l < landmarks.rows(); ++l) {
+      if (rimNearPoints(rim, mesh.positions, landmarks.row(l), options.zone * std::sqrt(widest))) own.push_back(l);
+    }
+    double apart = -1.0;
+    for (std::size_t a = 0; a < own.size(); ++a) {
+      for (std::size_t b = a + 1; b < own.size(); ++b) {
+        const double d = (landmarks.row(own[a]) - landmarks.row(own[b])).squaredNorm();
+        if (d > apart) {
+          apart = d;
+          anchors.row(0) = landmarks.row(own[a]);
+          anchors.row(1) = landmarks.row(own[b]);
+        }
+      }
+    }
+    const Opening opening = openingAtCorners(rim, static_cast<int>(r), mesh.positions, anchors);
+    if (opening.rim >= 0) openings.push_back(opening);
+  }
+  return openings;
+}
+
+std::vector<int> openingSides(const Mesh& mesh, const std::vector<int>& representative, const std::vector<Rim>& rims,
+                              const std::vector<Opening>& openings, const OpeningSideOptions& options) {
+  const Eigen::Index nv = mesh.vertexCount();
+  std::vector<int> sides(static_cast<std::size_t>(nv), kOffOpenings);
+  if (openings.empty()) return sides;
+  // Distances on the welded surface (rims are loops of representatives): a
+  // UV seam across a lip does not cut it.
+  const Mesh welded = representative.empty() ? Mesh{} : weldedTopology(mesh, representative);
+  const Eigen::MatrixX3i& triangles = representative.empty() ? mesh.triangles : welded.triangles;
+  const VertexAdjacency adjacency = vertexAdjacency(triangles, nv);
+  std::vector<double> near(static_cast<std::size_t>(nv)), far(static_cast<std::size_t>(nv));
+  std::vector<double> best(static_cast<std::size_t>(nv), kUnreached);  // the nearer side's distance of the vertex's side
+  for (std::size_t k = 0; k < openings.size(); ++k) {
+    const Opening& opening = openings[k];
+    if (opening.rim < 0) continue;
+    const std::vector<int>& loop = rims[static_cast<std::size_t>(opening.rim)].vertices;
+    const auto n = static_cast<int>(loop.size());
+    // Side 0: corners[0] to corners[1] in loop order; side 1: back round. The
+    // corners belong to both, so near them the two distances agree.
+    std::array<std::vector<int>, 2> chains;
+    for (int s = 0; s < 2; ++s) {
+      const int from = opening.corners[static_cast<std::size_t>(s)], to = opening.corners[static_cast<std::size_t>(1 - s)];
+      for (int i = from;; i = (i + 1) % n) {
+        chains[static_cast<std::size_t>(s)].push_back(loop[static_cast<std::size_t>(i)]);
+        if (i == to) break;
+      }
+    }
+    const double radius = options.zone * opening.width;
+    // The band where no side is sure: a corner is placed to within a rim
+    // edge of where it is, so within the longest rim edge at either corner.
+    double corner_edge = 0.0;
+    for (const int c : opening.corners) {
+      const Eigen::RowVector3d p = mesh.positions.row(loop[static_cast<std::size_t>(c)]);
+      corner_edge = std::max({corner_edge, (mesh.positions.row(loop[static_cast<std::size_t>((c + 1) % n)]) - p).norm(),
+                              (mesh.positions.row(loop[static_cast<std::size_t>((c + n - 1) % n)]) - p).norm()});
+    }
+    edgeDistances(adjacency, mesh.positions, chains[0], radius, near);
+    edgeDistances(adjacency, mesh.positions, chains[1], radius, far);
+    for (Eigen::Index v = 0; v < nv; ++v) {
+      const auto i = static_cast<std::size_t>(v);
+      if (!representative.empty() && representative[i] != v) continue;
+      const double d0 = near[i], d1 = far[i];
+      const double own = std::min(d0, d1);
+      if (own == kUnreached) continue;
+      int side = -1;
+      if (d0 + corner_edge <= d1) side = 0;
+      if (d1 + corner_edge <= d0) side = 1;
+      // Two openings' zones may overlap (a mouth's and a nostril's): the nearer opening wins.
+      if (own >= best[i]) continue;
+      best[i] = own;
+      sides[i] = side < 0 ? kBetweenSides : 2 * static_cast<int>(k) + side;
+    }
+  }
+  if (!representative.empty()) {
+    for (Eigen::Index v = 0; v < nv; ++v) sides[static_cast<std::size_t>(v)] = sides[static_cast<std::size_t>(representative[static_cast<std::size_t>(v)])];
+  }
+  return sides;
+}
+
+std::vector<std::uint64_t> sideMasks(const std::vector<int>& sides) {
+  if (std::all_of(sides.begin(), sides.end(), [](int s) { return s < 0; })) return {};
+  std::vector<std::uint64_t> masks(sides.size(), ~std::uint64_t{0});
+  for (std::size_t v = 0; v < sides.size(); ++v) {
+    assert(sides[v] < 64);
+    if (sides[v] >= 0) masks[v] = std::uint64_t{1} << sides[v];
+  }
+  return masks;
+}
+
+std::vector<std::uint64_t> sideFaceSets(const std::vector<int>& sides, const Eigen::MatrixX3i& triangles) {
+  if (std::all_of(sides.begin(), sides.end(), [](int s) { return s < 0; })) return {};
+  std::vector<std::uint64_t> sets(static_cast<std::size_t>(triangles.rows()), 0);
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
+    std::uint64_t set = 0;
+    for (int c = 0; c < 3; ++c) {
+      const int s = sides[static_cast<std::size_t>(triangles(f, c))];
+      set |= s >= 0 ? std::uint64_t{1} << s : ~std::uint64_t{0};
+    }
+    sets[static_cast<std::size_t>(f)] = set;
+  }
+  return sets;
+}
+
+Eigen::SparseMatrix<double> cutAcrossSides(const Eigen::SparseMatrix<double>& laplacian, const std::vector<int>& sides) {
+  assert(static_cast<Eigen::Index>(sides.size()) == laplacian.rows());
+  auto across = [&](Eigen::Index i, Eigen::Index j) {
+    return oppositeSides(sides[static_cast<std::size_t>(i)], sides[static_cast<std::size_t>(j)]);
+  };
+  std::vector<Eigen::Triplet<double>> kept;
+  kept.reserve(static_cast<std::size_t>(laplacian.nonZeros()));
+  Eigen::VectorXd lost = Eigen::VectorXd::Zero(laplacian.rows());
+  for (Eigen::Index j = 0; j < laplacian.outerSize(); ++j) {
+    for (Eigen::SparseMatrix<double>::InnerIterator it(laplacian, j); it; ++it) {
+      if (it.row() != it.col() && across(it.row(), it.col())) {
+        lost(it.row()) += it.value();
+        continue;
+      }
+      kept.emplace_back(it.row(), it.col(), it.value());
+    }
+  }
+  for (Eigen::Index i = 0; i < laplacian.rows(); ++i) {
+    if (lost(i) != 0.0) kept.emplace_back(i, i, lost(i));  // the row's sum stays 0
+  }
+  Eigen::SparseMatrix<double> cut(laplacian.rows(), laplacian.cols());
+  cut.setFromTriplets(kept.begin(), kept.end());
+  return cut;
+}
+
+}  // namespace core
