@@ -25,6 +25,7 @@ constexpr Row kTable[] = {
     {WireError::kInvalidLandmarks, 422, "invalid-landmarks", "Landmarks unusable"},
     {WireError::kIllConditioned, 422, "ill-conditioned", "Landmarks make an ill-conditioned warp"},
     {WireError::kUnsupportedFeature, 422, "unsupported-feature", "File uses an unsupported feature"},
+    {WireError::kQualityGate, 422, "quality-gate", "Transfer output failed its quality check"},
     {WireError::kQueueFull, 429, "queue-full", "Job queue full; retry later"},
     {WireError::kJobCancelled, 409, "job-cancelled", "Job cancelled"},
     {WireError::kJobTimeout, 504, "job-timeout", "Job exceeded its time limit"},

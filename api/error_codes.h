@@ -22,6 +22,7 @@ enum class WireError {
   kInvalidLandmarks,      // 422 unknown/duplicate names, too few shared, off the mesh
   kIllConditioned,        // 422 duplicate or coplanar landmarks
   kUnsupportedFeature,    // 422 valid file using a feature rigport does not handle
+  kQualityGate,           // 422 (job error) a strict transfer's output failed its quality check
   kQueueFull,             // 429 with Retry-After
   // 5xx and job outcomes
   kJobCancelled,          // 409 (job error) cancelled on request

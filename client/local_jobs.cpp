@@ -133,6 +133,7 @@ int runTransfer(const TransferArgs& args) {
     settings = std::move(*parsed);
   }
   settings.transfer.threads = args.threads;
+  if (args.strict) settings.transfer.strict = true;
 
   auto t0 = Clock::now();
   auto source = core::readRig(args.source);

@@ -28,6 +28,7 @@ struct TransferArgs {
   std::filesystem::path options;      // transfer options JSON; empty = defaults
   int threads = 0;
   bool print_diagnostics = false;
+  bool strict = false;                // a transfer that fails its quality check fails (options "strict": true)
 };
 int runTransfer(const TransferArgs& args);
 

@@ -64,6 +64,9 @@ int main(int argc, char** argv) {
   transfer_cmd->add_option("--options", transfer.options, "Transfer options JSON (see core/transfer_options.h)")->check(CLI::ExistingFile);
   transfer_cmd->add_option("--threads", transfer.threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
   transfer_cmd->add_flag("--print-diagnostics", transfer.print_diagnostics, "Also print the diagnostics JSON on stdout");
+  transfer_cmd->add_flag("--strict", transfer.strict,
+                         "Fail when the output fails its quality check (a vertex moving as none of its ring does, or "
+                         "located across the mouth or an eye), instead of warning");
 
   client::GenerateHeadArgs head;
   auto* head_cmd = app.add_subcommand("generate-head", "Write a procedural head mesh with 68 landmarks");

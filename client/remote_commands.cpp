@@ -141,6 +141,7 @@ int runRemoteTransfer(const TransferArgs& args, const Connection& connection) {
     if (std::holds_alternative<std::string>(parsed)) return failText(std::get<std::string>(parsed));
     options = std::get<json>(std::move(parsed));
   }
+  if (args.strict) options["strict"] = true;
   RemoteClient client(remoteOptions(connection));
 
   auto rig = client.uploadRig({args.source, args.source_landmarks, {}});

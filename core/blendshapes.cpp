@@ -130,13 +130,40 @@ Eigen::MatrixX3d gatherDeltas(const MorphTarget& s, const std::vector<Corners>& 
   return out;
 }
 
-// Mismatched vertices (no location, or matched across a thin gap) take
-// deltas blended from their surroundings, never a copy from the wrong lip or
-// lid: all shapes in one solve, from the boundary rows only (stacking whole
-// shapes cost #V x 3 #shapes doubles: 335 MB at 93k vertices, 150 shapes).
-// Those on a piece with no trusted vertex (an eyeball in the face's mesh)
-// have nothing to blend from and do not move.
-void inpaintMismatched(const HarmonicInpainting& inpainting, std::vector<MorphTarget>& shapes) {
+}  // namespace
+
+std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& source,
+                                              const Eigen::MatrixX3i& source_triangles,
+                                              const TargetLocations& locations,
+                                              const std::vector<Eigen::Matrix3d>& adaptation, const Mesh& target,
+                                              const HarmonicInpainting* mismatched,
+                                              const ShapeTransferOptions& options) {
+  const Eigen::Index nt = target.vertexCount();
+  std::vector<MorphTarget> out(source.size());
+  const std::vector<Corners> corners = cornerTable(source_triangles, locations);
+  parallelFor(static_cast<std::ptrdiff_t>(source.size()), options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
+    std::vector<unsigned char> moving;
+    for (std::ptrdiff_t k = begin; k < end; ++k) {
+      const MorphTarget& s = source[static_cast<std::size_t>(k)];
+      const double gain = options.exaggeration.of(s.name);
+      out[static_cast<std::size_t>(k)].name = s.name;
+      out[static_cast<std::size_t>(k)].position_deltas = gatherDeltas(s, corners, adaptation, gain, moving);
+    }
+  }, 1);
+  if (mismatched != nullptr) inpaintShapeDeltas(*mismatched, out);
+
+  // Normal deltas from the final position deltas (the source's are not
+  // transferable: they belong to the source's surface).
+  for (std::size_t k = 0; k < source.size(); ++k) {
+    if (source[k].normal_deltas.rows() > 0) out[k].normal_deltas.resize(nt, 3);
+  }
+  updateNormalDeltas(target, out, options.threads);
+  return out;
+}
+
+// All shapes in one solve, from the boundary rows only (stacking whole shapes
+// cost #V x 3 #shapes doubles: 335 MB at 93k vertices, 150 shapes).
+void inpaintShapeDeltas(const HarmonicInpainting& inpainting, std::vector<MorphTarget>& shapes) {
   if (shapes.empty()) return;
   const std::vector<int>& boundary = inpainting.boundary();
   Eigen::MatrixXd values(static_cast<Eigen::Index>(boundary.size()), 3 * static_cast<Eigen::Index>(shapes.size()));
@@ -160,41 +187,19 @@ void inpaintMismatched(const HarmonicInpainting& inpainting, std::vector<MorphTa
   }
 }
 
-}  // namespace
-
-std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& source,
-                                              const Eigen::MatrixX3i& source_triangles,
-                                              const TargetLocations& locations,
-                                              const std::vector<Eigen::Matrix3d>& adaptation, const Mesh& target,
-                                              const HarmonicInpainting* mismatched,
-                                              const ShapeTransferOptions& options) {
+void updateNormalDeltas(const Mesh& target, std::vector<MorphTarget>& shapes, int threads) {
   const Eigen::Index nt = target.vertexCount();
-  std::vector<MorphTarget> out(source.size());
-  const std::vector<Corners> corners = cornerTable(source_triangles, locations);
-  parallelFor(static_cast<std::ptrdiff_t>(source.size()), options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
-    std::vector<unsigned char> moving;
-    for (std::ptrdiff_t k = begin; k < end; ++k) {
-      const MorphTarget& s = source[static_cast<std::size_t>(k)];
-      const double gain = options.exaggeration.of(s.name);
-      out[static_cast<std::size_t>(k)].name = s.name;
-      out[static_cast<std::size_t>(k)].position_deltas = gatherDeltas(s, corners, adaptation, gain, moving);
-    }
-  }, 1);
-  if (mismatched != nullptr) inpaintMismatched(*mismatched, out);
-
-  // Normal deltas from the final position deltas (the source's are not
-  // transferable: they belong to the source's surface).
   const bool any_normal_deltas =
-      std::any_of(source.begin(), source.end(), [](const MorphTarget& s) { return s.normal_deltas.rows() > 0; });
-  const std::vector<int> shared = any_normal_deltas && target.normals.rows() == target.vertexCount()
+      std::any_of(shapes.begin(), shapes.end(), [](const MorphTarget& s) { return s.normal_deltas.rows() > 0; });
+  if (!any_normal_deltas) return;
+  const std::vector<int> shared = target.normals.rows() == nt
                                       ? smoothVertexRepresentatives(target.positions, target.normals)
                                       : std::vector<int>();
-  const Eigen::MatrixX3d rest_normals =
-      any_normal_deltas ? computeSharedVertexNormals(target.positions, target.triangles, shared) : Eigen::MatrixX3d();
-  parallelFor(static_cast<std::ptrdiff_t>(source.size()), options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
+  const Eigen::MatrixX3d rest_normals = computeSharedVertexNormals(target.positions, target.triangles, shared);
+  parallelFor(static_cast<std::ptrdiff_t>(shapes.size()), threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     for (std::ptrdiff_t k = begin; k < end; ++k) {
-      if (source[static_cast<std::size_t>(k)].normal_deltas.rows() == 0) continue;
-      MorphTarget& t = out[static_cast<std::size_t>(k)];
+      MorphTarget& t = shapes[static_cast<std::size_t>(k)];
+      if (t.normal_deltas.rows() == 0) continue;
       t.normal_deltas = normalDeltas(target, shared, rest_normals, t.position_deltas);
       // Exact zeros where the shape does not move, so sparse output stays sparse.
       for (Eigen::Index v = 0; v < nt; ++v) {
@@ -202,7 +207,6 @@ std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& so
       }
     }
   }, 1);
-  return out;
 }
 
 }  // namespace core

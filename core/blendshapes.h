@@ -36,4 +36,16 @@ std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& so
                                               const HarmonicInpainting* mismatched,
                                               const ShapeTransferOptions& options = {});
 
+// The unknown vertices of `inpainting` take position deltas blended from
+// their surroundings in every shape (one solve for all), never a copy from
+// the wrong lip or lid; those on a piece with no known vertex (an eyeball in
+// the face's mesh) have nothing to blend from and do not move. Used for the
+// mismatched vertices (above), and for vertices the quality check found
+// moving as none of their ring does (transferRig).
+void inpaintShapeDeltas(const HarmonicInpainting& inpainting, std::vector<MorphTarget>& shapes);
+
+// Recomputes the normal deltas of every shape that has them (rows > 0) from
+// its position deltas, as transferMorphTargets makes them.
+void updateNormalDeltas(const Mesh& target, std::vector<MorphTarget>& shapes, int threads = 0);
+
 }  // namespace core

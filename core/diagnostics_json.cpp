@@ -60,6 +60,8 @@ Json warpJson(const WarpReport& r, const DiagnosticsContext& context) {
   c["slid_centres"] = r.slid_centres;
   c["mean_slide"] = r.mean_slide;
   c["region_matching"] = r.region_matching;
+  c["sided_openings"] = r.sided_openings;
+  c["sided_target_vertices"] = r.sided_target_vertices;
   c["matched_rims"] = r.matched_rims;
   c["rims_in_warp"] = r.rims_in_warp;
   c["orientation_agreement"] = r.orientation_agreement;
@@ -115,6 +117,23 @@ std::string formatTransferDiagnostics(const TransferReport& r, const Diagnostics
                      {"stretch_threshold", r.stretch_threshold},
                      {"stretch_applied", r.stretch_applied},
                      {"warnings", r.warnings}};
+  Json& q = doc["quality"];
+  q["clean"] = r.quality.clean();
+  q["shape_outliers"] = r.quality.shape_outliers;
+  q["shapes"] = Json::array();
+  for (const ShapeOutliers& s : r.quality.shapes) {
+    q["shapes"].push_back({{"shape", s.shape}, {"vertices", s.vertices}, {"worst", s.worst}});
+  }
+  q["crossed_vertices"] = r.quality.crossed_vertices;
+  q["crossed_shapes"] = Json::array();
+  for (const ShapeOutliers& s : r.quality.crossed_shapes) {
+    q["crossed_shapes"].push_back({{"shape", s.shape}, {"vertices", s.vertices}, {"worst", s.worst}});
+  }
+  q["repaired_vertices"] = r.quality.repaired_vertices;
+  q["worst"] = Json::array();
+  for (const QualityVertex& w : r.quality.worst) {
+    q["worst"].push_back({{"vertex", w.vertex}, {"shape", w.shape}, {"score", w.score}});
+  }
   Json& t = doc["timings_ms"];
   t["prepare"] = r.prepare_ms;
   t["warp"] = r.warp.warp_ms;
@@ -125,6 +144,7 @@ std::string formatTransferDiagnostics(const TransferReport& r, const Diagnostics
   t["shapes"] = r.shapes_ms;
   t["animations"] = r.animations_ms;
   t["attributes"] = r.attributes_ms;
+  t["quality"] = r.quality_ms;
   for (const auto& [name, ms] : context.extra_timings_ms) t[name] = ms;
   t["total"] = context.total_ms >= 0.0 ? context.total_ms : r.total_ms;
   return doc.dump(2) + "\n";

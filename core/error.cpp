@@ -12,6 +12,7 @@ const char* errorCodeName(ErrorCode code) {
     case ErrorCode::kIllConditioned: return "ill_conditioned";
     case ErrorCode::kInvalidArgument: return "invalid_argument";
     case ErrorCode::kCancelled: return "cancelled";
+    case ErrorCode::kQualityGate: return "quality_gate";
   }
   return "unknown";
 }

@@ -23,6 +23,7 @@ enum class ErrorCode {
   kIllConditioned,   // duplicate or (near-)coplanar landmarks: the TPS system is singular
   kInvalidArgument,  // an option or argument out of its documented range
   kCancelled,        // work stopped on request
+  kQualityGate,      // the output failed its own quality check (strict transfers)
 };
 
 // Stable lower_snake name of a code, used in diagnostics and on the wire.

@@ -5,6 +5,8 @@
 #include <functional>
 #include <limits>
 #include <queue>
+#include <cstdio>
+#include <cstdlib>
 #include <utility>
 
 namespace core {
@@ -44,7 +46,6 @@ void edgeDistances(const VertexAdjacency& adjacency, const Eigen::MatrixX3d& pos
 Opening openingAtCorners(const Rim& rim, int rim_index, const Eigen::MatrixX3d& positions,
                          const Eigen::Matrix<double, 2, 3>& corner_points) {
   Opening opening;
-  opening.anchors = corner_points;
   for (int c = 0; c < 2; ++c) {
     double nearest = kUnreached;
     for (std::size_t i = 0; i < rim.vertices.size(); ++i) {
@@ -85,9 +86,10 @@ std::vector<Opening> findOpenings(const Mesh& mesh, const std::vector<Rim>& rims
     }
     Eigen::Matrix<double, 2, 3> anchors;
     for (int c = 0; c < 2; ++c) anchors.row(c) = mesh.positions.row(rim.vertices[static_cast<std::size_t>(across[static_cast<std::size_t>(c)])]);
-    // The opening's landmarks: the two farthest apart are its corners (a
-    // rounded rim's farthest points wander along its ends from one face to
-    // another; landmarks are placed where the corners are).
+    // The opening's landmarks: the rim vertices nearest the two farthest
+    // apart are its corners (a rounded rim's farthest points wander along its
+    // ends from one face to another; landmarks are placed where the corners
+    // are).
     std::vector<Eigen::Index> own;
     for (Eigen::Index l = 0; l < landmarks.rows(); ++l) {
       if (rimNearPoints(rim, mesh.positions, landmarks.row(l), options.zone * std::sqrt(widest))) own.push_back(l);
@@ -152,6 +154,7 @@ std::vector<int> openingSides(const Mesh& mesh, const std::vector<int>& represen
       if (!representative.empty() && representative[i] != v) continue;
       const double d0 = near[i], d1 = far[i];
       const double own = std::min(d0, d1);
+      if (getenv("DBGV") && atoi(getenv("DBGV")) == v) fprintf(stderr, "XXX v%ld opening %zu d0 %g d1 %g corner_edge %g width %g nv %ld\n", (long)v, k, d0, d1, corner_edge, opening.width, (long)nv);
       if (own == kUnreached) continue;
       int side = -1;
       if (d0 + corner_edge <= d1) side = 0;

@@ -41,21 +41,18 @@ struct Opening {
   int rim = -1;                     // index into the mesh's rims
   std::array<int, 2> corners{};     // positions in rim.vertices: side 0 runs from corners[0] to corners[1] in loop order
   double width = 0.0;               // corner to corner, model units
-  // Points that place the corners, in order: the opening's two landmarks
-  // farthest apart (mouth corners, eye corners), or the corners themselves
-  // when it has fewer than two. Carried to a target by the landmark warp,
-  // they place its corners (openingAtCorners).
-  Eigen::Matrix<double, 2, 3> anchors = Eigen::Matrix<double, 2, 3>::Zero();
 };
 
 // The openings of a mesh: rims a landmark lies on (`landmarks`: #L by 3
-// positions on the mesh), split at the rim vertices nearest to their
-// anchors; at most kMaxOpenings, longest rims first.
+// positions on the mesh), split at the rim vertices nearest to the
+// opening's two landmarks farthest apart (mouth corners, eye corners), or
+// at its two vertices farthest apart when fewer than two landmarks lie
+// within `zone` of its width of it; at most kMaxOpenings, longest rims first.
 std::vector<Opening> findOpenings(const Mesh& mesh, const std::vector<Rim>& rims, const Eigen::MatrixX3d& landmarks,
                                   const OpeningSideOptions& options = {});
 
 // The rim split at the vertices nearest to `corner_points` (2 by 3, in
-// order: where another mesh's anchors land on this one). rim -1 when both
+// order: where another mesh's corners land on this one). rim -1 when both
 // are nearest to one vertex.
 Opening openingAtCorners(const Rim& rim, int rim_index, const Eigen::MatrixX3d& positions,
                          const Eigen::Matrix<double, 2, 3>& corner_points);

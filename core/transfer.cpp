@@ -195,7 +195,7 @@ double msSince(Clock::time_point t0) { return std::chrono::duration<double, std:
 }  // namespace
 
 std::size_t PreparedRig::memoryBytes() const {
-  std::size_t bytes = surface.memoryBytes() + (uv_layout ? uv_layout->memoryBytes() : 0);
+  std::size_t bytes = surface.memoryBytes() + (uv_layout ? uv_layout->memoryBytes() : 0) + shape_sharpness.memoryBytes();
   for (const auto& t : rig.morph_targets) bytes += static_cast<std::size_t>(t.position_deltas.size() + t.normal_deltas.size()) * sizeof(double);
   bytes += static_cast<std::size_t>(rig.weights.nonZeros()) * (sizeof(double) + sizeof(int));
   for (const auto& a : rig.animations) for (const auto& c : a.channels) bytes += static_cast<std::size_t>(c.values.size() + c.times.size()) * sizeof(double);
@@ -234,6 +234,9 @@ Result<PreparedRig> prepareRig(Rig rig, LandmarkSet landmarks, const std::string
   prepared.rig = std::move(rig);
   prepared.rig.mesh.normals = surface->mesh.normals;
   prepared.surface = std::move(*surface);
+  QualityOptions sharpness;
+  sharpness.threads = options.threads;
+  prepared.shape_sharpness = measureShapeSharpness(prepared.rig.morph_targets, prepared.surface.adjacency, sharpness);
   const std::vector<Eigen::MatrixX2d> uv_sets = sourceUvSets(prepared.rig);
   if (!uv_sets.empty()) {
     auto uv_layout = prepareUvLayout(prepared.surface.mesh, uv_sets, label);
@@ -359,7 +362,9 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   Eigen::SparseMatrix<double> target_laplacian;
   if (locations.low_confidence > 0) {
     target_laplacian = uniformLaplacian(target.positions, target.triangles);
-    if (!warp->target_sides.empty()) target_laplacian = cutAcrossSides(target_laplacian, warp->target_sides);
+    if (options.warp.side_matching && !warp->target_sides.empty()) {
+      target_laplacian = cutAcrossSides(target_laplacian, warp->target_sides);
+    }
   }
   const bool attributes_inpainted =
       options.attributes && (src.attributes.colors.rows() > 0 || !src.attributes.fields.empty());
@@ -432,6 +437,45 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   report.shapes_ms = msSince(t0);
   report.animations = static_cast<int>(out.animations.size());
 
+  // --- check: the output's worst vertices, before any UV copies. A vertex
+  // of low confidence moving as none of its ring does took its location's
+  // values from the wrong place (the other lip, the other side of the
+  // columella): its deltas are inpainted from its neighbours, as a
+  // mismatched vertex's are, and the output checked again.
+  t0 = Clock::now();
+  QualityOptions quality_options = options.quality;
+  quality_options.threads = options.threads;
+  const QualitySource quality_source{src_mesh.triangles, source.surface.adjacency, source.surface.vertex_sides,
+                                     source.shape_sharpness};
+  report.quality = checkTransferQuality(target, out.morph_targets, locations, warp->target_sides, quality_source,
+                                        quality_options);
+  if (options.repair_unsure && !report.quality.clean() && !out.morph_targets.empty() && target_laplacian.rows() > 0) {
+    std::vector<char> known(static_cast<std::size_t>(target.vertexCount()), 1);
+    int repaired = 0;
+    for (Eigen::Index v = 0; v < target.vertexCount(); ++v) {
+      const bool unsure = report.quality.per_vertex(v) > 0.0 && locations.confidence(v) == 0.0;
+      known[static_cast<std::size_t>(v)] = locations.mismatched(v) == 0 && !unsure;
+      repaired += unsure && locations.mismatched(v) == 0 ? 1 : 0;
+    }
+    if (repaired > 0) {
+      auto repair = HarmonicInpainting::create(target_laplacian, known);
+      if (!repair) return Error{repair.error().code, target_label + ": inpainting unsure vertices: " + repair.error().message};
+      inpaintShapeDeltas(*repair, out.morph_targets);
+      updateNormalDeltas(out.mesh, out.morph_targets, options.threads);
+      report.quality = checkTransferQuality(target, out.morph_targets, locations, warp->target_sides, quality_source,
+                                            quality_options);
+      report.quality.repaired_vertices = repaired;
+    }
+  }
+  report.quality_ms = msSince(t0);
+  if (!report.quality.clean()) {
+    if (options.strict) {
+      return makeError(ErrorCode::kQualityGate, target_label + ": the transfer failed its quality check (strict): " +
+                                                    report.quality.summary());
+    }
+    report.warnings.push_back(target_label + ": unsure vertices, check them before use: " + report.quality.summary());
+  }
+
   // --- attributes (+ diagnostics as data)
   if (stopBefore("attributes", 0.9)) return stopped("attributes");
   t0 = Clock::now();
@@ -443,6 +487,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
     out.attributes.fields["INPAINTED"] =
         weights.inpainted.size() == target.vertexCount() ? weights.inpainted.cast<double>().eval()
                                                           : Eigen::VectorXd::Zero(target.vertexCount()).eval();
+    out.attributes.fields["QUALITY"] = report.quality.per_vertex;
   }
   // Last: carrying the source's UV seams over splits target vertices, and
   // every per-vertex value above goes with its copies.

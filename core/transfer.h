@@ -15,6 +15,7 @@
 #include "core/rig.h"
 #include "core/skeleton.h"
 #include "core/skin_weights.h"
+#include "core/transfer_quality.h"
 #include "core/warp_job.h"
 
 namespace core {
@@ -85,7 +86,17 @@ struct TransferOptions {
   double exaggeration = 1.0;
   std::map<std::string, double> shape_exaggeration;  // by morph target name
   std::map<std::string, double> joint_exaggeration;  // by joint name
-  bool diagnostic_attributes = false;             // add _CONFIDENCE and _INPAINTED to the output
+  bool diagnostic_attributes = false;             // add _CONFIDENCE, _INPAINTED and _QUALITY to the output
+  // The transfer checks its own output (checkTransferQuality): shape
+  // outliers and vertices located across an opening are reported (and
+  // warned about) always; with strict they fail the transfer
+  // (ErrorCode::kQualityGate) naming the shapes and vertex counts.
+  QualityOptions quality;
+  bool strict = false;
+  // Vertices of low confidence that the check finds moving as none of their
+  // ring does have their deltas inpainted from their neighbours (then
+  // checked again); false: reported only.
+  bool repair_unsure = true;
   int threads = 0;
   // Called at each stage boundary with the stage about to run ("warp",
   // "dense_map", "weights", "joints", "animations", "shapes", "attributes") and the fraction
@@ -97,6 +108,7 @@ struct TransferOptions {
 struct PreparedRig {
   Rig rig;
   PreparedSource surface;
+  ShapeSharpness shape_sharpness;  // of the rig's own shapes, for the quality check
   std::optional<SourceUvLayout> uv_layout;  // when the rig has UV sets (for TransferOptions::uvs)
   std::size_t memoryBytes() const;
 };
@@ -137,6 +149,7 @@ struct TransferReport {
   // ten within 10% of it when the rest could be face size (a change of
   // units); 1 when not applied.
   double delta_scale = 1.0;
+  QualityReport quality;           // the output's own check (checkTransferQuality)
   std::vector<std::string> warnings;
   // milliseconds
   double prepare_ms = 0.0;
@@ -146,6 +159,7 @@ struct TransferReport {
   double shapes_ms = 0.0;
   double animations_ms = 0.0;
   double attributes_ms = 0.0;
+  double quality_ms = 0.0;
   double total_ms = 0.0;
 };
 

@@ -48,7 +48,8 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
   static const std::map<std::string, bool WarpOptions::*> kWarpSwitches = {
       {"region_matching", &WarpOptions::region_matching}, {"rim_matching", &WarpOptions::rim_matching},
       {"slide_centres", &WarpOptions::slide_centres},     {"target_pulls", &WarpOptions::target_pulls},
-      {"smooth_guide", &WarpOptions::smooth_guide},       {"rim_location", &WarpOptions::rim_location}};
+      {"smooth_guide", &WarpOptions::smooth_guide},       {"rim_location", &WarpOptions::rim_location},
+      {"side_matching", &WarpOptions::side_matching}};
   TransferSettings s;
   TransferOptions& t = s.transfer;
   for (const auto& [key, value] : doc.items()) {
@@ -73,6 +74,14 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
       auto b = boolean(value, where);
       if (!b) return b.error();
       t.diagnostic_attributes = *b;
+    } else if (key == "strict") {
+      auto b = boolean(value, where);
+      if (!b) return b.error();
+      t.strict = *b;
+    } else if (key == "repair_unsure") {
+      auto b = boolean(value, where);
+      if (!b) return b.error();
+      t.repair_unsure = *b;
     } else if (key == "max_influences") {
       auto x = number(value, where, 1, 8);
       if (!x) return x.error();

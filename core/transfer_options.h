@@ -8,7 +8,8 @@
 //    "shape_exaggeration": {"jawOpen": 1.5}, "joint_exaggeration": {"jaw": 1.2},
 //    "diagnostic_attributes": false, "refine_iterations": 2,
 //    "region_matching": true, "rim_matching": true, "slide_centres": true,
-//    "target_pulls": true, "smooth_guide": true}
+//    "target_pulls": true, "smooth_guide": true, "side_matching": true,
+//    "strict": false, "repair_unsure": true}
 // Unknown keys are errors (a typo must not be silently ignored). nlohmann is
 // used privately in the .cpp, as in core/diagnostics_json.cpp.
 #pragma once

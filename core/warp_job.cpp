@@ -431,10 +431,10 @@ int locateRimVertices(TargetLocations& locations, const Mesh& target, const std:
 
 // The target's openings: each source opening whose rim matched a target rim
 // (rim_match), split at the target rim's vertices nearest to where the
-// source's anchors land under the landmark warp (a shared landmark lands on
-// the target's own), so that side s is side s on both. Per target vertex its
-// side (openingSides, numbered as the source's), or empty when no opening
-// matched. Counts them in the report.
+// source's corners land under the landmark warp (they lie next to the
+// landmarks that placed them, where the warp is sure), so that side s is
+// side s on both. Per target vertex its side (openingSides, numbered as the
+// source's), or empty when no opening matched. Counts them in the report.
 std::vector<int> targetOpeningSides(const PreparedSource& source, const TpsWarp& landmark_warp,
                                     const std::vector<int>& rim_match, const std::vector<Rim>& target_rims,
                                     const Mesh& target, const std::vector<int>& representative,
@@ -444,8 +444,13 @@ std::vector<int> targetOpeningSides(const PreparedSource& source, const TpsWarp&
     const Opening& opening = source.openings[k];
     const int t = rim_match[static_cast<std::size_t>(opening.rim)];
     if (t < 0) continue;
-    const Eigen::Matrix<double, 2, 3> anchors = landmark_warp.apply(Eigen::MatrixX3d(opening.anchors));
-    openings[k] = openingAtCorners(target_rims[static_cast<std::size_t>(t)], t, target.positions, anchors);
+    Eigen::MatrixX3d corners(2, 3);
+    for (int c = 0; c < 2; ++c) {
+      const std::vector<int>& loop = source.rims[static_cast<std::size_t>(opening.rim)].vertices;
+      corners.row(c) = source.mesh.positions.row(loop[static_cast<std::size_t>(opening.corners[static_cast<std::size_t>(c)])]);
+    }
+    openings[k] = openingAtCorners(target_rims[static_cast<std::size_t>(t)], t, target.positions,
+                                   landmark_warp.apply(corners));
     report.sided_openings += openings[k].rim >= 0 ? 1 : 0;
   }
   if (report.sided_openings == 0) return {};
@@ -756,7 +761,11 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   // side of the target's, where projection would keep it. In the dense-map
   // rounds every matched rim's centres are put on the target's rim (the slide
   // along a tube that projection cannot see).
-  const bool sides_wanted = options.side_matching && !report.region_matching && !source.openings.empty();
+  // The openings' sides are found whenever rims or sides are matched, also
+  // when _REGION labels or nothing filter the matches (the transfer's quality
+  // check reads them); with side_matching and no labels they filter.
+  const bool sides_wanted = (options.side_matching || options.rim_matching) && !source.openings.empty();
+  bool sides_filter = false;
   std::vector<Rim> target_rims;
   if ((options.rim_matching || options.rim_location || sides_wanted) && !source.rims.empty()) {
     target_rims = meshRims(*matched, target_representative);
@@ -783,7 +792,8 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   if (sides_wanted) {
     result.target_sides = targetOpeningSides(source, result.landmark_warp, rim_match, target_rims, *matched,
                                              target_representative, options.sides, report);
-    if (!result.target_sides.empty()) {
+    sides_filter = options.side_matching && !report.region_matching && !result.target_sides.empty();
+    if (sides_filter) {
       source_masks = source.side_masks;
       source_face_labels = source.side_face_sets;
       target_masks = sideMasks(result.target_sides);
@@ -967,7 +977,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   LocateOptions locate = options.locate;
   locate.threads = options.threads;
   result.locations = locateOnGuide(*matched, located_on, *source.guide_index, locate, source_face_labels, target_masks,
-                                   result.target_sides);
+                                   sides_filter ? result.target_sides : std::vector<int>());
   if (options.rim_location && !target_rims.empty()) {
     report.rim_located_vertices = locateRimVertices(
         result.locations, *matched, target_rims, target_representative, source, located_on, source_face_labels,

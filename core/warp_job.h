@@ -130,8 +130,11 @@ struct WarpOptions {
   // rims, both split into their two sides (upper and lower lip, upper and
   // lower lid), and every match (projection, refinement, target pulls,
   // location) stays on its own side: a lower-lip vertex never takes the
-  // upper lip's motion, however close the lips are. _REGION labels on both,
-  // when region_matching uses them, take the sides' place. false: no sides.
+  // upper lip's motion, however close the lips are; the inpainting of
+  // untrusted vertices does not cross either (cutAcrossSides). _REGION labels
+  // on both, when region_matching uses them, take the sides' place in the
+  // matching. false: the sides (found whenever rims are matched) are only
+  // read by the transfer's quality check.
   bool side_matching = true;
   OpeningSideOptions sides;
   // Source rims (neck cut, mouth, eyes) matched to target rims after the
@@ -253,8 +256,8 @@ struct WarpResult {
   std::optional<TpsWarp> dense_map;
   TargetLocations locations;
   // #Vt: each target vertex's side of an opening, numbered as the source's
-  // (PreparedSource::vertex_sides), or -1; empty when no opening was matched
-  // with its sides.
+  // (PreparedSource::vertex_sides; openingSides); empty when no opening was
+  // matched with its sides, or neither sides nor rims were matched.
   std::vector<int> target_sides;
   WarpReport report;
 };

@@ -63,6 +63,7 @@ api::WireError wireErrorOf(core::ErrorCode code) {
     case core::ErrorCode::kIllConditioned: return api::WireError::kIllConditioned;
     case core::ErrorCode::kInvalidArgument: return api::WireError::kInvalidOption;
     case core::ErrorCode::kCancelled: return api::WireError::kJobCancelled;
+    case core::ErrorCode::kQualityGate: return api::WireError::kQualityGate;
   }
   return api::WireError::kInternal;
 }

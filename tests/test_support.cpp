@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <map>
 #include <random>
 #include <sstream>
@@ -124,6 +125,58 @@ Eigen::MatrixX3d randomPoints(int n, unsigned seed, double half_width) {
   Eigen::MatrixX3d p(n, 3);
   for (int i = 0; i < n; ++i) p.row(i) << u(rng), u(rng), u(rng);
   return p;
+}
+
+namespace {
+
+Eigen::RowVector3d landmarkPoint(const core::SyntheticRig& head, const char* name) {
+  const core::Landmark& l = head.landmarks.landmarks[static_cast<std::size_t>(head.landmarks.indexOf(name))];
+  return core::interpolateOnFace(head.rig.mesh.positions, head.rig.mesh.triangles, l.face, l.barycentric);
+}
+
+}  // namespace
+
+core::SyntheticRig pressLips(core::SyntheticRig head) {
+  const Eigen::VectorXi& truth = head.rig.attributes.labels.at("REGION");
+  double upper_bottom = std::numeric_limits<double>::infinity(), lower_top = -upper_bottom;
+  for (Eigen::Index v = 0; v < truth.size(); ++v) {
+    if (truth(v) == core::kRegionUpperLip) upper_bottom = std::min(upper_bottom, head.rig.mesh.positions(v, 1));
+    if (truth(v) == core::kRegionLowerLip) lower_top = std::max(lower_top, head.rig.mesh.positions(v, 1));
+  }
+  const double slit = upper_bottom - lower_top;
+  EXPECT_GT(slit, 0.0);
+  for (Eigen::Index v = 0; v < truth.size(); ++v) {
+    if (truth(v) == core::kRegionUpperLip) head.rig.mesh.positions(v, 1) -= 0.49 * slit;
+    if (truth(v) == core::kRegionLowerLip) head.rig.mesh.positions(v, 1) += 0.49 * slit;
+  }
+  head.rig.mesh.normals = core::computeVertexNormals(head.rig.mesh.positions, head.rig.mesh.triangles);
+  return head;
+}
+
+core::SyntheticRig sagMouth(core::SyntheticRig head, double depth) {
+  const Eigen::RowVector3d right = landmarkPoint(head, "mouth_outer_0"), left = landmarkPoint(head, "mouth_outer_6");
+  const Eigen::RowVector3d centre = 0.5 * (landmarkPoint(head, "mouth_inner_2") + landmarkPoint(head, "mouth_inner_6"));
+  const double width = (left - right).norm();
+  for (Eigen::Index v = 0; v < head.rig.mesh.vertexCount(); ++v) {
+    const Eigen::RowVector3d d = head.rig.mesh.positions.row(v) - centre;
+    const double x = d(0) / (0.3 * width), y = d(1) / (0.3 * width);
+    head.rig.mesh.positions(v, 1) -= depth * width * std::exp(-x * x - y * y);
+  }
+  head.rig.mesh.normals = core::computeVertexNormals(head.rig.mesh.positions, head.rig.mesh.triangles);
+  return head;
+}
+
+core::LandmarkSet tenLandmarks(const core::SyntheticRig& head) {
+  core::LandmarkSet ten;
+  for (const char* name : {"eye_right_0", "eye_right_3", "eye_left_0", "eye_left_3", "nose_bridge_3", "nose_base_0",
+                           "nose_base_4", "mouth_outer_0", "mouth_outer_6", "jaw_08"}) {
+    core::Landmark p;
+    p.name = name;
+    p.kind = core::LandmarkKind::kPosition;
+    p.position = landmarkPoint(head, name).transpose();
+    ten.landmarks.push_back(p);
+  }
+  return ten;
 }
 
 }  // namespace rigport_test

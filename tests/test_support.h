@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "core/rig.h"
+#include "core/synthetic_rig.h"
 
 namespace rigport_test {
 
@@ -58,6 +59,20 @@ Eigen::MatrixX3d displacementAtKey(const core::Rig& rig, Eigen::Index key);
 // n points drawn uniformly from the cube [-half_width, half_width]^3
 // (std::mt19937 seeded with `seed`: the same points on every machine).
 Eigen::MatrixX3d randomPoints(int n, unsigned seed, double half_width = 1.0);
+
+// A generated rig with its lips pressed together: each painted lip moved
+// towards the other until the slit (still an open boundary) is a fiftieth
+// of its height, as ICT's lips touch in the neutral.
+core::SyntheticRig pressLips(core::SyntheticRig head);
+
+// The same head with its mouth sagging in the middle by `depth` times the
+// mouth's width (a smile's corners): a warp pinned at the mouth corners lays
+// another face's upper lip over its lower one.
+core::SyntheticRig sagMouth(core::SyntheticRig head, double depth);
+
+// The 10 landmarks of a sparse target (eye and mouth corners, nose tip and
+// wings, chin) of a generated head, as positions.
+core::LandmarkSet tenLandmarks(const core::SyntheticRig& head);
 
 // Compares two matrices elementwise; the failure names the first (i, j) apart.
 ::testing::AssertionResult matricesNear(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b, double tol);
