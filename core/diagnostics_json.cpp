@@ -38,6 +38,8 @@ Json warpJson(const WarpReport& r, const DiagnosticsContext& context) {
   lm["max_residual"] = r.landmark_max_residual;
   lm["suspicious"] = r.suspicious_landmarks;
   lm["bending_energy"] = r.bending_energy;
+  lm["misfit_deg"] = r.landmark_misfit_deg;
+  lm["misfit"] = r.landmarks_misfit;
   lm["residuals"] = Json::array();
   for (const auto& res : r.landmark_residuals) {
     lm["residuals"].push_back({{"name", res.name}, {"fit", res.fit}, {"leave_one_out", res.leave_one_out}});

@@ -130,7 +130,7 @@ GlobalAdaptation globalAdaptation(const Eigen::MatrixX3d& src_landmarks, const E
       report.rotation_applied = report.global_rotation_deg >= report.rotation_threshold_deg;
       char ratio[32];
       std::snprintf(ratio, sizeof ratio, "%.3g", report.stretch_ratio);
-      report.warnings.push_back(target_label + " is the source's shape stretched (" + ratio +
+      if (!report.warp.landmarks_misfit) report.warnings.push_back(target_label + " is the source's shape stretched (" + ratio +
                                 "x more along one axis than another): its deltas and animated joint translations "
                                 "were mapped by the landmarks' affine map");
       GlobalAdaptation out;
@@ -162,7 +162,7 @@ GlobalAdaptation globalAdaptation(const Eigen::MatrixX3d& src_landmarks, const E
     char measured[32], applied[32];
     std::snprintf(measured, sizeof measured, "%.4g", similarity.scale);
     std::snprintf(applied, sizeof applied, "%.4g", delta_scale);
-    report.warnings.push_back(target_label + " is " + measured + " times the size of the source (" +
+    if (!report.warp.landmarks_misfit) report.warnings.push_back(target_label + " is " + measured + " times the size of the source (" +
                               (units ? "other units" : "a scaled copy") +
                               "): its deltas and animated joint translations were scaled by " + applied);
   }

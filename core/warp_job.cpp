@@ -1,10 +1,14 @@
 #include "core/warp_job.h"
 
+#include "core/similarity.h"
+
 #include <algorithm>
 #include <array>
 #include <bit>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <numbers>
 #include <numeric>
 
 #include <Eigen/Geometry>
@@ -12,6 +16,12 @@
 namespace core {
 
 namespace {
+
+// Beyond this landmark misfit (WarpReport::landmark_misfit_deg) the
+// landmarks are taken for another mesh's: faces measured 2.4-11 degrees (ICT
+// identities, exaggerated 3x, the cartoon), landmarks of another vertex
+// order 68-84.
+constexpr double kLandmarkMisfitDeg = 30.0;
 
 using Clock = std::chrono::steady_clock;
 
@@ -429,6 +439,25 @@ int locateRimVertices(TargetLocations& locations, const Mesh& target, const std:
   return moved;
 }
 
+// The landmarks' misfit to the best similarity, as an angle: atan(rms
+// residual / (scale x rms spread)), degrees; the better of the similarity
+// and its mirror image (swapped left/right names are warned about apart).
+double landmarkMisfitDeg(const Eigen::MatrixX3d& source, const Eigen::MatrixX3d& target) {
+  const Eigen::MatrixX3d centred = source.rowwise() - source.colwise().mean();
+  const double spread = std::sqrt(centred.rowwise().squaredNorm().mean());
+  if (!(spread > 0.0)) return 0.0;
+  double best = 90.0;
+  for (const double mirror : {1.0, -1.0}) {
+    Eigen::MatrixX3d seen = target;
+    seen.col(0) *= mirror;
+    const Similarity similarity = fitSimilarity(source, seen);
+    if (similarity.scale > 0.0) {
+      best = std::min(best, std::atan(similarity.rms_residual / (similarity.scale * spread)) * 180.0 / std::numbers::pi);
+    }
+  }
+  return best;
+}
+
 // The target's openings: each source opening whose rim matched a target rim
 // (rim_match), split at the target rim's vertices nearest to where the
 // source's corners land under the landmark warp (they lie next to the
@@ -669,6 +698,21 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   report.landmark_rms_residual = std::sqrt(sum_sq / static_cast<double>(pairs->names.size()));
   for (int i : loo.suspicious) report.suspicious_landmarks.push_back(pairs->names[static_cast<std::size_t>(i)]);
   report.bending_energy = result.landmark_warp.bendingEnergy();
+  report.landmark_misfit_deg = landmarkMisfitDeg(pairs->source, pairs->target);
+  // Landmarks of another mesh (indices in range, of another vertex order or
+  // topology) land anywhere on the target: the warp folds the source over
+  // it, and what follows (a "turned" or inconsistently wound target, a
+  // "scaled copy") would be blamed on the mesh. Said first, naming them.
+  report.landmarks_misfit = report.landmark_misfit_deg > kLandmarkMisfitDeg;
+  const bool landmarks_misfit = report.landmarks_misfit;
+  if (landmarks_misfit) {
+    char misfit[32];
+    std::snprintf(misfit, sizeof misfit, "%.0f", report.landmark_misfit_deg);
+    report.warnings.push_back(
+        target_label + ": its landmarks do not lie as the source's do on any face (they miss the best similarity by " +
+        misfit + " degrees; faces of other identities and styles miss by 2-15): they are probably those of another "
+        "mesh or vertex order; check the landmarks file before trusting this result");
+  }
   // Swapped left/right landmark names make the warp a mirror image: every
   // residual stays small, so only the sign of the linear part tells.
   if (result.landmark_warp.affine().topRows<3>().determinant() < 0.0) {
@@ -705,7 +749,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
       std::to_string(std::lround(50.0 * (1.0 - report.orientation_agreement))) + "% of sampled matches face against it";
   Mesh adjusted;  // the target as matched, when that differs from the file
   const Mesh* matched = &target;
-  if (report.orientation_agreement < 0.0) {
+  if (report.orientation_agreement < 0.0 && !landmarks_misfit) {
     adjusted = target;
     adjusted.triangles.col(1).swap(adjusted.triangles.col(2));
     adjusted.normals = -adjusted.normals;
@@ -715,7 +759,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
     report.warnings.push_back(target_label + ": its faces face the opposite way to the source (" +
                               facing_against + "): matched with its faces turned; the output keeps its own winding");
   }
-  if (std::abs(report.orientation_agreement) < 0.5) {
+  if (std::abs(report.orientation_agreement) < 0.5 && !landmarks_misfit) {
     report.warnings.push_back(target_label + ": its face orientation is inconsistent (" + facing_against +
                               "): normal-based matching is unreliable; unify its winding");
   }

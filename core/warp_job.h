@@ -196,6 +196,14 @@ struct WarpReport {
   double landmark_rms_residual = 0.0;
   double landmark_max_residual = 0.0;
   double bending_energy = 0.0;
+  // How far the target's landmarks are from the source's under the best
+  // similarity: atan(rms misfit / (scale x rms spread)), degrees. Faces of
+  // other identities and styles: a few degrees to ~15 (ICT identities 3-4,
+  // exaggerated 3x 10-11); landmarks of another mesh land anywhere (40+).
+  double landmark_misfit_deg = 0.0;
+  // Over 30 degrees: taken for another mesh's landmarks, warned about first;
+  // the winding, size and pose warnings they would cause are not given.
+  bool landmarks_misfit = false;
   std::vector<LandmarkResidual> landmark_residuals;
   std::vector<std::string> suspicious_landmarks;
   // correspondence (target units)

@@ -210,6 +210,8 @@ TEST(Correspondence, MirroringWarpAndInconsistentWindingAreWarned) {
   auto m = core::runWarp(*prepared, mirrored, source.landmarks, "mirror.glb");
   ASSERT_TRUE(m) << m.error().message;
   EXPECT_TRUE(contains(m->report.warnings, "the landmark warp mirrors the source onto mirror.glb"));
+  EXPECT_FALSE(m->report.landmarks_misfit);  // a mirror image fits its mirrored landmarks
+  EXPECT_LT(m->report.landmark_misfit_deg, 1e-6);
   // Every other face inside out: no orientation to turn to.
   core::Mesh mixed = source.mesh;
   for (Eigen::Index f = 0; f < mixed.triangleCount(); f += 2) mixed.triangles.row(f) = mixed.triangles.row(f).reverse().eval();
@@ -218,6 +220,37 @@ TEST(Correspondence, MirroringWarpAndInconsistentWindingAreWarned) {
   EXPECT_LT(std::abs(x->report.orientation_agreement), 0.5);
   EXPECT_TRUE(contains(x->report.warnings, "mixed.glb: its face orientation is inconsistent"));
   EXPECT_FALSE(contains(x->report.warnings, "mirrors"));
+}
+
+// Landmarks of another mesh, their indices in range (another vertex order):
+// they land anywhere on the target. The warning names them, not the mesh's
+// winding or size, which their warp would otherwise be taken for.
+TEST(Correspondence, LandmarksOfAnotherMeshAreNamedNotTheWinding) {
+  const auto source = core::generateHead();
+  auto prepared = core::prepareSource(source.mesh, source.landmarks, "source");
+  ASSERT_TRUE(prepared);
+  const core::HeadResolution res{.columns = 70, .rows = 66, .alternate_diagonals = true, .jitter = 0.25, .seed = 9};
+  const auto other = core::generateHead(core::randomHeadShape(9, 0.2), res);
+  auto own = core::runWarp(*prepared, other.mesh, other.landmarks, "other.glb");
+  ASSERT_TRUE(own) << own.error().message;
+  EXPECT_FALSE(own->report.landmarks_misfit);
+  EXPECT_GT(own->report.landmark_misfit_deg, 0.5);
+  EXPECT_LT(own->report.landmark_misfit_deg, 15.0);
+  // The source's landmarks (faces of its own topology) given to the other head.
+  core::LandmarkSet foreign = source.landmarks;
+  for (auto& l : foreign.landmarks) l.face %= static_cast<int>(other.mesh.triangleCount());
+  auto wrong = core::runWarp(*prepared, other.mesh, foreign, "other.glb");
+  ASSERT_TRUE(wrong) << wrong.error().message;
+  EXPECT_TRUE(wrong->report.landmarks_misfit);
+  EXPECT_GT(wrong->report.landmark_misfit_deg, 30.0);
+  ASSERT_FALSE(wrong->report.warnings.empty());
+  EXPECT_EQ(wrong->report.warnings[0].rfind("other.glb: its landmarks do not lie as the source's do on any face", 0), 0u)
+      << wrong->report.warnings[0];
+  for (const std::string& w : wrong->report.warnings) {
+    EXPECT_EQ(w.find("orientation"), std::string::npos) << w;
+    EXPECT_EQ(w.find("face the opposite way"), std::string::npos) << w;
+  }
+  EXPECT_FALSE(wrong->report.target_turned);
 }
 
 TEST(Correspondence, AnUnpreparedSourceIsAnErrorNotACrash) {

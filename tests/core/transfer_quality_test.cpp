@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include "core/rig_io.h"
 #include "core/synthetic_rig.h"
 #include "core/transfer.h"
 #include "tests/test_support.h"
@@ -149,9 +150,17 @@ TEST(TransferQuality, StrictFailsATransferThatFailsItsCheck) {
   core::TransferOptions crossing;
   crossing.warp.side_matching = false;
   crossing.repair_unsure = false;
+  crossing.diagnostic_attributes = true;
   auto warned = core::transferRig(preparedSource(), scan, rigport_test::tenLandmarks(target), "sag.glb", crossing);
   ASSERT_TRUE(warned) << warned.error().message;
   ASSERT_FALSE(warned->report.quality.clean());
+  // The output carries the check per vertex (_QUALITY), and is valid glTF.
+  const Eigen::MatrixXd& quality = warned->rig.attributes.fields.at("QUALITY");
+  ASSERT_EQ(quality.rows(), scan.vertexCount());
+  EXPECT_EQ(quality.sum(), warned->report.quality.crossed_vertices + warned->report.quality.shape_outliers);
+  const auto dir = rigport_test::makeTempDir("quality");
+  ASSERT_TRUE(core::writeRigGlb(warned->rig, dir / "sag.glb"));
+  EXPECT_GLTF_VALID(dir / "sag.glb");
   const std::string summary = warned->report.quality.summary();
   EXPECT_NE(summary.find("located across an opening (the other lip or lid), moving in jawOpen ("), std::string::npos)
       << summary;

@@ -1197,6 +1197,17 @@ TEST(TransferRig, BadInputsGiveClearErrors) {
   ASSERT_FALSE(f);
   EXPECT_NE(f.error().message.find("at least 4"), std::string::npos);
 
+  // Landmarks of another mesh: named as the likely cause, not "a scaled copy".
+  core::LandmarkSet foreign = sourceRig().landmarks;
+  for (auto& l : foreign.landmarks) l.face %= static_cast<int>(otherHead().rig.mesh.triangleCount());
+  auto wrong = core::transferRig(preparedSource(), otherHead().rig.mesh, foreign, "other.glb");
+  ASSERT_TRUE(wrong) << wrong.error().message;
+  EXPECT_TRUE(wrong->report.warp.landmarks_misfit);
+  for (const std::string& w : wrong->report.warnings) {
+    EXPECT_EQ(w.find("times the size of the source"), std::string::npos) << w;
+    EXPECT_EQ(w.find("stretched"), std::string::npos) << w;
+  }
+
   core::Rig nan_keys = sourceRig().rig;
   nan_keys.animations[0].channels[0].values(3, 1) = std::numeric_limits<double>::quiet_NaN();
   auto n = core::prepareRig(nan_keys, sourceRig().landmarks, "nan.glb");
