@@ -109,6 +109,8 @@ std::string formatTransferDiagnostics(const TransferReport& r, const Diagnostics
   doc["transfer"] = {{"unlocated_vertices", r.unlocated_vertices},
                      {"uv_seam_vertices", r.uv_seam_vertices},
                      {"uv_extended_vertices", r.uv_extended_vertices},
+                     {"adaptation", r.adaptation},
+                     {"adaptation_reason", r.adaptation_reason},
                      {"global_scale", r.global_scale},
                      {"global_rotation_deg", r.global_rotation_deg},
                      {"rotation_threshold_deg", r.rotation_threshold_deg},

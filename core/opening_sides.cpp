@@ -5,9 +5,9 @@
 #include <functional>
 #include <limits>
 #include <queue>
-#include <cstdio>
-#include <cstdlib>
 #include <utility>
+
+#include <Eigen/Geometry>
 
 namespace core {
 
@@ -15,28 +15,56 @@ namespace {
 
 constexpr double kUnreached = std::numeric_limits<double>::infinity();
 
+// The copies of each split point (UV seams, hard edges), as CSR by
+// representative (empty when every vertex is its own).
+struct PointCopies {
+  std::vector<int> offsets;  // #V + 1, by representative
+  std::vector<int> vertices;
+};
+
+PointCopies pointCopies(const std::vector<int>& representative) {
+  PointCopies out;
+  if (representative.empty()) return out;
+  out.offsets.assign(representative.size() + 1, 0);
+  for (const int r : representative) ++out.offsets[static_cast<std::size_t>(r) + 1];
+  for (std::size_t v = 0; v + 1 < out.offsets.size(); ++v) out.offsets[v + 1] += out.offsets[v];
+  out.vertices.resize(representative.size());
+  std::vector<int> fill(out.offsets.begin(), out.offsets.end() - 1);
+  for (std::size_t v = 0; v < representative.size(); ++v) {
+    out.vertices[static_cast<std::size_t>(fill[static_cast<std::size_t>(representative[v])]++)] = static_cast<int>(v);
+  }
+  return out;
+}
+
 // Distances along the mesh's edges from the vertices `seeds` (0 there), up
-// to `radius`: vertices beyond it stay unreached. Bounded Dijkstra, so the
-// cost is the zone's, not the mesh's.
-void edgeDistances(const VertexAdjacency& adjacency, const Eigen::MatrixX3d& positions, const std::vector<int>& seeds,
-                   double radius, std::vector<double>& distance) {
-  std::fill(distance.begin(), distance.end(), kUnreached);
+// to `radius`: vertices beyond it stay unreached. The copies of a split
+// point are one point (distance 0 between them), so a UV seam across a lip
+// does not cut it. Bounded Dijkstra, so the cost is the zone's, not the
+// mesh's; `distance` must be all unreached on entry and `reached` empty, and
+// both are left for the caller to read and reset.
+void edgeDistances(const VertexAdjacency& adjacency, const RowMatrixX3d& positions,
+                   const std::vector<int>& representative, const PointCopies& copies, const std::vector<int>& seeds,
+                   double radius, std::vector<double>& distance, std::vector<int>& reached) {
   using Entry = std::pair<double, int>;
   std::priority_queue<Entry, std::vector<Entry>, std::greater<>> queue;
-  for (const int s : seeds) {
-    distance[static_cast<std::size_t>(s)] = 0.0;
-    queue.emplace(0.0, s);
-  }
+  auto relax = [&](int u, double du) {
+    if (du > radius || du >= distance[static_cast<std::size_t>(u)]) return;
+    if (distance[static_cast<std::size_t>(u)] == kUnreached) reached.push_back(u);
+    distance[static_cast<std::size_t>(u)] = du;
+    queue.emplace(du, u);
+  };
+  for (const int s : seeds) relax(s, 0.0);
   while (!queue.empty()) {
     const auto [d, v] = queue.top();
     queue.pop();
     if (d > distance[static_cast<std::size_t>(v)]) continue;
+    if (!representative.empty()) {
+      const auto r = static_cast<std::size_t>(representative[static_cast<std::size_t>(v)]);
+      for (int k = copies.offsets[r]; k < copies.offsets[r + 1]; ++k) relax(copies.vertices[static_cast<std::size_t>(k)], d);
+    }
     for (int k = adjacency.offsets[static_cast<std::size_t>(v)]; k < adjacency.offsets[static_cast<std::size_t>(v) + 1]; ++k) {
       const int u = adjacency.indices[static_cast<std::size_t>(k)];
-      const double du = d + (positions.row(u) - positions.row(v)).norm();
-      if (du > radius || du >= distance[static_cast<std::size_t>(u)]) continue;
-      distance[static_cast<std::size_t>(u)] = du;
-      queue.emplace(du, u);
+      relax(u, d + (positions.row(u) - positions.row(v)).norm());
     }
   }
 }
@@ -70,7 +98,17 @@ std::vector<Opening> findOpenings(const Mesh& mesh, const std::vector<Rim>& rims
   const double near = options.landmark_distance * boundingBoxDiagonal(mesh.positions);
   for (std::size_t r = 0; r < rims.size() && openings.size() < kMaxOpenings; ++r) {
     const Rim& rim = rims[r];
-    if (rim.vertices.size() < 3 || !rimNearPoints(rim, mesh.positions, landmarks, near)) continue;
+    if (rim.vertices.size() < 3) continue;
+    // Landmarks within `near` of the rim's box only: most are far from most rims.
+    Eigen::AlignedBox3d box;
+    for (const int v : rim.vertices) box.extend(mesh.positions.row(v).transpose());
+    std::vector<Eigen::Index> close;
+    for (Eigen::Index l = 0; l < landmarks.rows(); ++l) {
+      if (box.exteriorDistance(landmarks.row(l).transpose()) <= near) close.push_back(l);
+    }
+    bool on_rim = false;
+    for (std::size_t i = 0; i < close.size() && !on_rim; ++i) on_rim = rimNearPoints(rim, mesh.positions, landmarks.row(close[i]), near);
+    if (!on_rim) continue;
     // The rim's own extent (its two vertices farthest apart) says how far
     // its landmarks may lie.
     double widest = 0.0;
@@ -91,8 +129,12 @@ std::vector<Opening> findOpenings(const Mesh& mesh, const std::vector<Rim>& rims
     // ends from one face to another; landmarks are placed where the corners
     // are).
     std::vector<Eigen::Index> own;
+    const double zone = options.zone * std::sqrt(widest);
     for (Eigen::Index l = 0; l < landmarks.rows(); ++l) {
-      if (rimNearPoints(rim, mesh.positions, landmarks.row(l), options.zone * std::sqrt(widest))) own.push_back(l);
+      if (box.exteriorDistance(landmarks.row(l).transpose()) <= zone &&
+          rimNearPoints(rim, mesh.positions, landmarks.row(l), zone)) {
+        own.push_back(l);
+      }
     }
     double apart = -1.0;
     for (std::size_t a = 0; a < own.size(); ++a) {
@@ -111,18 +153,17 @@ std::vector<Opening> findOpenings(const Mesh& mesh, const std::vector<Rim>& rims
   return openings;
 }
 
-std::vector<int> openingSides(const Mesh& mesh, const std::vector<int>& representative, const std::vector<Rim>& rims,
-                              const std::vector<Opening>& openings, const OpeningSideOptions& options) {
+std::vector<int> openingSides(const Mesh& mesh, const VertexAdjacency& adjacency, const std::vector<int>& representative,
+                              const std::vector<Rim>& rims, const std::vector<Opening>& openings,
+                              const OpeningSideOptions& options) {
   const Eigen::Index nv = mesh.vertexCount();
   std::vector<int> sides(static_cast<std::size_t>(nv), kOffOpenings);
   if (openings.empty()) return sides;
-  // Distances on the welded surface (rims are loops of representatives): a
-  // UV seam across a lip does not cut it.
-  const Mesh welded = representative.empty() ? Mesh{} : weldedTopology(mesh, representative);
-  const Eigen::MatrixX3i& triangles = representative.empty() ? mesh.triangles : welded.triangles;
-  const VertexAdjacency adjacency = vertexAdjacency(triangles, nv);
-  std::vector<double> near(static_cast<std::size_t>(nv)), far(static_cast<std::size_t>(nv));
-  std::vector<double> best(static_cast<std::size_t>(nv), kUnreached);  // the nearer side's distance of the vertex's side
+  const PointCopies copies = pointCopies(representative);
+  const RowMatrixX3d positions = mesh.positions;  // a vertex's coordinates in one cache line
+  std::vector<double> near(static_cast<std::size_t>(nv), kUnreached), far(static_cast<std::size_t>(nv), kUnreached);
+  std::vector<double> best(static_cast<std::size_t>(nv), kUnreached);  // distance to the opening whose side a vertex took
+  std::vector<int> reached_near, reached_far;
   for (std::size_t k = 0; k < openings.size(); ++k) {
     const Opening& opening = openings[k];
     if (opening.rim < 0) continue;
@@ -147,26 +188,28 @@ std::vector<int> openingSides(const Mesh& mesh, const std::vector<int>& represen
       corner_edge = std::max({corner_edge, (mesh.positions.row(loop[static_cast<std::size_t>((c + 1) % n)]) - p).norm(),
                               (mesh.positions.row(loop[static_cast<std::size_t>((c + n - 1) % n)]) - p).norm()});
     }
-    edgeDistances(adjacency, mesh.positions, chains[0], radius, near);
-    edgeDistances(adjacency, mesh.positions, chains[1], radius, far);
-    for (Eigen::Index v = 0; v < nv; ++v) {
-      const auto i = static_cast<std::size_t>(v);
-      if (!representative.empty() && representative[i] != v) continue;
-      const double d0 = near[i], d1 = far[i];
-      const double own = std::min(d0, d1);
-      if (getenv("DBGV") && atoi(getenv("DBGV")) == v) fprintf(stderr, "XXX v%ld opening %zu d0 %g d1 %g corner_edge %g width %g nv %ld\n", (long)v, k, d0, d1, corner_edge, opening.width, (long)nv);
-      if (own == kUnreached) continue;
-      int side = -1;
-      if (d0 + corner_edge <= d1) side = 0;
-      if (d1 + corner_edge <= d0) side = 1;
-      // Two openings' zones may overlap (a mouth's and a nostril's): the nearer opening wins.
-      if (own >= best[i]) continue;
-      best[i] = own;
-      sides[i] = side < 0 ? kBetweenSides : 2 * static_cast<int>(k) + side;
+    edgeDistances(adjacency, positions, representative, copies, chains[0], radius, near, reached_near);
+    edgeDistances(adjacency, positions, representative, copies, chains[1], radius, far, reached_far);
+    for (const std::vector<int>* reached : {&reached_near, &reached_far}) {
+      for (const int v : *reached) {
+        const auto i = static_cast<std::size_t>(v);
+        const double d0 = near[i], d1 = far[i];
+        const double own = std::min(d0, d1);
+        // Two openings' zones may overlap (a mouth's and a nostril's): the
+        // nearer opening wins (and a vertex reached from both chains is
+        // seen twice: the second finds own == best).
+        if (own >= best[i]) continue;
+        best[i] = own;
+        int side = kBetweenSides;
+        if (d0 + corner_edge <= d1) side = 2 * static_cast<int>(k);
+        if (d1 + corner_edge <= d0) side = 2 * static_cast<int>(k) + 1;
+        sides[i] = side;
+      }
     }
-  }
-  if (!representative.empty()) {
-    for (Eigen::Index v = 0; v < nv; ++v) sides[static_cast<std::size_t>(v)] = sides[static_cast<std::size_t>(representative[static_cast<std::size_t>(v)])];
+    for (const int v : reached_near) near[static_cast<std::size_t>(v)] = kUnreached;
+    for (const int v : reached_far) far[static_cast<std::size_t>(v)] = kUnreached;
+    reached_near.clear();
+    reached_far.clear();
   }
   return sides;
 }
@@ -195,11 +238,18 @@ std::vector<std::uint64_t> sideFaceSets(const std::vector<int>& sides, const Eig
   return sets;
 }
 
-Eigen::SparseMatrix<double> cutAcrossSides(const Eigen::SparseMatrix<double>& laplacian, const std::vector<int>& sides) {
+void cutAcrossSides(Eigen::SparseMatrix<double>& laplacian, const std::vector<int>& sides) {
   assert(static_cast<Eigen::Index>(sides.size()) == laplacian.rows());
   auto across = [&](Eigen::Index i, Eigen::Index j) {
     return oppositeSides(sides[static_cast<std::size_t>(i)], sides[static_cast<std::size_t>(j)]);
   };
+  // Usually no edge crosses (an open mouth's lips meet only at its corners,
+  // which are between the sides): then the Laplacian as it is.
+  bool any = false;
+  for (Eigen::Index j = 0; j < laplacian.outerSize() && !any; ++j) {
+    for (Eigen::SparseMatrix<double>::InnerIterator it(laplacian, j); it && !any; ++it) any = across(it.row(), it.col());
+  }
+  if (!any) return;
   std::vector<Eigen::Triplet<double>> kept;
   kept.reserve(static_cast<std::size_t>(laplacian.nonZeros()));
   Eigen::VectorXd lost = Eigen::VectorXd::Zero(laplacian.rows());
@@ -217,7 +267,7 @@ Eigen::SparseMatrix<double> cutAcrossSides(const Eigen::SparseMatrix<double>& la
   }
   Eigen::SparseMatrix<double> cut(laplacian.rows(), laplacian.cols());
   cut.setFromTriplets(kept.begin(), kept.end());
-  return cut;
+  laplacian = std::move(cut);
 }
 
 }  // namespace core

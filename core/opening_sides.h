@@ -63,8 +63,11 @@ Opening openingAtCorners(const Rim& rim, int rim_index, const Eigen::MatrixX3d& 
 // (`representative` as for meshRims) takes its point's side.
 inline constexpr int kOffOpenings = -1;
 inline constexpr int kBetweenSides = -2;
-std::vector<int> openingSides(const Mesh& mesh, const std::vector<int>& representative, const std::vector<Rim>& rims,
-                              const std::vector<Opening>& openings, const OpeningSideOptions& options = {});
+// adjacency: vertexAdjacency of the mesh (its split points apart; the
+// copies are joined here).
+std::vector<int> openingSides(const Mesh& mesh, const VertexAdjacency& adjacency, const std::vector<int>& representative,
+                              const std::vector<Rim>& rims, const std::vector<Opening>& openings,
+                              const OpeningSideOptions& options = {});
 
 // As label bits for the closest-point filters (ClosestPointFilters,
 // ClosestPointIndex face labels): a vertex on a side allows only faces with
@@ -74,12 +77,12 @@ std::vector<int> openingSides(const Mesh& mesh, const std::vector<int>& represen
 std::vector<std::uint64_t> sideMasks(const std::vector<int>& sides);
 std::vector<std::uint64_t> sideFaceSets(const std::vector<int>& sides, const Eigen::MatrixX3i& triangles);
 
-// `laplacian` (#V by #V, e.g. uniformLaplacian) without its edges from a
-// vertex on one side of an opening to a vertex on the other or between them
-// (kBetweenSides), each diagonal lowered by the weight it loses: a value
-// inpainted on a lip comes from that lip (and the skin beyond its zone),
-// never across the mouth or round its corners.
-Eigen::SparseMatrix<double> cutAcrossSides(const Eigen::SparseMatrix<double>& laplacian, const std::vector<int>& sides);
+// Removes from `laplacian` (#V by #V, e.g. uniformLaplacian) its edges
+// between vertices on the two sides of an opening, each diagonal lowered by
+// the weight it loses: a value inpainted on a lip comes from that lip, the
+// corners and the skin beyond, never straight across the mouth (an open
+// mouth has no such edge; a sealed or welded one does).
+void cutAcrossSides(Eigen::SparseMatrix<double>& laplacian, const std::vector<int>& sides);
 
 // True when sides a and b (openingSides values) are the two sides of one opening.
 inline bool oppositeSides(int a, int b) { return a >= 0 && b >= 0 && a != b && a / 2 == b / 2; }

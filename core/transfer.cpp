@@ -194,8 +194,18 @@ double msSince(Clock::time_point t0) { return std::chrono::duration<double, std:
 
 }  // namespace
 
+const char* shapeAdaptationName(ShapeAdaptation adaptation) {
+  switch (adaptation) {
+    case ShapeAdaptation::kNone: return "none";
+    case ShapeAdaptation::kRotation: return "rotation";
+    case ShapeAdaptation::kSimilarity: return "similarity";
+    case ShapeAdaptation::kLocal: return "local";
+  }
+  return "rotation";
+}
+
 std::size_t PreparedRig::memoryBytes() const {
-  std::size_t bytes = surface.memoryBytes() + (uv_layout ? uv_layout->memoryBytes() : 0) + shape_sharpness.memoryBytes();
+  std::size_t bytes = surface.memoryBytes() + (uv_layout ? uv_layout->memoryBytes() : 0);
   for (const auto& t : rig.morph_targets) bytes += static_cast<std::size_t>(t.position_deltas.size() + t.normal_deltas.size()) * sizeof(double);
   bytes += static_cast<std::size_t>(rig.weights.nonZeros()) * (sizeof(double) + sizeof(int));
   for (const auto& a : rig.animations) for (const auto& c : a.channels) bytes += static_cast<std::size_t>(c.values.size() + c.times.size()) * sizeof(double);
@@ -234,9 +244,6 @@ Result<PreparedRig> prepareRig(Rig rig, LandmarkSet landmarks, const std::string
   prepared.rig = std::move(rig);
   prepared.rig.mesh.normals = surface->mesh.normals;
   prepared.surface = std::move(*surface);
-  QualityOptions sharpness;
-  sharpness.threads = options.threads;
-  prepared.shape_sharpness = measureShapeSharpness(prepared.rig.morph_targets, prepared.surface.adjacency, sharpness);
   const std::vector<Eigen::MatrixX2d> uv_sets = sourceUvSets(prepared.rig);
   if (!uv_sets.empty()) {
     auto uv_layout = prepareUvLayout(prepared.surface.mesh, uv_sets, label);
@@ -301,6 +308,12 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
     tgt_landmarks.row(i) = warp->landmark_warp.apply(Eigen::Vector3d(src_landmarks.row(i).transpose())).transpose();
   }
   const GlobalAdaptation global = globalAdaptation(src_landmarks, tgt_landmarks, options, target_label, report);
+  report.adaptation = shapeAdaptationName(options.adaptation);
+  report.adaptation_reason =
+      options.adaptation == ShapeAdaptation::kRotation
+          ? "the default: deltas as the rig's, turned, scaled or stretched only for a pose, other units or a face "
+            "stretched as a whole; a stylised face whose shapes should follow its stylisation takes \"local\""
+          : "set in the options";
   const TpsWarp& dense_map = warp->dense_map ? *warp->dense_map : warp->landmark_warp;
   std::optional<TpsWarp> smooth_map;
   if (options.adaptation == ShapeAdaptation::kLocal) {
@@ -363,7 +376,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   if (locations.low_confidence > 0) {
     target_laplacian = uniformLaplacian(target.positions, target.triangles);
     if (options.warp.side_matching && !warp->target_sides.empty()) {
-      target_laplacian = cutAcrossSides(target_laplacian, warp->target_sides);
+      cutAcrossSides(target_laplacian, warp->target_sides);
     }
   }
   const bool attributes_inpainted =
@@ -446,9 +459,9 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   QualityOptions quality_options = options.quality;
   quality_options.threads = options.threads;
   const QualitySource quality_source{src_mesh.triangles, source.surface.adjacency, source.surface.vertex_sides,
-                                     source.shape_sharpness};
-  report.quality = checkTransferQuality(target, out.morph_targets, locations, warp->target_sides, quality_source,
-                                        quality_options);
+                                     src.morph_targets};
+  report.quality = checkTransferQuality(target, warp->target_adjacency, out.morph_targets, locations,
+                                        warp->target_sides, quality_source, quality_options);
   if (options.repair_unsure && !report.quality.clean() && !out.morph_targets.empty() && target_laplacian.rows() > 0) {
     std::vector<char> known(static_cast<std::size_t>(target.vertexCount()), 1);
     int repaired = 0;
@@ -462,8 +475,8 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
       if (!repair) return Error{repair.error().code, target_label + ": inpainting unsure vertices: " + repair.error().message};
       inpaintShapeDeltas(*repair, out.morph_targets);
       updateNormalDeltas(out.mesh, out.morph_targets, options.threads);
-      report.quality = checkTransferQuality(target, out.morph_targets, locations, warp->target_sides, quality_source,
-                                            quality_options);
+      report.quality = checkTransferQuality(target, warp->target_adjacency, out.morph_targets, locations,
+                                            warp->target_sides, quality_source, quality_options);
       report.quality.repaired_vertices = repaired;
     }
   }

@@ -32,6 +32,9 @@ enum class ShapeAdaptation {
   kLocal,       // local Jacobian of the smoothed dense map: follows proportions
 };
 
+// "none", "rotation", "similarity", "local" (the options JSON's spelling).
+const char* shapeAdaptationName(ShapeAdaptation adaptation);
+
 struct TransferOptions {
   WarpOptions warp;
   bool weights = true;
@@ -108,7 +111,6 @@ struct TransferOptions {
 struct PreparedRig {
   Rig rig;
   PreparedSource surface;
-  ShapeSharpness shape_sharpness;  // of the rig's own shapes, for the quality check
   std::optional<SourceUvLayout> uv_layout;  // when the rig has UV sets (for TransferOptions::uvs)
   std::size_t memoryBytes() const;
 };
@@ -130,6 +132,13 @@ struct TransferReport {
   // UVs extend one side of a seam past it.
   int uv_seam_vertices = 0;
   int uv_extended_vertices = 0;
+  // The adaptation deltas were mapped by (TransferOptions::adaptation) and
+  // why: the options' choice. rigport does not switch it by itself: no
+  // measure of the faces found tells a stylised face, whose deltas follow
+  // the stylisation ("local"), from an identity, whose deltas do not
+  // (docs/ACCURACY.md, "Stylised faces").
+  std::string adaptation;
+  std::string adaptation_reason;
   double global_scale = 1.0;      // similarity scale source -> target landmarks
   double global_rotation_deg = 0.0;  // similarity rotation source -> target landmarks
   // The angle a rotation must reach to be applied: min_rotation_deg (shrunk

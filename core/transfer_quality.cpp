@@ -10,56 +10,91 @@ namespace core {
 
 namespace {
 
-// One shape's outliers: (vertex, score) for every vertex over `ratio`.
-// Only rings that move are judged: a vertex is visited when it or a
-// neighbour moves at least `floor`, so a sparse shape costs its moving part.
+// How far vertex v's delta is from its nearest neighbour's, over the
+// largest motion of its closed ring (|delta|^2 in `motion2`), when that is
+// over `ratio` and the ring moves at least `floor2` (squared); else -1.
+// Most vertices have a neighbour within reach of the two's own motion,
+// which the ring's only exceeds: that neighbour ends the test.
+double outlierScore(const Eigen::MatrixX3d& deltas, const Eigen::VectorXd& motion2, const VertexAdjacency& adjacency,
+                    Eigen::Index v, double ratio, double floor2) {
+  const int begin = adjacency.offsets[static_cast<std::size_t>(v)], end = adjacency.offsets[static_cast<std::size_t>(v) + 1];
+  if (begin == end) return -1.0;
+  const double ratio2 = ratio * ratio;
+  const Eigen::RowVector3d d = deltas.row(v);
+  for (int k = begin; k < end; ++k) {
+    const int u = adjacency.indices[static_cast<std::size_t>(k)];
+    if ((d - deltas.row(u)).squaredNorm() <= ratio2 * std::max(motion2(v), motion2(u))) return -1.0;
+  }
+  double ring2 = motion2(v), nearest2 = std::numeric_limits<double>::infinity();
+  for (int k = begin; k < end; ++k) {
+    const int u = adjacency.indices[static_cast<std::size_t>(k)];
+    ring2 = std::max(ring2, motion2(u));
+    nearest2 = std::min(nearest2, (d - deltas.row(u)).squaredNorm());
+  }
+  if (ring2 < floor2 || !(ring2 > 0.0) || nearest2 <= ratio2 * ring2) return -1.0;
+  return std::sqrt(nearest2 / ring2);
+}
+
+// Scratch space of shapeOutliers, kept across the shapes one thread checks.
+struct OutlierScratch {
+  Eigen::VectorXd motion2;
+  std::vector<unsigned> stamp;  // == round: the vertex is a candidate this round
+  unsigned round = 0;
+  std::vector<int> candidates;
+};
+
+// One shape's outliers: (vertex, score), ascending, for every vertex scoring
+// over the ratio (outlierScore), its floor from the shape's largest motion.
+// Only the vertices moving at least the floor and their neighbours can
+// score: a shape that moves a part of the face costs that part.
 std::vector<std::pair<int, double>> shapeOutliers(const Eigen::MatrixX3d& deltas, const VertexAdjacency& adjacency,
-                                                  double ratio, const QualityOptions& options) {
+                                                  const QualityOptions& options, OutlierScratch& scratch) {
   std::vector<std::pair<int, double>> out;
   const Eigen::Index nv = deltas.rows();
   if (nv == 0) return out;
-  const Eigen::VectorXd motion = deltas.rowwise().norm();
-  const double largest = motion.maxCoeff();
-  if (!(largest > 0.0)) return out;
-  const double floor = options.min_motion * largest;
-  std::vector<char> judged(static_cast<std::size_t>(nv), 0);
+  Eigen::VectorXd& motion2 = scratch.motion2;
+  motion2 = deltas.col(0).cwiseAbs2() + deltas.col(1).cwiseAbs2() + deltas.col(2).cwiseAbs2();
+  const double floor2 = options.min_motion * options.min_motion * motion2.maxCoeff();
+  if (scratch.stamp.size() != static_cast<std::size_t>(nv) || ++scratch.round == 0) {
+    scratch.stamp.assign(static_cast<std::size_t>(nv), 0);
+    scratch.round = 1;
+  }
+  std::vector<int>& candidates = scratch.candidates;
+  candidates.clear();
+  auto judge = [&](int v) {
+    if (scratch.stamp[static_cast<std::size_t>(v)] == scratch.round) return;
+    scratch.stamp[static_cast<std::size_t>(v)] = scratch.round;
+    candidates.push_back(v);
+  };
   for (Eigen::Index v = 0; v < nv; ++v) {
-    if (motion(v) < floor) continue;
-    judged[static_cast<std::size_t>(v)] = 1;
+    if (!(motion2(v) >= floor2)) continue;
+    judge(static_cast<int>(v));
     for (int k = adjacency.offsets[static_cast<std::size_t>(v)]; k < adjacency.offsets[static_cast<std::size_t>(v) + 1]; ++k) {
-      judged[static_cast<std::size_t>(adjacency.indices[static_cast<std::size_t>(k)])] = 1;
+      judge(adjacency.indices[static_cast<std::size_t>(k)]);
     }
   }
-  for (Eigen::Index v = 0; v < nv; ++v) {
-    const int begin = adjacency.offsets[static_cast<std::size_t>(v)], end = adjacency.offsets[static_cast<std::size_t>(v) + 1];
-    if (!judged[static_cast<std::size_t>(v)] || end == begin) continue;
-    double ring = motion(v), nearest = std::numeric_limits<double>::infinity();
-    for (int k = begin; k < end; ++k) {
-      const int u = adjacency.indices[static_cast<std::size_t>(k)];
-      nearest = std::min(nearest, (deltas.row(v) - deltas.row(u)).squaredNorm());
-      ring = std::max(ring, motion(u));
-    }
-    const double score = std::sqrt(nearest) / ring;
-    if (score > ratio) out.emplace_back(static_cast<int>(v), score);
+  for (const int v : candidates) {
+    const double score = outlierScore(deltas, motion2, adjacency, v, options.outlier_ratio, floor2);
+    if (score > options.outlier_ratio) out.emplace_back(v, score);
   }
+  std::sort(out.begin(), out.end());
   return out;
 }
 
-// The sharpest the source shape `sharp` (sorted by vertex) is at the face
-// `at` lies on: over its corners and their rings.
-double sourceSharpnessAt(const std::vector<std::pair<int, double>>& sharp, const SurfacePoint& at,
-                         const QualitySource& source) {
-  if (sharp.empty() || !at.found()) return 0.0;
-  auto of = [&](int v) {
-    const auto it = std::lower_bound(sharp.begin(), sharp.end(), std::make_pair(v, -1.0));
-    return it != sharp.end() && it->first == v ? it->second : 0.0;
-  };
+// The sharpest the source shape is itself where `at` lies: the largest
+// outlierScore (any ratio) over the face's corners and their rings.
+// `motion2`: the shape's |delta|^2, `floor2` its floor (shapeOutliers).
+double sourceSharpnessAt(const Eigen::MatrixX3d& deltas, const Eigen::VectorXd& motion2, double floor2,
+                         const SurfacePoint& at, const QualitySource& source) {
+  if (!at.found()) return 0.0;
   double sharpest = 0.0;
+  auto judge = [&](int v) { sharpest = std::max(sharpest, outlierScore(deltas, motion2, source.adjacency, v, 0.0, floor2)); };
   for (int c = 0; c < 3; ++c) {
     const int v = source.triangles(at.face, c);
-    sharpest = std::max(sharpest, of(v));
-    const auto begin = source.adjacency.offsets[static_cast<std::size_t>(v)], end = source.adjacency.offsets[static_cast<std::size_t>(v) + 1];
-    for (int k = begin; k < end; ++k) sharpest = std::max(sharpest, of(source.adjacency.indices[static_cast<std::size_t>(k)]));
+    judge(v);
+    for (int k = source.adjacency.offsets[static_cast<std::size_t>(v)]; k < source.adjacency.offsets[static_cast<std::size_t>(v) + 1]; ++k) {
+      judge(source.adjacency.indices[static_cast<std::size_t>(k)]);
+    }
   }
   return sharpest;
 }
@@ -97,46 +132,31 @@ std::string QualityReport::summary() const {
   return text;
 }
 
-std::size_t ShapeSharpness::memoryBytes() const {
-  std::size_t bytes = per_shape.capacity() * sizeof(per_shape[0]);
-  for (const auto& s : per_shape) bytes += s.capacity() * sizeof(s[0]);
-  return bytes;
-}
-
-ShapeSharpness measureShapeSharpness(const std::vector<MorphTarget>& shapes, const VertexAdjacency& adjacency,
-                                     const QualityOptions& options) {
-  ShapeSharpness out;
-  out.per_shape.resize(shapes.size());
-  const double ratio = options.source_factor > 0.0 ? options.outlier_ratio / options.source_factor : options.outlier_ratio;
-  parallelFor(static_cast<std::ptrdiff_t>(shapes.size()), options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
-    for (std::ptrdiff_t k = begin; k < end; ++k) {
-      out.per_shape[static_cast<std::size_t>(k)] = shapeOutliers(shapes[static_cast<std::size_t>(k)].position_deltas, adjacency, ratio, options);
-    }
-  }, 1);
-  return out;
-}
-
-QualityReport checkTransferQuality(const Mesh& target, const std::vector<MorphTarget>& shapes,
-                                   const TargetLocations& locations, const std::vector<int>& target_sides,
-                                   const QualitySource& source, const QualityOptions& options) {
+QualityReport checkTransferQuality(const Mesh& target, const VertexAdjacency& target_adjacency,
+                                   const std::vector<MorphTarget>& shapes, const TargetLocations& locations,
+                                   const std::vector<int>& target_sides, const QualitySource& source,
+                                   const QualityOptions& options) {
   QualityReport report;
   const Eigen::Index nv = target.vertexCount();
   report.per_vertex = Eigen::VectorXd::Zero(nv);
-  const VertexAdjacency adjacency = vertexAdjacency(target.triangles, nv);
   const bool located = locations.on_source.size() == static_cast<std::size_t>(nv);
   std::vector<std::vector<std::pair<int, double>>> found(shapes.size());
   parallelFor(static_cast<std::ptrdiff_t>(shapes.size()), options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
+    OutlierScratch scratch;
     for (std::ptrdiff_t k = begin; k < end; ++k) {
       const Eigen::MatrixX3d& deltas = shapes[static_cast<std::size_t>(k)].position_deltas;
       if (deltas.rows() != nv) continue;
       auto& outliers = found[static_cast<std::size_t>(k)];
-      outliers = shapeOutliers(deltas, adjacency, options.outlier_ratio, options);
+      outliers = shapeOutliers(deltas, target_adjacency, options, scratch);
       // What the rig's own shape does there is not the transfer's fault.
-      if (!located || static_cast<std::size_t>(k) >= source.sharpness.per_shape.size()) continue;
-      const auto& sharp = source.sharpness.per_shape[static_cast<std::size_t>(k)];
+      if (outliers.empty() || !located || static_cast<std::size_t>(k) >= source.shapes.size()) continue;
+      const Eigen::MatrixX3d& own = source.shapes[static_cast<std::size_t>(k)].position_deltas;
+      if (own.rows() == 0) continue;
+      const Eigen::VectorXd motion2 = own.rowwise().squaredNorm();
+      const double floor2 = options.min_motion * options.min_motion * motion2.maxCoeff();
       std::erase_if(outliers, [&](const std::pair<int, double>& o) {
-        return o.second <= options.source_factor *
-                               sourceSharpnessAt(sharp, locations.on_source[static_cast<std::size_t>(o.first)], source);
+        const SurfacePoint& at = locations.on_source[static_cast<std::size_t>(o.first)];
+        return o.second <= options.source_factor * sourceSharpnessAt(own, motion2, floor2, at, source);
       });
     }
   }, 1);

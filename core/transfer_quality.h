@@ -33,7 +33,7 @@ struct QualityOptions {
   double source_factor = 1.5;
   // Rings moving less than this fraction of the shape's largest |delta| are
   // not judged (rounding-level motion has no shape to disagree with).
-  double min_motion = 0.1;
+  double min_motion = 0.25;
   // How many of the worst vertices the report lists.
   int worst_count = 10;
   int threads = 0;
@@ -72,31 +72,24 @@ struct QualityReport {
   std::string summary() const;
 };
 
-// How sharp a rig's own shapes are: per shape, the source vertices scoring
-// over outlier_ratio / source_factor (the test above on the source), sorted
-// by vertex. Depends on the rig alone: measured once, with the prepared rig.
-struct ShapeSharpness {
-  std::vector<std::vector<std::pair<int, double>>> per_shape;
-  std::size_t memoryBytes() const;
-};
-ShapeSharpness measureShapeSharpness(const std::vector<MorphTarget>& shapes, const VertexAdjacency& adjacency,
-                                     const QualityOptions& options = {});
-
 // The source side of the check: its faces (the locations refer to them),
-// vertex adjacency, openingSides (empty: none) and shape sharpness.
+// vertex adjacency, openingSides (empty: none), and its own shapes (in the
+// order of the transferred ones), to judge a flagged vertex against what
+// the rig itself does there.
 struct QualitySource {
   const Eigen::MatrixX3i& triangles;
   const VertexAdjacency& adjacency;
   const std::vector<int>& sides;
-  const ShapeSharpness& sharpness;
+  const std::vector<MorphTarget>& shapes;
 };
 
-// target: the output mesh (its own vertices); shapes: the transferred morph
-// targets (#Vt rows, in the rig's order); target_sides: openingSides of the
-// target, numbered as the source's (empty when the openings were not matched
-// with sides).
-QualityReport checkTransferQuality(const Mesh& target, const std::vector<MorphTarget>& shapes,
-                                   const TargetLocations& locations, const std::vector<int>& target_sides,
-                                   const QualitySource& source, const QualityOptions& options = {});
+// target: the output mesh (its own vertices) and target_adjacency its
+// vertexAdjacency; shapes: the transferred morph targets (#Vt rows, in the
+// rig's order); target_sides: openingSides of the target, numbered as the
+// source's (empty when the openings were not matched with sides).
+QualityReport checkTransferQuality(const Mesh& target, const VertexAdjacency& target_adjacency,
+                                   const std::vector<MorphTarget>& shapes, const TargetLocations& locations,
+                                   const std::vector<int>& target_sides, const QualitySource& source,
+                                   const QualityOptions& options = {});
 
 }  // namespace core

@@ -180,11 +180,11 @@ Eigen::MatrixX3d smoothedPulls(const PreparedSource& source, std::vector<Pull> a
 // quarter of the queries of the whole target (mean of the nine ICT targets'
 // E medians 0.0685 against 0.0676 with every vertex).
 TargetPulls matchTargetPulls(const PreparedSource& source, const Eigen::MatrixX3d& warped, const Mesh& target,
-                             const std::vector<std::uint64_t>& source_face_labels,
+                             const VertexAdjacency& target_adjacency, const std::vector<std::uint64_t>& source_face_labels,
                              const std::vector<std::uint64_t>& target_masks, const std::vector<int>& detached,
                              const WarpReport& report, const WarpOptions& options) {
   TargetPulls out;
-  const VertexSample sample = independentVertexSample(vertexAdjacency(target.triangles, target.vertexCount()));
+  const VertexSample sample = independentVertexSample(target_adjacency);
   for (std::size_t k = 0; k < sample.vertices.size(); ++k) {
     const int v = sample.vertices[k];
     if (!detached.empty() && detached[static_cast<std::size_t>(v)] >= 0) continue;
@@ -466,8 +466,9 @@ double landmarkMisfitDeg(const Eigen::MatrixX3d& source, const Eigen::MatrixX3d&
 // source's), or empty when no opening matched. Counts them in the report.
 std::vector<int> targetOpeningSides(const PreparedSource& source, const TpsWarp& landmark_warp,
                                     const std::vector<int>& rim_match, const std::vector<Rim>& target_rims,
-                                    const Mesh& target, const std::vector<int>& representative,
-                                    const OpeningSideOptions& options, WarpReport& report) {
+                                    const Mesh& target, const VertexAdjacency& adjacency,
+                                    const std::vector<int>& representative, const OpeningSideOptions& options,
+                                    WarpReport& report) {
   std::vector<Opening> openings(source.openings.size());
   for (std::size_t k = 0; k < source.openings.size(); ++k) {
     const Opening& opening = source.openings[k];
@@ -483,7 +484,7 @@ std::vector<int> targetOpeningSides(const PreparedSource& source, const TpsWarp&
     report.sided_openings += openings[k].rim >= 0 ? 1 : 0;
   }
   if (report.sided_openings == 0) return {};
-  std::vector<int> sides = openingSides(target, representative, target_rims, openings, options);
+  std::vector<int> sides = openingSides(target, adjacency, representative, target_rims, openings, options);
   report.sided_target_vertices = static_cast<int>(std::count_if(sides.begin(), sides.end(), [](int s) { return s >= 0; }));
   return sides;
 }
@@ -597,7 +598,8 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
     if (!prepared.rims.empty()) prepared.rim_vertices = rimVertices(prepared.rims, prepared.mesh, representative);
     prepared.openings = findOpenings(prepared.mesh, prepared.rims, prepared.landmark_positions);
     if (!prepared.openings.empty()) {
-      prepared.vertex_sides = openingSides(prepared.mesh, representative, prepared.rims, prepared.openings);
+      prepared.vertex_sides =
+          openingSides(prepared.mesh, prepared.adjacency, representative, prepared.rims, prepared.openings);
       prepared.side_masks = sideMasks(prepared.vertex_sides);
       prepared.side_face_sets = sideFaceSets(prepared.vertex_sides, prepared.mesh.triangles);
     }
@@ -653,6 +655,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   auto target_positions = resolveLandmarks(target_landmarks, target, target_label, &target_index);
   if (!target_positions) return target_positions.error();
   const std::vector<int> target_representative = coincidentVertexRepresentatives(target.positions);
+  result.target_adjacency = vertexAdjacency(target.triangles, target.vertexCount());
   const std::vector<int> detached = detachedPieces(target, target_representative, target_landmarks, *target_positions,
                                                     target_index, report);
   // The faces the source is matched to: detached ones made degenerate, which
@@ -835,7 +838,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
       report.region_matching ? vertexRegionBits(target.regions) : std::vector<std::uint64_t>();
   if (sides_wanted) {
     result.target_sides = targetOpeningSides(source, result.landmark_warp, rim_match, target_rims, *matched,
-                                             target_representative, options.sides, report);
+                                             result.target_adjacency, target_representative, options.sides, report);
     sides_filter = options.side_matching && !report.region_matching && !result.target_sides.empty();
     if (sides_filter) {
       source_masks = source.side_masks;
@@ -964,8 +967,8 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   const double trust = options.refine_max_distance * report.target_diagonal;
   TargetPulls target_pulls;
   if (options.local_rounds > 0 && options.target_pulls) {
-    target_pulls = matchTargetPulls(source, result.warped_positions, *matched, source_face_labels, target_masks,
-                                    detached, report, options);
+    target_pulls = matchTargetPulls(source, result.warped_positions, *matched, result.target_adjacency,
+                                    source_face_labels, target_masks, detached, report, options);
     report.target_pulls = static_cast<int>(target_pulls.vertices.size());
   }
   for (int round = 0; round < options.local_rounds; ++round) {

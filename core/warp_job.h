@@ -267,6 +267,7 @@ struct WarpResult {
   // (PreparedSource::vertex_sides; openingSides); empty when no opening was
   // matched with its sides, or neither sides nor rims were matched.
   std::vector<int> target_sides;
+  VertexAdjacency target_adjacency;  // of the target's vertices (vertexAdjacency; split points apart)
   WarpReport report;
 };
 

@@ -76,10 +76,15 @@ TEST(OpeningSides, LaplacianCutAcrossSidesKeepsRowSumsZero) {
   triangles << 0, 3, 1, 1, 3, 4, 1, 4, 2, 2, 4, 5;
   const Eigen::SparseMatrix<double> laplacian = core::uniformLaplacian(triangles, 6, {});
   const std::vector<int> sides = {0, core::kBetweenSides, 0, 1, core::kBetweenSides, 1};
-  const Eigen::SparseMatrix<double> cut = core::cutAcrossSides(laplacian, sides);
-  EXPECT_EQ(cut.coeff(0, 3), 0.0);  // 0 - 3 crosses
-  EXPECT_EQ(cut.coeff(2, 4), -1.0); // 2 - 4 reaches the corner band: kept
+  Eigen::SparseMatrix<double> cut = laplacian;
+  core::cutAcrossSides(cut, sides);
+  EXPECT_EQ(cut.coeff(0, 3), 0.0);   // 0 - 3 crosses
+  EXPECT_EQ(cut.coeff(2, 4), -1.0);  // 2 - 4 reaches the corner band: kept
   EXPECT_EQ(cut.coeff(2, 5), 0.0);
+  // Nothing across: unchanged.
+  Eigen::SparseMatrix<double> open = laplacian;
+  core::cutAcrossSides(open, {0, 0, 0, core::kBetweenSides, core::kBetweenSides, core::kBetweenSides});
+  EXPECT_TRUE(open.isApprox(laplacian));
   const Eigen::VectorXd sums = cut * Eigen::VectorXd::Ones(6);
   EXPECT_LT(sums.cwiseAbs().maxCoeff(), 1e-12);
   EXPECT_EQ(cut.coeff(0, 0), laplacian.coeff(0, 0) - 1.0);

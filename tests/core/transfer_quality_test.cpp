@@ -32,7 +32,7 @@ const core::SyntheticRig& sagTarget() {
 }
 
 core::QualitySource qualitySource(const core::PreparedRig& source) {
-  return {source.surface.mesh.triangles, source.surface.adjacency, source.surface.vertex_sides, source.shape_sharpness};
+  return {source.surface.mesh.triangles, source.surface.adjacency, source.surface.vertex_sides, source.rig.morph_targets};
 }
 
 // The output's jawOpen with one lower-lip vertex's delta swapped with the
@@ -65,8 +65,8 @@ TEST(TransferQuality, AVertexGivenTheOtherLipsDeltaIsCaughtAndNamed) {
 
   auto warp = core::runWarp(preparedSource().surface, scan, rigport_test::tenLandmarks(target), "target");
   ASSERT_TRUE(warp) << warp.error().message;
-  const core::QualityReport report =
-      core::checkTransferQuality(scan, shapes, warp->locations, warp->target_sides, qualitySource(preparedSource()));
+  const core::QualityReport report = core::checkTransferQuality(scan, warp->target_adjacency, shapes, warp->locations,
+                                                                warp->target_sides, qualitySource(preparedSource()));
   EXPECT_FALSE(report.clean());
   ASSERT_EQ(report.shapes.size(), 1u);
   EXPECT_EQ(report.shapes[0].shape, "jawOpen");
@@ -90,16 +90,16 @@ TEST(TransferQuality, TheRigsOwnCreaseIsNotBlamedOnTheTransfer) {
   jaw.row(spike) = Eigen::RowVector3d(0.0, 0.02, 0.0);  // up, where the skin around does not move
   auto prepared = core::prepareRig(rig, touchingSource().landmarks, "creased");
   ASSERT_TRUE(prepared) << prepared.error().message;
-  ASSERT_FALSE(prepared->shape_sharpness.per_shape[0].empty());
   auto copy = core::transferRig(*prepared, rig.mesh, touchingSource().landmarks, "copy");
   ASSERT_TRUE(copy) << copy.error().message;
   EXPECT_NEAR(copy->rig.morph_targets[0].position_deltas(spike, 1), 0.02, 1e-6);
   EXPECT_TRUE(copy->report.quality.clean()) << copy->report.quality.summary();
-  // Judged without the source's sharpness, the same output is an outlier.
-  const core::ShapeSharpness none;
+  // Judged without the source's shapes, the same output is an outlier.
+  const std::vector<core::MorphTarget> none;
   const core::QualitySource blind{prepared->surface.mesh.triangles, prepared->surface.adjacency,
                                   prepared->surface.vertex_sides, none};
-  EXPECT_EQ(core::checkTransferQuality(rig.mesh, copy->rig.morph_targets, {}, {}, blind).summary(), "jawOpen (1 vertex)");
+  EXPECT_EQ(core::checkTransferQuality(rig.mesh, prepared->surface.adjacency, copy->rig.morph_targets, {}, {}, blind).summary(),
+            "jawOpen (1 vertex)");
 }
 
 // A target vertex on one side of an opening located on the other side's
@@ -120,7 +120,7 @@ TEST(TransferQuality, ALocationAcrossAnOpeningIsACrossing) {
     sp.face = face_of[static_cast<std::size_t>(v)];
     for (int k = 0; k < 3; ++k) sp.barycentric(k) = mesh.triangles(sp.face, k) == v ? 1.0 : 0.0;
   }
-  EXPECT_EQ(core::checkTransferQuality(mesh, {}, at, sides, qualitySource(source)).crossed_vertices, 0);
+  EXPECT_EQ(core::checkTransferQuality(mesh, source.surface.adjacency, {}, at, sides, qualitySource(source)).crossed_vertices, 0);
   // One vertex of one side put on a face whose corners are all on the other.
   Eigen::Index moved = -1, onto = -1;
   for (Eigen::Index v = 0; v < mesh.vertexCount() && moved < 0; ++v) {
@@ -134,7 +134,8 @@ TEST(TransferQuality, ALocationAcrossAnOpeningIsACrossing) {
   }
   ASSERT_GE(moved, 0);
   at.on_source[static_cast<std::size_t>(moved)].face = static_cast<int>(onto);
-  const core::QualityReport report = core::checkTransferQuality(mesh, {}, at, sides, qualitySource(source));
+  const core::QualityReport report =
+      core::checkTransferQuality(mesh, source.surface.adjacency, {}, at, sides, qualitySource(source));
   EXPECT_EQ(report.crossed_vertices, 1);
   EXPECT_EQ(report.per_vertex(moved), 1.0);
   EXPECT_EQ(report.summary(), "1 vertex located across an opening (the other lip or lid)");
