@@ -69,6 +69,39 @@ void edgeDistances(const VertexAdjacency& adjacency, const RowMatrixX3d& positio
   }
 }
 
+// The two vertices of `loop` farthest apart, as positions in it: exactly
+// for a rim of a face's size; for a longer one (a scan's ragged border, a
+// hostile file) by alternating farthest-point sweeps, so the cost stays
+// linear.
+std::array<int, 2> farthestApart(const std::vector<int>& loop, const Eigen::MatrixX3d& positions) {
+  constexpr std::size_t kExactUpTo = 2048;
+  std::array<int, 2> best{0, 0};
+  double widest = -1.0;
+  auto farthestFrom = [&](std::size_t a) {
+    std::size_t far = a;
+    double d_far = -1.0;
+    for (std::size_t b = 0; b < loop.size(); ++b) {
+      const double d = (positions.row(loop[a]) - positions.row(loop[b])).squaredNorm();
+      if (d > d_far) {
+        d_far = d;
+        far = b;
+      }
+    }
+    if (d_far > widest) {
+      widest = d_far;
+      best = {static_cast<int>(std::min(a, far)), static_cast<int>(std::max(a, far))};
+    }
+    return far;
+  };
+  if (loop.size() <= kExactUpTo) {
+    for (std::size_t a = 0; a < loop.size(); ++a) farthestFrom(a);
+  } else {
+    std::size_t a = 0;
+    for (int sweep = 0; sweep < 4; ++sweep) a = farthestFrom(a);
+  }
+  return best;
+}
+
 }  // namespace
 
 Opening openingAtCorners(const Rim& rim, int rim_index, const Eigen::MatrixX3d& positions,
@@ -111,17 +144,10 @@ std::vector<Opening> findOpenings(const Mesh& mesh, const std::vector<Rim>& rims
     if (!on_rim) continue;
     // The rim's own extent (its two vertices farthest apart) says how far
     // its landmarks may lie.
-    double widest = 0.0;
-    std::array<int, 2> across{0, 0};
-    for (std::size_t a = 0; a < rim.vertices.size(); ++a) {
-      for (std::size_t b = a + 1; b < rim.vertices.size(); ++b) {
-        const double d = (mesh.positions.row(rim.vertices[a]) - mesh.positions.row(rim.vertices[b])).squaredNorm();
-        if (d > widest) {
-          widest = d;
-          across = {static_cast<int>(a), static_cast<int>(b)};
-        }
-      }
-    }
+    const std::array<int, 2> across = farthestApart(rim.vertices, mesh.positions);
+    const double widest = (mesh.positions.row(rim.vertices[static_cast<std::size_t>(across[0])]) -
+                           mesh.positions.row(rim.vertices[static_cast<std::size_t>(across[1])]))
+                              .squaredNorm();
     Eigen::Matrix<double, 2, 3> anchors;
     for (int c = 0; c < 2; ++c) anchors.row(c) = mesh.positions.row(rim.vertices[static_cast<std::size_t>(across[static_cast<std::size_t>(c)])]);
     // The opening's landmarks: the rim vertices nearest the two farthest

@@ -1,6 +1,8 @@
 #include "core/opening_sides.h"
 
+#include <cmath>
 #include <limits>
+#include <numbers>
 #include <map>
 
 #include <gtest/gtest.h>
@@ -67,6 +69,33 @@ TEST(OpeningSides, LipsAndLidsOfAHeadTakeTheirOwnSide) {
     sided_lip_vertices += source.surface.vertex_sides[static_cast<std::size_t>(v)] >= 0 ? 1 : 0;
   }
   EXPECT_GT(sided_lip_vertices, lip_vertices / 2);
+}
+
+// A rim far longer than a face's (a scan's ragged border, a hostile file)
+// is split in linear time: a disc with a 20000-vertex rim and one landmark on
+// it is an opening as wide as the disc.
+TEST(OpeningSides, ALongRimIsSplitAcrossItsWidth) {
+  constexpr int n = 20000;
+  core::Mesh disc;
+  disc.positions.resize(n + 1, 3);
+  disc.triangles.resize(n, 3);
+  disc.positions.row(n).setZero();
+  for (int i = 0; i < n; ++i) {
+    const double a = 2.0 * std::numbers::pi * i / n;
+    disc.positions.row(i) << std::cos(a), 0.5 * std::sin(a), 0.0;  // an ellipse 2 wide
+    disc.triangles.row(i) << n, i, (i + 1) % n;
+  }
+  const std::vector<core::Rim> rims = core::meshRims(disc, {});
+  ASSERT_EQ(rims.size(), 1u);
+  Eigen::MatrixX3d landmark(1, 3);
+  landmark << 0.0, 0.5, 0.0;
+  const std::vector<core::Opening> openings = core::findOpenings(disc, rims, landmark);
+  ASSERT_EQ(openings.size(), 1u);
+  EXPECT_NEAR(openings[0].width, 2.0, 1e-6);
+  const std::vector<int> sides =
+      core::openingSides(disc, core::vertexAdjacency(disc.triangles, disc.vertexCount()), {}, rims, openings);
+  EXPECT_EQ(sides[static_cast<std::size_t>(n / 4)] / 2, 0);  // the top of the ellipse: a side of opening 0
+  EXPECT_TRUE(core::oppositeSides(sides[static_cast<std::size_t>(n / 4)], sides[static_cast<std::size_t>(3 * n / 4)]));
 }
 
 TEST(OpeningSides, LaplacianCutAcrossSidesKeepsRowSumsZero) {
