@@ -50,6 +50,12 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
       {"slide_centres", &WarpOptions::slide_centres},     {"target_pulls", &WarpOptions::target_pulls},
       {"smooth_guide", &WarpOptions::smooth_guide},       {"rim_location", &WarpOptions::rim_location},
       {"side_matching", &WarpOptions::side_matching}};
+  // The transfer's own on/off switches.
+  static const std::map<std::string, bool TransferOptions::*> kTransferSwitches = {
+      {"uvs", &TransferOptions::uvs},
+      {"diagnostic_attributes", &TransferOptions::diagnostic_attributes},
+      {"strict", &TransferOptions::strict},
+      {"repair_unsure", &TransferOptions::repair_unsure}};
   TransferSettings s;
   TransferOptions& t = s.transfer;
   for (const auto& [key, value] : doc.items()) {
@@ -66,22 +72,10 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
         if (!b) return b.error();
         *it->second = *b;
       }
-    } else if (key == "uvs") {
+    } else if (const auto flag = kTransferSwitches.find(key); flag != kTransferSwitches.end()) {
       auto b = boolean(value, where);
       if (!b) return b.error();
-      t.uvs = *b;
-    } else if (key == "diagnostic_attributes") {
-      auto b = boolean(value, where);
-      if (!b) return b.error();
-      t.diagnostic_attributes = *b;
-    } else if (key == "strict") {
-      auto b = boolean(value, where);
-      if (!b) return b.error();
-      t.strict = *b;
-    } else if (key == "repair_unsure") {
-      auto b = boolean(value, where);
-      if (!b) return b.error();
-      t.repair_unsure = *b;
+      t.*(flag->second) = *b;
     } else if (key == "max_influences") {
       auto x = number(value, where, 1, 8);
       if (!x) return x.error();

@@ -166,6 +166,28 @@ core::SyntheticRig sagMouth(core::SyntheticRig head, double depth) {
   return head;
 }
 
+const core::SyntheticRig& touchingLipsSource() {
+  static const core::SyntheticRig rig = pressLips(core::generateRig({}, core::HeadResolution{96, 88}));
+  return rig;
+}
+
+const core::PreparedRig& preparedTouchingLipsSource() {
+  static const core::PreparedRig prepared = [] {
+    auto p = core::prepareRig(touchingLipsSource().rig, touchingLipsSource().landmarks, "source");
+    EXPECT_TRUE(p) << (p ? "" : p.error().message);
+    return std::move(*p);
+  }();
+  return prepared;
+}
+
+const core::SyntheticRig& saggingMouthTarget() {
+  static const core::SyntheticRig target = [] {
+    const core::HeadResolution res{.columns = 84, .rows = 80, .alternate_diagonals = true, .jitter = 0.2, .seed = 4};
+    return sagMouth(pressLips(core::generateRig(core::randomHeadShape(4, 0.15), res)), 0.3);
+  }();
+  return target;
+}
+
 core::LandmarkSet tenLandmarks(const core::SyntheticRig& head) {
   core::LandmarkSet ten;
   for (const char* name : {"eye_right_0", "eye_right_3", "eye_left_0", "eye_left_3", "nose_bridge_3", "nose_base_0",

@@ -11,6 +11,7 @@
 
 #include "core/rig.h"
 #include "core/synthetic_rig.h"
+#include "core/transfer.h"
 
 namespace rigport_test {
 
@@ -69,6 +70,14 @@ core::SyntheticRig pressLips(core::SyntheticRig head);
 // mouth's width (a smile's corners): a warp pinned at the mouth corners lays
 // another face's upper lip over its lower one.
 core::SyntheticRig sagMouth(core::SyntheticRig head, double depth);
+
+// The generated rig with its lips pressed (96 x 88 cells), and a target of
+// other proportions and topology (84 x 80, alternating diagonals, jittered)
+// with its lips pressed and its mouth sagging by 0.3 of its width, whose
+// lips a warp on 10 landmarks lays across each other: the lip tests' pair.
+const core::SyntheticRig& touchingLipsSource();
+const core::PreparedRig& preparedTouchingLipsSource();  // prepareRig of it, once
+const core::SyntheticRig& saggingMouthTarget();
 
 // The 10 landmarks of a sparse target (eye and mouth corners, nose tip and
 // wings, chin) of a generated head, as positions.

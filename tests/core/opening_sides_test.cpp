@@ -15,35 +15,10 @@
 
 namespace {
 
-
-const core::SyntheticRig& touchingSource() {
-  static const core::SyntheticRig rig = rigport_test::pressLips(core::generateRig({}, core::HeadResolution{96, 88}));
-  return rig;
-}
-
-const core::PreparedRig& preparedTouchingSource() {
-  static const core::PreparedRig prepared = [] {
-    auto p = core::prepareRig(touchingSource().rig, touchingSource().landmarks, "source");
-    EXPECT_TRUE(p) << (p ? "" : p.error().message);
-    return std::move(*p);
-  }();
-  return prepared;
-}
-
-// Another head with touching lips, other proportions and topology, and a
-// mouth that sags in the middle by 0.3 of its width.
-const core::SyntheticRig& touchingTarget() {
-  static const core::SyntheticRig target = [] {
-    const core::HeadResolution res{.columns = 84, .rows = 80, .alternate_diagonals = true, .jitter = 0.2, .seed = 4};
-    return rigport_test::sagMouth(rigport_test::pressLips(core::generateRig(core::randomHeadShape(4, 0.15), res)), 0.3);
-  }();
-  return target;
-}
-
 TEST(OpeningSides, LipsAndLidsOfAHeadTakeTheirOwnSide) {
-  const core::PreparedRig& source = preparedTouchingSource();
+  const core::PreparedRig& source = rigport_test::preparedTouchingLipsSource();
   ASSERT_EQ(source.surface.openings.size(), 3u);  // the mouth and the two eyes, not the neck or the back
-  const Eigen::VectorXi& truth = touchingSource().rig.attributes.labels.at("REGION");
+  const Eigen::VectorXi& truth = rigport_test::touchingLipsSource().rig.attributes.labels.at("REGION");
   // A painted lip or lid takes one side of its opening (per eye for the lids,
   // which one region paints on both), never both; most of the lips have one.
   std::map<int, std::map<int, int>> sides_of_region;
@@ -124,7 +99,7 @@ TEST(OpeningSides, LaplacianCutAcrossSidesKeepsRowSumsZero) {
 // labels (which, on both meshes, take the sides' place). Without the sides
 // and the repair (the papers' matching) the same case does cross.
 TEST(OpeningSides, TouchingLipsNeverTradeDeltasOrWeights) {
-  const core::SyntheticRig& target = touchingTarget();
+  const core::SyntheticRig& target = rigport_test::saggingMouthTarget();
   const Eigen::VectorXi& truth = target.rig.attributes.labels.at("REGION");
   const core::LandmarkSet landmarks = rigport_test::tenLandmarks(target);
   // The target's own rig (the generator's jawOpen and jaw weights) is what
@@ -160,7 +135,7 @@ TEST(OpeningSides, TouchingLipsNeverTradeDeltasOrWeights) {
   for (const bool labelled : {false, true}) {
     core::Mesh mesh = target.rig.mesh;
     if (!labelled) mesh.regions.resize(0);
-    auto result = core::transferRig(preparedTouchingSource(), mesh, landmarks, labelled ? "labelled" : "scan");
+    auto result = core::transferRig(rigport_test::preparedTouchingLipsSource(), mesh, landmarks, labelled ? "labelled" : "scan");
     ASSERT_TRUE(result) << result.error().message;
     EXPECT_EQ(result->report.warp.region_matching, labelled);
     EXPECT_EQ(result->report.warp.sided_openings, 3);
@@ -187,7 +162,7 @@ TEST(OpeningSides, TouchingLipsNeverTradeDeltasOrWeights) {
   plain.warp.locate.max_relative_distance = 0.0;
   plain.warp.projection.max_normal_angle_deg = 180.0;
   plain.repair_unsure = false;
-  auto crossed = core::transferRig(preparedTouchingSource(), scan, landmarks, "scan", plain);
+  auto crossed = core::transferRig(rigport_test::preparedTouchingLipsSource(), scan, landmarks, "scan", plain);
   ASSERT_TRUE(crossed) << crossed.error().message;
   const Crossings c = crossings(crossed->rig);
   EXPECT_GT(c.deltas, 0);

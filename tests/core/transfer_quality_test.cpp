@@ -9,28 +9,6 @@
 
 namespace {
 
-const core::SyntheticRig& touchingSource() {
-  static const core::SyntheticRig rig = rigport_test::pressLips(core::generateRig({}, core::HeadResolution{96, 88}));
-  return rig;
-}
-
-const core::PreparedRig& preparedSource() {
-  static const core::PreparedRig prepared = [] {
-    auto p = core::prepareRig(touchingSource().rig, touchingSource().landmarks, "source");
-    EXPECT_TRUE(p) << (p ? "" : p.error().message);
-    return std::move(*p);
-  }();
-  return prepared;
-}
-
-const core::SyntheticRig& sagTarget() {
-  static const core::SyntheticRig target = [] {
-    const core::HeadResolution res{.columns = 84, .rows = 80, .alternate_diagonals = true, .jitter = 0.2, .seed = 4};
-    return rigport_test::sagMouth(rigport_test::pressLips(core::generateRig(core::randomHeadShape(4, 0.15), res)), 0.3);
-  }();
-  return target;
-}
-
 core::QualitySource qualitySource(const core::PreparedRig& source) {
   return {source.surface.mesh.triangles, source.surface.adjacency, source.surface.vertex_sides, source.rig.morph_targets};
 }
@@ -38,10 +16,10 @@ core::QualitySource qualitySource(const core::PreparedRig& source) {
 // The output's jawOpen with one lower-lip vertex's delta swapped with the
 // nearest upper-lip vertex's (a lip vertex left behind: a fang, and its twin).
 TEST(TransferQuality, AVertexGivenTheOtherLipsDeltaIsCaughtAndNamed) {
-  const core::SyntheticRig& target = sagTarget();
+  const core::SyntheticRig& target = rigport_test::saggingMouthTarget();
   core::Mesh scan = target.rig.mesh;
   scan.regions.resize(0);
-  auto result = core::transferRig(preparedSource(), scan, rigport_test::tenLandmarks(target), "target");
+  auto result = core::transferRig(rigport_test::preparedTouchingLipsSource(), scan, rigport_test::tenLandmarks(target), "target");
   ASSERT_TRUE(result) << result.error().message;
   ASSERT_TRUE(result->report.quality.clean()) << result->report.quality.summary();
   EXPECT_EQ(result->report.quality.per_vertex.size(), scan.vertexCount());
@@ -63,10 +41,10 @@ TEST(TransferQuality, AVertexGivenTheOtherLipsDeltaIsCaughtAndNamed) {
   ASSERT_GE(upper, 0);
   jaw.row(lower).swap(jaw.row(upper));
 
-  auto warp = core::runWarp(preparedSource().surface, scan, rigport_test::tenLandmarks(target), "target");
+  auto warp = core::runWarp(rigport_test::preparedTouchingLipsSource().surface, scan, rigport_test::tenLandmarks(target), "target");
   ASSERT_TRUE(warp) << warp.error().message;
   const core::QualityReport report = core::checkTransferQuality(scan, warp->target_adjacency, shapes, warp->locations,
-                                                                warp->target_sides, qualitySource(preparedSource()));
+                                                                warp->target_sides, qualitySource(rigport_test::preparedTouchingLipsSource()));
   EXPECT_FALSE(report.clean());
   ASSERT_EQ(report.shapes.size(), 1u);
   EXPECT_EQ(report.shapes[0].shape, "jawOpen");
@@ -84,13 +62,13 @@ TEST(TransferQuality, AVertexGivenTheOtherLipsDeltaIsCaughtAndNamed) {
 // vertex moving as none of its ring does, carried onto a copy of the source,
 // is judged against the source.
 TEST(TransferQuality, TheRigsOwnCreaseIsNotBlamedOnTheTransfer) {
-  core::Rig rig = touchingSource().rig;
+  core::Rig rig = rigport_test::touchingLipsSource().rig;
   Eigen::MatrixX3d& jaw = rig.morph_targets[0].position_deltas;
   const Eigen::Index spike = 1000;
   jaw.row(spike) = Eigen::RowVector3d(0.0, 0.02, 0.0);  // up, where the skin around does not move
-  auto prepared = core::prepareRig(rig, touchingSource().landmarks, "creased");
+  auto prepared = core::prepareRig(rig, rigport_test::touchingLipsSource().landmarks, "creased");
   ASSERT_TRUE(prepared) << prepared.error().message;
-  auto copy = core::transferRig(*prepared, rig.mesh, touchingSource().landmarks, "copy");
+  auto copy = core::transferRig(*prepared, rig.mesh, rigport_test::touchingLipsSource().landmarks, "copy");
   ASSERT_TRUE(copy) << copy.error().message;
   EXPECT_NEAR(copy->rig.morph_targets[0].position_deltas(spike, 1), 0.02, 1e-6);
   EXPECT_TRUE(copy->report.quality.clean()) << copy->report.quality.summary();
@@ -105,7 +83,7 @@ TEST(TransferQuality, TheRigsOwnCreaseIsNotBlamedOnTheTransfer) {
 // A target vertex on one side of an opening located on the other side's
 // faces is a crossing.
 TEST(TransferQuality, ALocationAcrossAnOpeningIsACrossing) {
-  const core::PreparedRig& source = preparedSource();
+  const core::PreparedRig& source = rigport_test::preparedTouchingLipsSource();
   const core::Mesh& mesh = source.surface.mesh;
   const std::vector<int>& sides = source.surface.vertex_sides;
   // A copy of the source located on itself, vertex by vertex.
@@ -145,14 +123,14 @@ TEST(TransferQuality, ALocationAcrossAnOpeningIsACrossing) {
 // that lips cross) fails, naming the shapes; without strict it succeeds and
 // says so in its warnings.
 TEST(TransferQuality, StrictFailsATransferThatFailsItsCheck) {
-  const core::SyntheticRig& target = sagTarget();
+  const core::SyntheticRig& target = rigport_test::saggingMouthTarget();
   core::Mesh scan = target.rig.mesh;
   scan.regions.resize(0);
   core::TransferOptions crossing;
   crossing.warp.side_matching = false;
   crossing.repair_unsure = false;
   crossing.diagnostic_attributes = true;
-  auto warned = core::transferRig(preparedSource(), scan, rigport_test::tenLandmarks(target), "sag.glb", crossing);
+  auto warned = core::transferRig(rigport_test::preparedTouchingLipsSource(), scan, rigport_test::tenLandmarks(target), "sag.glb", crossing);
   ASSERT_TRUE(warned) << warned.error().message;
   ASSERT_FALSE(warned->report.quality.clean());
   // The output carries the check per vertex (_QUALITY), and is valid glTF.
@@ -168,7 +146,7 @@ TEST(TransferQuality, StrictFailsATransferThatFailsItsCheck) {
   EXPECT_EQ(warned->report.warnings.back(), "sag.glb: unsure vertices, check them before use: " + summary);
 
   crossing.strict = true;
-  auto failed = core::transferRig(preparedSource(), scan, rigport_test::tenLandmarks(target), "sag.glb", crossing);
+  auto failed = core::transferRig(rigport_test::preparedTouchingLipsSource(), scan, rigport_test::tenLandmarks(target), "sag.glb", crossing);
   ASSERT_FALSE(failed);
   EXPECT_EQ(failed.error().code, core::ErrorCode::kQualityGate);
   EXPECT_EQ(failed.error().message, "sag.glb: the transfer failed its quality check (strict): " + summary);
@@ -176,7 +154,7 @@ TEST(TransferQuality, StrictFailsATransferThatFailsItsCheck) {
   // With the sides (and the repair) the same target passes strict.
   core::TransferOptions strict;
   strict.strict = true;
-  EXPECT_TRUE(core::transferRig(preparedSource(), scan, rigport_test::tenLandmarks(target), "sag.glb", strict));
+  EXPECT_TRUE(core::transferRig(rigport_test::preparedTouchingLipsSource(), scan, rigport_test::tenLandmarks(target), "sag.glb", strict));
 }
 
 }  // namespace

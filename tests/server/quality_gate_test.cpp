@@ -38,11 +38,10 @@ TransferFiles writeCrossingFiles(const std::filesystem::path& dir) {
   std::filesystem::create_directories(dir);
   TransferFiles f{dir / "touching_rig.glb", dir / "touching_rig.landmarks.json", dir / "sagging.glb",
                   dir / "sagging.landmarks.json"};
-  const core::SyntheticRig rig = pressLips(core::generateRig({}, core::HeadResolution{96, 88}));
+  const core::SyntheticRig& rig = touchingLipsSource();
   EXPECT_TRUE(core::writeRigGlb(rig.rig, f.rig).ok());
   writeFile(f.landmarks, core::formatLandmarks(rig.landmarks));
-  const core::HeadResolution res{.columns = 84, .rows = 80, .alternate_diagonals = true, .jitter = 0.2, .seed = 4};
-  const core::SyntheticRig target = sagMouth(pressLips(core::generateRig(core::randomHeadShape(4, 0.15), res)), 0.3);
+  const core::SyntheticRig& target = saggingMouthTarget();
   core::Mesh scan = target.rig.mesh;
   scan.regions.resize(0);
   EXPECT_TRUE(core::writeMeshGlb(scan, f.target).ok());
