@@ -1,7 +1,5 @@
 #include "core/warp_job.h"
 
-#include "core/similarity.h"
-
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -12,6 +10,8 @@
 #include <numeric>
 
 #include <Eigen/Geometry>
+
+#include "core/similarity.h"
 
 namespace core {
 
@@ -518,7 +518,8 @@ std::size_t PreparedSource::memoryBytes() const {
   bytes += static_cast<std::size_t>(dense_centres.size() + landmark_positions.size()) * sizeof(double);
   bytes += landmark_vertices.size() * sizeof(int);
   bytes += (adjacency.offsets.size() + adjacency.indices.size() + projection_sample.size()) * sizeof(int);
-  bytes += (face_regions.size() + region_bits.size()) * sizeof(std::uint64_t);
+  bytes += (face_regions.size() + region_bits.size() + side_masks.size() + side_face_sets.size()) * sizeof(std::uint64_t);
+  bytes += vertex_sides.size() * sizeof(int) + openings.size() * sizeof(Opening);
   bytes += rim_vertices.rim.size() * sizeof(int) + static_cast<std::size_t>(rim_vertices.tangent.size()) * sizeof(double);
   for (const Rim& rim : rims) bytes += rim.vertices.size() * 4 * sizeof(int);
   bytes += static_cast<std::size_t>(mesh.regions.size()) * sizeof(int);
@@ -819,8 +820,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   }
   std::vector<int> rim_match(source.rims.size(), -1);
   // The source's rim vertices as the landmarks warp them (the only rows
-  // matchRims, pairRimPoints and the openings read; the others keep source
-  // positions).
+  // matchRims and pairRimPoints read; the others keep source positions).
   Eigen::MatrixX3d rims_warped;
   if ((options.rim_matching || sides_wanted) && !source.rims.empty()) {
     rims_warped = source.mesh.positions;
