@@ -196,10 +196,25 @@ Parsed<RigPage> rigPageFromJson(const json& j) {
 }
 
 Parsed<json> parseJsonText(const std::string& text, const std::string& label) {
+  // Nesting capped while parsing (nlohmann's parser is iterative; copies and
+  // dumps of what it builds recurse once per level: 100,000 levels of
+  // spec.options overflowed a server thread's stack). The rule of core's
+  // readers (core/json_text.h), which api does not include.
+  struct TooDeep {};
   try {
-    return json::parse(text);
+    return json::parse(text, [](int depth, json::parse_event_t event, json&) {
+      if ((event == json::parse_event_t::object_start || event == json::parse_event_t::array_start) &&
+          depth >= kMaxJsonDepth) {
+        throw TooDeep{};
+      }
+      return true;
+    });
+  } catch (const TooDeep&) {
+    return label + ": JSON nested deeper than " + std::to_string(kMaxJsonDepth) + " levels";
   } catch (const json::parse_error& e) {
     return label + ": not valid JSON (byte " + std::to_string(e.byte) + ")";
+  } catch (const json::exception& e) {  // a number out of range (1e400) and the like
+    return label + ": not valid JSON (" + e.what() + ")";
   }
 }
 

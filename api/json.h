@@ -31,6 +31,12 @@ Parsed<JobPage> jobPageFromJson(const nlohmann::json& json);
 Parsed<RigPage> rigPageFromJson(const nlohmann::json& json);
 
 // Parses text; errors name `label` ("spec: not valid JSON at byte 12").
+// Deepest nesting of arrays and objects accepted in JSON from a client (as
+// core's readers accept in files).
+inline constexpr int kMaxJsonDepth = 64;
+
+// Parses untrusted JSON text: malformed, nested deeper than kMaxJsonDepth or
+// holding a number out of range is an error message starting with `label`.
 Parsed<nlohmann::json> parseJsonText(const std::string& text, const std::string& label);
 
 }  // namespace api

@@ -38,6 +38,7 @@
 #include <Eigen/SVD>
 #include <nlohmann/json.hpp>
 
+#include "core/json_text.h"
 #include "core/mesh_io.h"
 #include "core/rig_io.h"
 
@@ -155,8 +156,9 @@ std::size_t jsonUnsigned(const nlohmann::json& object, const char* key, std::siz
 // offset unchecked, so the range is checked here against the declared
 // byteLength (tinygltf sizes every buffer to exactly its byteLength).
 Status checkJsonBeforeTinygltf(std::string_view json_text, const std::string& label, bool allow_external) {
-  nlohmann::json doc = nlohmann::json::parse(json_text.begin(), json_text.end(), nullptr, /*allow_exceptions=*/false);
-  if (doc.is_discarded()) return parseError(label, "the glTF JSON is malformed");
+  auto parsed = parseJsonText(json_text, label, "glTF JSON");
+  if (!parsed) return parsed.error();
+  const nlohmann::json& doc = *parsed;
   if (!doc.is_object()) return parseError(label, "the glTF JSON is not an object");
 
   std::vector<std::size_t> buffer_lengths;

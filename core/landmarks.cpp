@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/closest_point.h"
+#include "core/json_text.h"
 #include "core/mesh_io.h"
 
 namespace core {
@@ -46,12 +47,9 @@ Result<Eigen::Vector3d> readVec3(const nlohmann::json& value, const std::string&
 }  // namespace
 
 Result<LandmarkSet> parseLandmarks(std::string_view json_text, const std::string& label) {
-  nlohmann::json doc;
-  try {
-    doc = nlohmann::json::parse(json_text.begin(), json_text.end());
-  } catch (const nlohmann::json::parse_error& e) {
-    return makeError(ErrorCode::kParse, label + ": not valid JSON (" + e.what() + ")");
-  }
+  auto parsed = parseJsonText(json_text, label);
+  if (!parsed) return parsed.error();
+  const nlohmann::json& doc = *parsed;
   if (!doc.is_object() || !doc.contains("landmarks") || !doc["landmarks"].is_array()) {
     return makeError(ErrorCode::kInvalidLandmarks, label + ": expected an object with a 'landmarks' array");
   }

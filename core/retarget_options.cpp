@@ -2,6 +2,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/json_text.h"
+
 namespace core {
 
 std::optional<DistanceMethod> parseDistanceMethod(std::string_view name) {
@@ -20,8 +22,9 @@ std::optional<RbfKernel> parseRbfKernel(std::string_view name) {
 }
 
 Result<RetargetSettings> parseRetargetOptions(const std::string& text, const std::string& label) {
-  const nlohmann::json doc = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
-  if (doc.is_discarded()) return makeError(ErrorCode::kParse, label + ": not valid JSON");
+  auto parsed = parseJsonText(text, label);
+  if (!parsed) return parsed.error();
+  const nlohmann::json& doc = *parsed;
   if (!doc.is_object()) return makeError(ErrorCode::kInvalidArgument, label + ": expected a JSON object");
   RetargetSettings s;
   for (const auto& [key, value] : doc.items()) {
@@ -66,8 +69,9 @@ Result<RetargetSettings> parseRetargetOptions(const std::string& text, const std
 }
 
 Result<std::map<std::string, double>> parseStiffness(const std::string& text, const std::string& label) {
-  const nlohmann::json doc = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
-  if (doc.is_discarded()) return makeError(ErrorCode::kParse, label + ": not valid JSON");
+  auto parsed = parseJsonText(text, label);
+  if (!parsed) return parsed.error();
+  const nlohmann::json& doc = *parsed;
   if (!doc.is_object()) return makeError(ErrorCode::kParse, label + ": expected an object {\"marker\": 1-9}");
   std::map<std::string, double> out;
   for (const auto& [name, value] : doc.items()) {

@@ -5,6 +5,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/json_text.h"
+
 namespace core {
 
 namespace {
@@ -37,12 +39,9 @@ Status gains(const nlohmann::json& v, const std::string& where, std::map<std::st
 }  // namespace
 
 Result<TransferSettings> parseTransferOptions(const std::string& text, const std::string& label) {
-  nlohmann::json doc;
-  try {
-    doc = nlohmann::json::parse(text);
-  } catch (const nlohmann::json::parse_error& e) {
-    return makeError(ErrorCode::kParse, label + ": not valid JSON (" + e.what() + ")");
-  }
+  auto parsed = parseJsonText(text, label);
+  if (!parsed) return parsed.error();
+  const nlohmann::json& doc = *parsed;
   if (!doc.is_object()) return makeError(ErrorCode::kInvalidArgument, label + ": expected a JSON object");
   // The warp's on/off switches, by their JSON key.
   static const std::map<std::string, bool WarpOptions::*> kWarpSwitches = {

@@ -4,6 +4,7 @@
 #include <chrono>
 
 #include "api/content_id.h"
+#include "api/json.h"
 #include "core/diagnostics_json.h"
 #include "core/landmarks.h"
 #include "core/mesh_io.h"
@@ -86,8 +87,11 @@ std::variant<api::RigInfo, api::Problem> checkRigUpload(Bytes rig_bytes, const s
   for (const auto& l : landmarks->landmarks) names.push_back(l.name);
   if (auto ok = core::checkTpsCentres(*positions, {}, names); !ok) return problemFromCoreError(ok.error(), "/v1/rigs");
   if (components) {
-    const auto json = nlohmann::json::parse(asText(*components), nullptr, /*allow_exceptions=*/false);
-    if (json.is_discarded() || !json.is_object()) {
+    auto json = api::parseJsonText(std::string(asText(*components)), "components");
+    if (std::holds_alternative<std::string>(json)) {
+      return api::makeProblem(api::WireError::kMalformedFile, std::get<std::string>(json), "/v1/rigs");
+    }
+    if (!std::get<nlohmann::json>(json).is_object()) {
       return api::makeProblem(api::WireError::kMalformedFile, "components: expected a JSON object", "/v1/rigs");
     }
   }

@@ -42,13 +42,11 @@ inline void appendLe32(ByteVector& out, std::uint32_t v) {
   for (int i = 0; i < 4; ++i) out.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
 }
 
-// GLB container around a JSON document and a BIN chunk (both padded to 4).
-inline ByteVector makeGlb(const json& doc, ByteVector bin) {
-  std::string text = doc.dump();
+// GLB container around JSON text and a BIN chunk (both padded to 4).
+inline ByteVector makeGlbFromText(std::string text, ByteVector bin) {
   while (text.size() % 4 != 0) text += ' ';
   while (bin.size() % 4 != 0) bin.push_back(0);
-  ByteVector out;
-  out.insert(out.end(), {'g', 'l', 'T', 'F'});
+  ByteVector out = {'g', 'l', 'T', 'F'};
   appendLe32(out, 2);
   appendLe32(out, static_cast<std::uint32_t>(12 + 8 + text.size() + (bin.empty() ? 0 : 8 + bin.size())));
   appendLe32(out, static_cast<std::uint32_t>(text.size()));
@@ -61,6 +59,9 @@ inline ByteVector makeGlb(const json& doc, ByteVector bin) {
   }
   return out;
 }
+
+// GLB container around a JSON document and a BIN chunk.
+inline ByteVector makeGlb(const json& doc, ByteVector bin) { return makeGlbFromText(doc.dump(), std::move(bin)); }
 
 // Splits a GLB into its JSON and BIN chunks (for mutation tests).
 inline std::pair<json, ByteVector> splitGlb(const ByteVector& glb) {

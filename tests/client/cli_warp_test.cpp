@@ -2,6 +2,7 @@
 // --plain, --refine, --local-rounds) reach the warp, shown by the diagnostics
 // it writes, and contradictory flags are refused.
 #include <cstdlib>
+#include <fstream>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -75,6 +76,28 @@ TEST(CliWarp, PipelineFlagsReachTheWarp) {
   EXPECT_NE(runWarp(files, dir, "--light --plain").exit_code, 0);
   EXPECT_NE(runWarp(files, dir, "--light --refine 1").exit_code, 0);
   EXPECT_NE(runWarp(files, dir, "--plain --local-rounds 2").exit_code, 0);
+}
+
+// Untrusted JSON the CLI reads (an options file with a number out of range,
+// or nested past any use): a clear error and exit 1, not an abort.
+TEST(CliTransfer, HostileOptionsFilesAreErrorsNotAborts) {
+  const auto dir = rigport_test::makeTempDir("cli_hostile");
+  const rigport_test::TransferFiles files = rigport_test::writeTransferFiles(dir);
+  const std::filesystem::path options = dir / "opts.json", log = dir / "log.txt";
+  for (const std::string& text : {std::string(R"({"exaggeration": 1e400})"), std::string(100000, '[') + std::string(100000, ']')}) {
+    std::ofstream(options, std::ios::binary) << text;
+    const std::string cmd = std::string("'") + RIGPORT_CLI_PATH + "' transfer --source '" + files.rig.string() +
+                            "' --source-landmarks '" + files.landmarks.string() + "' --target '" +
+                            files.target.string() + "' --target-landmarks '" + files.target_landmarks.string() +
+                            "' -o '" + (dir / "out.glb").string() + "' --options '" + options.string() + "' > '" +
+                            log.string() + "' 2>&1";
+    const int status = std::system(cmd.c_str());
+    ASSERT_TRUE(WIFEXITED(status)) << cmd;
+    EXPECT_EQ(WEXITSTATUS(status), 1);
+    std::ifstream in(log);
+    const std::string output((std::istreambuf_iterator<char>(in)), {});
+    EXPECT_NE(output.find("opts.json: "), std::string::npos) << output;
+  }
 }
 
 }  // namespace

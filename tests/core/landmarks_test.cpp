@@ -63,7 +63,13 @@ TEST(Landmarks, RejectsMalformedEntriesNamingThem) {
   expectError(R"({"landmarks":[{"name":"a","face":0}]})", "needs 'barycentric'");
   expectError(R"({"landmarks":[{"name":"nose","face":0,"barycentric":[0.5,0.5,0.5]}]})", "sum to 1");
   expectError(R"({"landmarks":[{"name":"nose","face":0,"barycentric":[1.5,-0.5,0]}]})", "('nose')");
+  // Untrusted text that would crash a recursive reader, or a number out of
+  // range: errors naming the file, not an abort.
+  expectError(std::string(100000, '[') + std::string(100000, ']'), "JSON nested deeper than 64 levels");
+  expectError(R"({"landmarks":[{"name":"a","position":[1e400,0,0]}]})", "not valid JSON");
+  expectError(std::string(64, '[') + std::string(64, ']'), "'landmarks' array");  // 64 levels: parsed, then refused
 }
+
 
 TEST(Landmarks, ResolvesOnTheMeshAndRejectsOutOfRangeOrOffMesh) {
   const core::Mesh mesh = unitTetrahedron();

@@ -512,7 +512,7 @@ TEST(GltfRead, RejectsCompressedGeometryExtensions) {
 TEST(GltfRead, BrokenContainersAndHierarchiesGiveCleanErrors) {
   EXPECT_READ_ERROR(core::readGltf(toBytes("glTF"), "a.glb", true), ErrorCode::kParse, "a.glb", "truncated GLB");
   EXPECT_READ_ERROR(core::readGltf(toBytes("{\"asset\": "), "a.gltf", false), ErrorCode::kParse, "a.gltf",
-                    "malformed");
+                    "not valid glTF JSON");
   EXPECT_READ_ERROR(core::readGltf(toBytes("PK\x03\x04 not a glb at all"), "a.glb", true), ErrorCode::kParse, "a.glb",
                     "not a binary glTF");
   GltfBuilder b = oneTriangle();

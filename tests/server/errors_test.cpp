@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/gltf_builder.h"
 #include "tests/server/service_fixture.h"
 #include "tests/test_support.h"
 
@@ -120,6 +121,39 @@ TEST_F(ServiceErrors, UnusableFilesAre400Or422NamingTheFile) {
   const Reply r = postParts(*client_, "/v1/rigs", rig);
   EXPECT_EQ(r.status, 422) << r.raw;
   EXPECT_EQ(r.content_type, "application/problem+json");
+}
+
+// Nesting that would overflow a thread's stack in a recursive copy or
+// conversion (spec.options 100,000 deep; glTF extras 20,000 deep), and
+// numbers out of range, are refused naming the part and the depth; the
+// server keeps serving (TearDown).
+TEST_F(ServiceErrors, DeepJsonAndHugeNumbersAre400NamingThePart) {
+  const std::string deep_options = std::string(100000, '[') + std::string(100000, ']');
+  expectProblem(postParts(*client_, "/v1/jobs", jobParts(spec(deep_options))), 400, "malformed-request",
+                "spec: JSON nested deeper than 64 levels");
+  expectProblem(postParts(*client_, "/v1/jobs", jobParts(spec(R"({"exaggeration": 1e400})"))), 400, "malformed-request",
+                "spec: not valid JSON");
+  auto parts = jobParts(spec());
+  parts[2] = {"target_landmarks", R"({"landmarks":[{"name":"nose_tip","position":[1e400,0,0]}]})", "huge.json",
+              "application/json"};
+  expectProblem(postParts(*client_, "/v1/jobs", parts), 400, "malformed-file", "target_landmarks: not valid JSON");
+  parts = jobParts(spec());
+  parts[2] = {"target_landmarks", std::string(20000, '[') + std::string(20000, ']'), "deep.json", "application/json"};
+  expectProblem(postParts(*client_, "/v1/jobs", parts), 400, "malformed-file",
+                "target_landmarks: JSON nested deeper than 64 levels");
+  // A target GLB whose glTF JSON nests extras 20,000 deep.
+  const std::string glb = fileText(files_.target);
+  auto split = gltf::splitGlb(gltf::ByteVector(glb.begin(), glb.end()));
+  std::string text = split.first.dump();
+  text.insert(text.size() - 1, std::string(R"(,"extras":)") + std::string(20000, '[') + std::string(20000, ']'));
+  const gltf::ByteVector deep_glb = gltf::makeGlbFromText(text, split.second);
+  parts = jobParts(spec());
+  parts[1] = {"target", std::string(deep_glb.begin(), deep_glb.end()), "deep.glb", "model/gltf-binary"};
+  expectProblem(postParts(*client_, "/v1/jobs", parts), 400, "malformed-file", "target 'deep.glb': glTF JSON nested deeper than 64 levels");
+  httplib::MultipartFormDataItems rig = {
+      {"rig", std::string(deep_glb.begin(), deep_glb.end()), "deep_rig.glb", "model/gltf-binary"},
+      {"landmarks", fileText(files_.landmarks), "l.json", "application/json"}};
+  expectProblem(postParts(*client_, "/v1/rigs", rig), 400, "malformed-file", "deep_rig.glb");
 }
 
 TEST_F(ServiceErrors, OversizedMeshesAre413) {
