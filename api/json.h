@@ -3,6 +3,7 @@
 #pragma once
 
 #include <string>
+#include <string_view>
 #include <variant>
 
 #include <nlohmann/json.hpp>
@@ -31,6 +32,15 @@ Parsed<JobPage> jobPageFromJson(const nlohmann::json& json);
 Parsed<RigPage> rigPageFromJson(const nlohmann::json& json);
 
 // Parses text; errors name `label` ("spec: not valid JSON at byte 12").
+// True when `text` is well-formed UTF-8 (RFC 3629: no overlong forms,
+// surrogates or code points past U+10FFFF).
+bool isValidUtf8(std::string_view text);
+
+// The wire's serialisation of a body: file and landmark names are a
+// client's bytes, and invalid UTF-8 among them is replaced (U+FFFD), so that
+// no stored name can make a response or a listing fail.
+std::string dumpJson(const nlohmann::json& json);
+
 // Deepest nesting of arrays and objects accepted in JSON from a client (as
 // core's readers accept in files).
 inline constexpr int kMaxJsonDepth = 64;

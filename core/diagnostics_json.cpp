@@ -8,6 +8,10 @@ namespace {
 
 using Json = nlohmann::ordered_json;
 
+// Names from files (meshes, joints, shapes, markers) are bytes: invalid UTF-8
+// is replaced (U+FFFD) rather than failing the whole document.
+std::string dumpDocument(const Json& doc) { return doc.dump(2, ' ', false, Json::error_handler_t::replace) + "\n"; }
+
 const char* formatName(MeshFormat f) {
   switch (f) {
     case MeshFormat::kGlb: return "glb";
@@ -95,7 +99,7 @@ std::string formatWarpDiagnostics(const WarpReport& r, const DiagnosticsContext&
   t["correspond"] = r.correspond_ms;
   for (const auto& [name, ms] : context.extra_timings_ms) t[name] = ms;
   t["total"] = context.total_ms >= 0.0 ? context.total_ms : r.total_ms;
-  return doc.dump(2) + "\n";
+  return dumpDocument(doc);
 }
 
 std::string formatTransferDiagnostics(const TransferReport& r, const DiagnosticsContext& context) {
@@ -151,7 +155,7 @@ std::string formatTransferDiagnostics(const TransferReport& r, const Diagnostics
   t["quality"] = r.quality_ms;
   for (const auto& [name, ms] : context.extra_timings_ms) t[name] = ms;
   t["total"] = context.total_ms >= 0.0 ? context.total_ms : r.total_ms;
-  return doc.dump(2) + "\n";
+  return dumpDocument(doc);
 }
 
 }  // namespace core

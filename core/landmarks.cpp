@@ -134,7 +134,7 @@ std::string formatLandmarks(const LandmarkSet& set) {
     }
     doc["landmarks"].push_back(std::move(e));
   }
-  return doc.dump(1) + "\n";
+  return doc.dump(1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
 }
 
 std::vector<int> landmarkVertices(const LandmarkSet& set, const Mesh& mesh, const Eigen::MatrixX3d& positions,

@@ -862,7 +862,7 @@ std::string formatRetargetDiagnostics(const RetargetReport& r, const std::map<st
   }
   for (const auto& [name, ms] : extra_timings_ms) t[name] = ms;
   t["total"] = total_ms >= 0.0 ? total_ms : r.total_ms;
-  return doc.dump(2) + "\n";
+  return doc.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
 }
 
 }  // namespace core

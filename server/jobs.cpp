@@ -121,7 +121,7 @@ std::variant<JobRecord, api::Problem> JobManager::cancel(const std::string& tena
   job->status = api::JobStatus::kCancelled;
   job->stage = "cancelled";
   job->finished_ms = nowMs();
-  job->error_json = api::toJson(api::makeProblem(api::WireError::kJobCancelled, "cancelled while queued", instance)).dump();
+  job->error_json = api::dumpJson(api::toJson(api::makeProblem(api::WireError::kJobCancelled, "cancelled while queued", instance)));
   if (auto ok = store_.markFinished(*job); !ok) {
     return api::makeProblem(api::WireError::kInternal, "could not cancel: " + ok.error().message, instance);
   }
@@ -288,7 +288,7 @@ void JobManager::runOne(const std::string& tenant, const std::string& id) {
     job->status = error->code == core::ErrorCode::kCancelled && !timed_out ? api::JobStatus::kCancelled
                                                                            : api::JobStatus::kFailed;
     job->stage = stage_name.empty() ? "failed" : stage_name;
-    job->error_json = api::toJson(problem).dump();
+    job->error_json = api::dumpJson(api::toJson(problem));
   }
   if (auto ok = store_.markFinished(*job); !ok) {
     log_.error("job_finish_failed", {{"job", id}, {"tenant", tenant}, {"detail", ok.error().message}});

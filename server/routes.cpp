@@ -27,12 +27,12 @@ using nlohmann::json;
 void sendProblem(Response& res, const api::Problem& problem, const RouteContext& ctx) {
   res.status = problem.status;
   if (problem.status == 429) res.set_header("Retry-After", std::to_string(ctx.config.retry_after_s));
-  res.set_content(api::toJson(problem).dump(), "application/problem+json");
+  res.set_content(api::dumpJson(api::toJson(problem)), "application/problem+json");
 }
 
 void sendJson(Response& res, int status, const json& body) {
   res.status = status;
-  res.set_content(body.dump(), "application/json");
+  res.set_content(api::dumpJson(body), "application/json");
 }
 
 // The tenant of the request, or a 401 problem sent.
@@ -273,7 +273,7 @@ void postJob(const Request& req, Response& res, const httplib::ContentReader& re
   job.id = randomJobId();
   job.kind = spec.kind;
   job.rig = spec.rig;
-  job.spec_json = api::toJson(spec).dump();
+  job.spec_json = api::dumpJson(api::toJson(spec));
   job.idempotency_key = req.get_header_value("Idempotency-Key");
   job.created_ms = nowMs();
   std::shared_lock collection(ctx.blob_collection);  // held until the job row is committed
@@ -434,7 +434,7 @@ void registerRoutes(httplib::Server& http, RouteContext& ctx) {
     }
     api::Problem problem = api::makeProblem(kind, detail, req.path);
     problem.status = res.status;
-    res.set_content(api::toJson(problem).dump(), "application/problem+json");
+    res.set_content(api::dumpJson(api::toJson(problem)), "application/problem+json");
     return httplib::Server::HandlerResponse::Handled;
   }));
   http.set_exception_handler([&ctx](const Request& req, Response& res, std::exception_ptr ep) {

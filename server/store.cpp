@@ -14,6 +14,7 @@
 #include "server/store.h"
 
 #include "api/content_id.h"
+#include "api/json.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -438,7 +439,7 @@ std::string formatRfc3339Ms(std::int64_t epoch_ms) {
   return buf;
 }
 
-std::string mapToJson(const std::map<std::string, std::string>& m) { return nlohmann::json(m).dump(); }
+std::string mapToJson(const std::map<std::string, std::string>& m) { return api::dumpJson(nlohmann::json(m)); }
 
 std::map<std::string, std::string> jsonToMap(const std::string& text) {
   std::map<std::string, std::string> out;
@@ -756,7 +757,7 @@ core::Result<std::pair<RigRecord, bool>> MetadataStore::insertRig(const RigRecor
     s.bind(5, stored.info.vertices).bind(6, stored.info.joints).bind(7, stored.info.morph_targets);
     s.bind(8, stored.info.landmarks).bind(9, stored.info.has_components).bind(10, stored.info.created_at);
     s.bind(11, stored.rig_blob).bind(12, stored.landmarks_blob).bind(13, stored.components_blob);
-    s.bind(14, stored.info.region_labels ? nlohmann::json(*stored.info.region_labels).dump() : std::string());
+    s.bind(14, stored.info.region_labels ? api::dumpJson(nlohmann::json(*stored.info.region_labels)) : std::string());
     if (s.step() != SQLITE_DONE) return c.error("cannot insert rig " + stored.info.id);
   }
   if (sqlite3_changes(c.db) == 0) {

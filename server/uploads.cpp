@@ -6,6 +6,7 @@
 #include <system_error>
 
 #include "api/error_codes.h"
+#include "api/json.h"
 
 namespace server {
 
@@ -46,6 +47,16 @@ std::variant<SpooledUpload, api::Problem> spoolMultipart(const httplib::Request&
   const bool ok = reader(
       [&](const httplib::MultipartFormData& header) {
         closeCurrent();
+        // Names end up in the store, in listings and in messages: a client's
+        // bytes must be text (UTF-8), said here naming the field.
+        if (!api::isValidUtf8(header.name)) {
+          problem = "a multipart field name is not valid UTF-8";
+          return false;
+        }
+        if (!api::isValidUtf8(header.filename)) {
+          problem = "the file name of multipart field '" + header.name + "' is not valid UTF-8";
+          return false;
+        }
         if (upload.parts.count(header.name)) {
           problem = "multipart field '" + header.name + "' given twice";
           return false;
@@ -72,8 +83,8 @@ std::variant<SpooledUpload, api::Problem> spoolMultipart(const httplib::Request&
       });
   closeCurrent();
   if (!problem.empty()) {
-    const auto kind = problem.find("given twice") != std::string::npos ? api::WireError::kMalformedRequest
-                                                                       : api::WireError::kInternal;
+    const auto kind = problem.find("cannot spool") == std::string::npos ? api::WireError::kMalformedRequest
+                                                                          : api::WireError::kInternal;
     return api::makeProblem(kind, problem, request.path);
   }
   if (received > max_body_bytes) return tooLarge();

@@ -93,6 +93,41 @@ void expectSameJob(const api::JobInfo& a, const api::JobInfo& b) {
 
 // ---- round trips -------------------------------------------------------------
 
+TEST(ApiJson, Utf8IsCheckedByTheRfc3629Rules) {
+  EXPECT_TRUE(api::isValidUtf8(""));
+  EXPECT_TRUE(api::isValidUtf8("rig.glb"));
+  EXPECT_TRUE(api::isValidUtf8("t\xC3\xAAte.glb"));          // ê
+  EXPECT_TRUE(api::isValidUtf8("\xE2\x82\xAC"));             // €
+  EXPECT_TRUE(api::isValidUtf8("\xF0\x9F\x98\x80"));        // U+1F600
+  EXPECT_FALSE(api::isValidUtf8("rig\xFF.glb"));
+  EXPECT_FALSE(api::isValidUtf8("\x80"));                     // a lone continuation byte
+  EXPECT_FALSE(api::isValidUtf8("\xC0\x80"));                 // overlong NUL
+  EXPECT_FALSE(api::isValidUtf8("\xED\xA0\x80"));            // a surrogate
+  EXPECT_FALSE(api::isValidUtf8("\xF4\x90\x80\x80"));        // past U+10FFFF
+  EXPECT_FALSE(api::isValidUtf8("\xE2\x82"));                 // truncated
+}
+
+// A stored name of a client's bytes can never make a response fail: invalid
+// UTF-8 is replaced in what goes out.
+TEST(ApiJson, DumpReplacesInvalidUtf8) {
+  nlohmann::json j = {{"name", std::string("rig\xFF.glb")}};
+  EXPECT_THROW(j.dump(), nlohmann::json::type_error);
+  EXPECT_EQ(api::dumpJson(j), "{\"name\":\"rig\xEF\xBF\xBD.glb\"}");
+}
+
+// Client JSON nested past any use, or holding a number out of range.
+TEST(ApiJson, ParseRefusesDeepNestingAndHugeNumbers) {
+  EXPECT_TRUE(std::holds_alternative<nlohmann::json>(api::parseJsonText(std::string(64, '[') + std::string(64, ']'), "spec")));
+  const auto deep = api::parseJsonText(std::string(100000, '{') , "spec");
+  ASSERT_TRUE(std::holds_alternative<std::string>(deep));
+  const auto deep_arrays = api::parseJsonText(std::string(100000, '[') + std::string(100000, ']'), "spec");
+  ASSERT_TRUE(std::holds_alternative<std::string>(deep_arrays));
+  EXPECT_EQ(std::get<std::string>(deep_arrays), "spec: JSON nested deeper than 64 levels");
+  const auto huge = api::parseJsonText(R"({"a": 1e400})", "spec");
+  ASSERT_TRUE(std::holds_alternative<std::string>(huge));
+  EXPECT_EQ(std::get<std::string>(huge).rfind("spec: not valid JSON", 0), 0u);
+}
+
 TEST(ApiJson, ProblemRoundTrips) {
   const api::Problem p = sampleProblem();
   expectSameProblem(valueOf(api::problemFromJson(api::toJson(p))), p);

@@ -156,6 +156,26 @@ TEST_F(ServiceErrors, DeepJsonAndHugeNumbersAre400NamingThePart) {
   expectProblem(postParts(*client_, "/v1/rigs", rig), 400, "malformed-file", "deep_rig.glb");
 }
 
+// A client's bytes that are not UTF-8 (a file name, a landmark name): 400
+// naming the field, nothing stored, and the tenant's listings keep working.
+TEST_F(ServiceErrors, NonUtf8NamesAre400AndListingsKeepWorking) {
+  httplib::MultipartFormDataItems rig = {{"rig", fileText(files_.rig), "rig\xFF.glb", "model/gltf-binary"},
+                                         {"landmarks", fileText(files_.landmarks), "l.json", "application/json"}};
+  expectProblem(postParts(*client_, "/v1/rigs", rig), 400, "malformed-request",
+                "the file name of multipart field 'rig' is not valid UTF-8");
+  auto parts = jobParts(spec());
+  parts[1].filename = "target\xC0\x80.glb";
+  expectProblem(postParts(*client_, "/v1/jobs", parts), 400, "malformed-request",
+                "the file name of multipart field 'target' is not valid UTF-8");
+  parts = jobParts(spec());
+  parts[2] = {"target_landmarks", "{\"landmarks\":[{\"name\":\"nose\xFF\",\"vertex\":1}]}", "t.json", "application/json"};
+  expectProblem(postParts(*client_, "/v1/jobs", parts), 400, "malformed-file", "target_landmarks: not valid JSON");
+  const Reply rigs = get(*client_, "/v1/rigs");
+  EXPECT_EQ(rigs.status, 200) << rigs.raw;
+  EXPECT_EQ(rigs.body["items"].size(), 1u) << rigs.raw;  // the fixture's rig only
+  EXPECT_EQ(get(*client_, "/v1/jobs").status, 200);
+}
+
 TEST_F(ServiceErrors, OversizedMeshesAre413) {
   auto parts = jobParts(spec());
   // 150 x 135 cells: over the 20000-vertex limit of this server.
