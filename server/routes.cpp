@@ -287,6 +287,23 @@ void postJob(const Request& req, Response& res, const httplib::ContentReader& re
   auto submitted = ctx.jobs.submit(job);
   if (auto* p = std::get_if<api::Problem>(&submitted)) return sendProblem(res, *p, ctx);
   const auto& [record, created] = std::get<std::pair<JobRecord, bool>>(submitted);
+  if (!created && (record.spec_json != job.spec_json || record.inputs != job.inputs)) {
+    // The key names another request: a retry must be the same request (as
+    // Stripe answers). What this one stored alone is removed, under the
+    // exclusive lock a rig delete takes (no other request between adopting
+    // the same bytes and committing its row).
+    collection.unlock();
+    std::unique_lock exclusive(ctx.blob_collection);
+    for (const auto& [field, hash] : job.inputs) {
+      if (!ctx.store.blobReferenced(hash)) ctx.blobs.remove(hash);
+    }
+    return sendProblem(res,
+                       api::makeProblem(api::WireError::kConflict,
+                                        "Idempotency-Key '" + job.idempotency_key + "' was used for another request (job " +
+                                            record.id + "): a retry must send the same spec and files",
+                                        req.path),
+                       ctx);
+  }
   if (created) {
     ctx.log.info("job_accepted", {{"job", record.id}, {"tenant", *tenant}, {"kind", record.kind}, {"rig", record.rig}});
   }

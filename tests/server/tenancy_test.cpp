@@ -1,5 +1,8 @@
 // API keys and tenants: a tenant never sees another's rigs or jobs (404, not
 // 403), uploads are idempotent by content, Idempotency-Key replays a job.
+#include <filesystem>
+#include <fstream>
+
 #include <gtest/gtest.h>
 
 #include "tests/server/service_fixture.h"
@@ -109,6 +112,31 @@ TEST(Tenancy, IdempotencyKeyReturnsTheSameJob) {
   waitForJob(*alice, first.body["id"]);
   waitForJob(*alice, other_key.body["id"]);
   waitForJob(*bob, other_tenant.body["id"]);
+  EXPECT_EQ(get(*alice, "/v1/jobs").body["items"].size(), 2u);
+
+  // The key reused with another request (other options; other target bytes):
+  // 409 naming the job it belongs to, and nothing of it left on disk.
+  auto blobFiles = [&] {
+    std::size_t n = 0;
+    for (const auto& entry : std::filesystem::recursive_directory_iterator(dir / "data")) n += entry.is_regular_file();
+    return n;
+  };
+  const std::size_t before = blobFiles();
+  Reply other_options = submitTransfer(*alice, rig_id, files, "batch-7/head-12", {{"max_influences", 3}});
+  EXPECT_EQ(other_options.status, 409) << other_options.raw;
+  EXPECT_EQ(other_options.body.value("type", ""), "urn:rigport:problem:conflict");
+  EXPECT_NE(other_options.body.value("detail", "").find(first.body["id"].get<std::string>()), std::string::npos)
+      << other_options.raw;
+  TransferFiles other_target = files;
+  other_target.target = dir / "other_target.glb";
+  {
+    std::ifstream in(files.target, std::ios::binary);
+    std::ofstream out(other_target.target, std::ios::binary);
+    out << in.rdbuf() << "    ";  // other bytes (a GLB padded past its length is still read)
+  }
+  Reply other_bytes = submitTransfer(*alice, rig_id, other_target, "batch-7/head-12");
+  EXPECT_EQ(other_bytes.status, 409) << other_bytes.raw;
+  EXPECT_EQ(blobFiles(), before);
   EXPECT_EQ(get(*alice, "/v1/jobs").body["items"].size(), 2u);
 }
 
