@@ -9,6 +9,7 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include "client/cli_hints.h"
 #include "client/local_jobs.h"
 #include "client/remote_commands.h"
 
@@ -20,7 +21,8 @@ int main(int argc, char** argv) {
   // (docs/BENCHMARKS.md: one transfer 126 -> 118 ms).
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
-  CLI::App app{"rigport: facial rig transfer (warp, transfer, retarget, fit)"};
+  CLI::App app{"rigport: facial rig transfer (warp, transfer, retarget; rigs, jobs and bench on the service)"};
+  app.set_version_flag("--version", std::string("rigport ") + RIGPORT_VERSION);
   app.require_subcommand(1);
   bool verbose = false, quiet = false;
   app.add_flag("-v,--verbose", verbose, "More log output");
@@ -32,7 +34,7 @@ int main(int argc, char** argv) {
   warp_cmd->add_option("--source-landmarks", warp.source_landmarks, "Source landmarks JSON")->required()->check(CLI::ExistingFile);
   warp_cmd->add_option("--target", warp.target, "Target mesh (GLB/glTF/OBJ/PLY)")->required()->check(CLI::ExistingFile);
   warp_cmd->add_option("--target-landmarks", warp.target_landmarks, "Target landmarks JSON")->required()->check(CLI::ExistingFile);
-  warp_cmd->add_option("-o,--output", warp.output, "Guide model GLB (source topology on the target)")->required();
+  warp_cmd->add_option("-o,--output", warp.output, "Guide model GLB (source topology on the target)")->required()->check(client::kGlbPath);
   warp_cmd->add_option("--diagnostics", warp.diagnostics, "Diagnostics JSON");
   auto* refine = warp_cmd->add_option("--refine", warp.refine_iterations, "Dense-map refinement rounds (0 = none)")
                      ->check(CLI::Range(0, 20))->capture_default_str();
@@ -59,7 +61,7 @@ int main(int argc, char** argv) {
   transfer_cmd->add_option("--source-landmarks", transfer.source_landmarks, "Source landmarks JSON")->required()->check(CLI::ExistingFile);
   transfer_cmd->add_option("--target", transfer.target, "Target mesh (GLB/glTF/OBJ/PLY)")->required()->check(CLI::ExistingFile);
   transfer_cmd->add_option("--target-landmarks", transfer.target_landmarks, "Target landmarks JSON")->required()->check(CLI::ExistingFile);
-  transfer_cmd->add_option("-o,--output", transfer.output, "Rigged target GLB")->required();
+  transfer_cmd->add_option("-o,--output", transfer.output, "Rigged target GLB")->required()->check(client::kGlbPath);
   transfer_cmd->add_option("--diagnostics", transfer.diagnostics, "Diagnostics JSON");
   transfer_cmd->add_option("--options", transfer.options, "Transfer options JSON (see core/transfer_options.h)")->check(CLI::ExistingFile);
   transfer_cmd->add_option("--threads", transfer.threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
@@ -70,7 +72,7 @@ int main(int argc, char** argv) {
 
   client::GenerateHeadArgs head;
   auto* head_cmd = app.add_subcommand("generate-head", "Write a procedural head mesh with 68 landmarks");
-  head_cmd->add_option("-o,--output", head.output, "GLB to write")->required();
+  head_cmd->add_option("-o,--output", head.output, "GLB to write")->required()->check(client::kGlbPath);
   head_cmd->add_option("--landmarks", head.landmarks, "Landmarks JSON to write")->required();
   head_cmd->add_option("--seed", head.seed, "Identity seed (0 = the mean head)")->capture_default_str();
   head_cmd->add_option("--variation", head.variation, "Relative variation of proportions")->capture_default_str();
@@ -86,7 +88,7 @@ int main(int argc, char** argv) {
   retarget_cmd->add_option("--mesh", retarget.mesh, "Mesh to animate (GLB/glTF/OBJ/PLY)")->required()->check(CLI::ExistingFile);
   retarget_cmd->add_option("--markers", retarget.markers, "Markers on the mesh (landmarks JSON, names as in the clip)")->required()->check(CLI::ExistingFile);
   retarget_cmd->add_option("--mocap", retarget.mocap, "Marker trajectories (TRC)")->required()->check(CLI::ExistingFile);
-  retarget_cmd->add_option("-o,--output", retarget.output, "Animated GLB")->required();
+  retarget_cmd->add_option("-o,--output", retarget.output, "Animated GLB")->required()->check(client::kGlbPath);
   retarget_cmd->add_option("--diagnostics", retarget.diagnostics, "Diagnostics JSON");
   retarget_cmd->add_option("--method", retarget.method, "Marker-to-vertex distance: euclidean|geodesic|hybrid")
       ->check(CLI::IsMember({"euclidean", "geodesic", "hybrid"}))->capture_default_str();
@@ -118,7 +120,11 @@ int main(int argc, char** argv) {
   // rigs, jobs, bench, and --server/--api-key on transfer (client/remote_commands.h).
   const client::RemoteCommands remote(app, *transfer_cmd);
 
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return client::exitWithHints(app, e, argc, argv);
+  }
 
   auto logger = spdlog::stderr_color_mt("rigport");
   spdlog::set_default_logger(logger);

@@ -19,6 +19,7 @@
 #include "api/json.h"
 #include "client/load_generator.h"
 #include "client/local_jobs.h"
+#include "client/cli_hints.h"
 #include "client/remote.h"
 
 namespace client {
@@ -295,7 +296,7 @@ RemoteCommands::RemoteCommands(CLI::App& app, CLI::App& transfer) : state_(std::
   s.jobs_cancel->add_option("id", s.job_id, "Job id")->required();
   s.jobs_result = jobs->add_subcommand("result", "Download a succeeded job's GLB (and diagnostics)");
   s.jobs_result->add_option("id", s.job_id, "Job id")->required();
-  s.jobs_result->add_option("-o,--output", s.result_output, "GLB to write")->required();
+  s.jobs_result->add_option("-o,--output", s.result_output, "GLB to write")->required()->check(kGlbPath);
   s.jobs_result->add_option("--diagnostics", s.result_diagnostics, "Diagnostics JSON to write");
   for (auto* cmd : {s.jobs_submit, s.jobs_get, s.jobs_wait, s.jobs_list, s.jobs_cancel, s.jobs_result}) {
     addConnectionOptions(cmd, s.connections[cmd], true);

@@ -67,4 +67,9 @@ inline Error makeError(ErrorCode code, std::string message) { return Error{code,
 // "a, b, c": names listed in a message or warning.
 std::string joinNames(const std::vector<std::string>& names);
 
+// The one of `names` a mistyped `typo` most likely meant (fewest single-letter
+// edits, case aside, at most a third of its letters and at least one), or ""
+// when none is that close: for "did you mean ...?" in messages.
+std::string closestName(const std::string& typo, const std::vector<std::string>& names);
+
 }  // namespace core

@@ -62,7 +62,10 @@ Result<RetargetSettings> parseRetargetOptions(const std::string& text, const std
       if (!value.is_boolean()) return bad("true or false");
       s.clip.fill_long_gaps = value.get<bool>();
     } else {
-      return makeError(ErrorCode::kInvalidArgument, where + " is not a known option");
+      const std::string near = closestName(key, {"method", "kernel", "gamma", "rest_frame", "tolerance", "exact",
+                                                 "keep_head_motion", "max_gap_frames", "fill_long_gaps"});
+      return makeError(ErrorCode::kInvalidArgument,
+                       where + " is not a known option" + (near.empty() ? "" : " (did you mean '" + near + "'?)"));
     }
   }
   return s;

@@ -118,7 +118,14 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
       if (!x) return x.error();
       t.warp.refine_iterations = static_cast<int>(*x);
     } else {
-      return makeError(ErrorCode::kInvalidArgument, where + " is not a known option");
+      std::vector<std::string> known = {"components", "max_influences", "weight_encoding", "low_confidence_distance",
+                                        "low_confidence_angle_deg", "adaptation", "exaggeration", "shape_exaggeration",
+                                        "joint_exaggeration", "refine_iterations"};
+      for (const auto& [name, member] : kWarpSwitches) known.push_back(name);
+      for (const auto& [name, member] : kTransferSwitches) known.push_back(name);
+      const std::string near = closestName(key, known);
+      return makeError(ErrorCode::kInvalidArgument,
+                       where + " is not a known option" + (near.empty() ? "" : " (did you mean '" + near + "'?)"));
     }
     if (!ok) return ok.error();
   }

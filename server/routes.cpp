@@ -401,7 +401,9 @@ void getJobBlob(const Request& req, Response& res, RouteContext& ctx, bool diagn
 }  // namespace
 
 void registerRoutes(httplib::Server& http, RouteContext& ctx) {
-  http.Get("/healthz", [](const Request&, Response& res) { res.set_content("ok\n", "text/plain"); });
+  http.Get("/healthz", [](const Request&, Response& res) {
+    res.set_content("ok rigport " RIGPORT_VERSION "\n", "text/plain");
+  });
   http.Get("/readyz", [&ctx](const Request& req, Response& res) {
     if (ctx.ready) return res.set_content("ready\n", "text/plain");
     sendProblem(res, api::makeProblem(api::WireError::kNotReady, "starting up or shutting down", req.path), ctx);

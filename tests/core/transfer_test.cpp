@@ -1274,6 +1274,18 @@ void expectWarpSwitch(const std::string& key, bool core::WarpOptions::*member, c
   EXPECT_NE(bad.error().message.find(key), std::string::npos) << bad.error().message;
 }
 
+TEST(TransferOptions, AMistypedKeyIsNamedWithTheKeyMeant) {
+  auto typo = core::parseTransferOptions(R"({"max_infuences": 4})", "opts.json");
+  ASSERT_FALSE(typo);
+  EXPECT_EQ(typo.error().message, "opts.json: 'max_infuences' is not a known option (did you mean 'max_influences'?)");
+  auto switched = core::parseTransferOptions(R"({"strcit": true})", "opts.json");
+  ASSERT_FALSE(switched);
+  EXPECT_EQ(switched.error().message, "opts.json: 'strcit' is not a known option (did you mean 'strict'?)");
+  auto unknown = core::parseTransferOptions(R"({"colour": 1})", "opts.json");
+  ASSERT_FALSE(unknown);
+  EXPECT_EQ(unknown.error().message, "opts.json: 'colour' is not a known option");
+}
+
 TEST(TransferOptions, SlidingCentresCanBeSwitchedOff) {
   expectWarpSwitch("slide_centres", &core::WarpOptions::slide_centres, "1");
 }

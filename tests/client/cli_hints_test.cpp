@@ -1,0 +1,75 @@
+// What `rigport` says to a wrong command line: the command, flag or option
+// key a typo meant; output paths it cannot write refused before any work;
+// its version; only commands that exist in its help.
+#include "client/cli_hints.h"
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+#include "tests/test_support.h"
+
+namespace {
+
+struct CliRun {
+  int exit_code = -1;
+  std::string output;  // stdout and stderr
+};
+
+CliRun rigport(const std::string& arguments) {
+  const auto log = rigport_test::makeTempDir("cli_hints") / "log.txt";
+  const std::string cmd = std::string("'") + RIGPORT_CLI_PATH + "' " + arguments + " > '" + log.string() + "' 2>&1";
+  const int status = std::system(cmd.c_str());
+  std::ifstream in(log);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, std::string((std::istreambuf_iterator<char>(in)), {})};
+}
+
+TEST(ClosestName, FindsTheNameATypoMeant) {
+  const std::vector<std::string> commands = {"warp", "transfer", "retarget", "generate-head", "rigs", "jobs", "bench"};
+  EXPECT_EQ(core::closestName("tranfser", commands), "transfer");
+  EXPECT_EQ(core::closestName("Retarget", commands), "retarget");
+  EXPECT_EQ(core::closestName("wrap", commands), "warp");
+  EXPECT_EQ(core::closestName("sculpt", commands), "");
+  EXPECT_EQ(core::closestName("x", {}), "");
+}
+
+TEST(CliHints, TyposAreAnsweredWithWhatTheyMeant) {
+  const CliRun command = rigport("tranfser");
+  EXPECT_NE(command.exit_code, 0);
+  EXPECT_NE(command.output.find("'tranfser' is not a command; did you mean 'transfer'?"), std::string::npos)
+      << command.output;
+  const CliRun nested = rigport("rigs lst");
+  EXPECT_NE(nested.output.find("did you mean 'list'?"), std::string::npos) << nested.output;
+  const CliRun flag = rigport("transfer --outptu x.glb");
+  EXPECT_NE(flag.exit_code, 0);
+  EXPECT_NE(flag.output.find("'--outptu' is not a flag of transfer; did you mean '--output'?"), std::string::npos)
+      << flag.output;
+}
+
+TEST(CliHints, AnOutputItCannotWriteIsRefusedBeforeAnyWork) {
+  const auto dir = rigport_test::makeTempDir("cli_fbx");
+  const CliRun fbx = rigport("generate-head -o '" + (dir / "head.fbx").string() + "' --landmarks '" +
+                          (dir / "head.json").string() + "'");
+  EXPECT_NE(fbx.exit_code, 0);
+  EXPECT_NE(fbx.output.find("rigport writes binary glTF; name the output .glb"), std::string::npos) << fbx.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "head.fbx"));
+  const CliRun glb = rigport("-q generate-head -o '" + (dir / "head.GLB").string() + "' --landmarks '" +
+                          (dir / "head.json").string() + "'");
+  EXPECT_EQ(glb.exit_code, 0) << glb.output;
+  EXPECT_TRUE(std::filesystem::exists(dir / "head.GLB"));
+}
+
+TEST(CliHints, VersionAndHelpSayWhatIsThere) {
+  const CliRun version = rigport("--version");
+  EXPECT_EQ(version.exit_code, 0);
+  EXPECT_EQ(version.output.rfind("rigport ", 0), 0u) << version.output;
+  const CliRun help = rigport("--help");
+  EXPECT_EQ(help.exit_code, 0);
+  EXPECT_EQ(help.output.find("fit"), std::string::npos) << help.output;  // not built yet: not offered
+}
+
+}  // namespace
