@@ -1,17 +1,25 @@
 #include "server/auth.h"
 
+#include <cctype>
 #include <fstream>
 #include <sstream>
+#include <string_view>
+
+#include <openssl/crypto.h>
+#include <openssl/evp.h>
 
 namespace server {
 
 namespace {
 
-bool constantTimeEqual(const std::string& a, const std::string& b) {
-  if (a.size() != b.size()) return false;
-  unsigned char diff = 0;
-  for (std::size_t i = 0; i < a.size(); ++i) diff |= static_cast<unsigned char>(a[i] ^ b[i]);
-  return diff == 0;
+// Keys are compared as SHA-256 digests: every comparison then takes the same
+// time whatever the presented key's length (a byte-wise compare of keys of
+// different lengths returned at once, telling the length).
+ApiKeys::Digest digestOf(const std::string& key) {
+  ApiKeys::Digest digest{};
+  unsigned int length = 0;
+  EVP_Digest(key.data(), key.size(), digest.data(), &length, EVP_sha256(), nullptr);
+  return digest;
 }
 
 core::Status addKey(std::map<std::string, std::string>& tenants, const std::string& key, const std::string& tenant,
@@ -61,17 +69,25 @@ core::Result<ApiKeys> ApiKeys::load(const std::filesystem::path& file, const std
                            "no API keys configured (" + (file.empty() ? std::string("RIGPORT_API_KEYS is empty") : file.string() + " has no keys") +
                                "); run with --no-auth for local use");
   }
+  for (const auto& [key, tenant] : keys.tenants_) keys.digests_.emplace_back(digestOf(key), tenant);
   return keys;
 }
 
 std::optional<std::string> ApiKeys::tenantFor(const std::string& header) const {
   if (!enabled_) return std::string();
-  constexpr std::string_view kBearer = "Bearer ";
-  if (header.size() <= kBearer.size() || header.compare(0, kBearer.size(), kBearer) != 0) return std::nullopt;
-  const std::string key = header.substr(kBearer.size());
+  // "Bearer <key>": the scheme in any case, then one or more spaces (RFC 9110
+  // sec. 11.1 and 11.4).
+  constexpr std::string_view kScheme = "bearer";
+  if (header.size() <= kScheme.size() || header[kScheme.size()] != ' ') return std::nullopt;
+  for (std::size_t i = 0; i < kScheme.size(); ++i) {
+    if (std::tolower(static_cast<unsigned char>(header[i])) != kScheme[i]) return std::nullopt;
+  }
+  const std::size_t start = header.find_first_not_of(' ', kScheme.size());
+  if (start == std::string::npos) return std::nullopt;
+  const Digest presented = digestOf(header.substr(start));
   std::optional<std::string> tenant;
-  for (const auto& [k, t] : tenants_) {  // visit every key: timing does not reveal which matched
-    if (constantTimeEqual(k, key)) tenant = t;
+  for (const auto& [digest, t] : digests_) {  // visit every key: timing does not reveal which matched
+    if (CRYPTO_memcmp(digest.data(), presented.data(), digest.size()) == 0) tenant = t;
   }
   return tenant;
 }

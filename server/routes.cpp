@@ -323,10 +323,14 @@ void getJobs(const Request& req, Response& res, RouteContext& ctx) {
                                                "status: expected queued, running, succeeded, failed or cancelled", req.path), ctx);
     }
   }
-  try {
-    if (req.has_param("limit")) query.limit = std::stoi(req.get_param_value("limit"));
-    if (req.has_param("after")) query.after_sequence = std::stoll(req.get_param_value("after"));
-  } catch (const std::exception&) {
+  // Whole integers only ("5abc" is no 5).
+  auto integer = [&](const char* name, auto& out) {
+    const std::string text = req.get_param_value(name);
+    const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), out);
+    return error == std::errc() && end == text.data() + text.size();
+  };
+  if ((req.has_param("limit") && !integer("limit", query.limit)) ||
+      (req.has_param("after") && !integer("after", query.after_sequence))) {
     return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest, "limit/after: expected integers", req.path), ctx);
   }
   if (query.limit < 1 || query.limit > 500) {

@@ -87,6 +87,9 @@ TEST_F(ServiceErrors, MalformedSpecsAre400NamingTheField) {
   expectProblem(postParts(*client_, "/v1/jobs", parts), 400, "malformed-request", "texture");
   expectProblem(get(*client_, "/v1/jobs?status=done"), 400, "malformed-request", "status");
   expectProblem(get(*client_, "/v1/jobs?limit=0"), 400, "malformed-request", "limit");
+  expectProblem(get(*client_, "/v1/jobs?limit=5abc"), 400, "malformed-request", "limit");
+  expectProblem(get(*client_, "/v1/jobs?after=1e3"), 400, "malformed-request", "after");
+  expectProblem(get(*client_, "/v1/jobs?limit=99999999999999999999"), 400, "malformed-request", "limit");
 }
 
 TEST_F(ServiceErrors, UnknownThingsAre404) {

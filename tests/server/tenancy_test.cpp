@@ -27,6 +27,20 @@ TEST(Tenancy, RequestsWithoutAKnownKeyGet401) {
   EXPECT_EQ(r.body["type"], "urn:rigport:problem:unauthorized");
   auto wrong = service.client("key-mallory");
   EXPECT_EQ(get(*wrong, "/v1/jobs").status, 401);
+  // The scheme in any case, one or more spaces before the key (RFC 9110);
+  // a key that only starts like one, another scheme, or no key: 401.
+  auto withAuthorization = [&](const std::string& value) {
+    auto client = service.client();
+    client->set_default_headers({{"Authorization", value}});
+    return get(*client, "/v1/jobs").status;
+  };
+  EXPECT_EQ(withAuthorization("bearer key-alice"), 200);
+  EXPECT_EQ(withAuthorization("BEARER   key-alice"), 200);
+  EXPECT_EQ(withAuthorization("Bearer key-alic"), 401);
+  EXPECT_EQ(withAuthorization("Bearer key-alicex"), 401);
+  EXPECT_EQ(withAuthorization("Basic key-alice"), 401);
+  EXPECT_EQ(withAuthorization("Bearer "), 401);
+  EXPECT_EQ(withAuthorization("Bearerkey-alice"), 401);
   const Reply health = get(*anonymous, "/healthz");  // probes need no key
   EXPECT_EQ(health.status, 200);
   EXPECT_EQ(health.raw.rfind("ok rigport ", 0), 0u) << health.raw;  // and say the server's version
