@@ -293,9 +293,12 @@ RemoteResult<UploadedRig> RemoteClient::uploadRig(const RigFiles& files) {
   return UploadedRig{std::move(*info), res->status == 201};
 }
 
-RemoteResult<Done> RemoteClient::deleteRig(const std::string& id) {
+RemoteResult<Done> RemoteClient::deleteRig(const std::string& id) { return deleteAt("/v1/rigs/" + escape(id)); }
+
+RemoteResult<Done> RemoteClient::deleteJob(const std::string& id) { return deleteAt("/v1/jobs/" + escape(id)); }
+
+RemoteResult<Done> RemoteClient::deleteAt(const std::string& path) {
   RIGPORT_REQUIRE_CLIENT();
-  const std::string path = "/v1/rigs/" + escape(id);
   auto res = http_->client->Delete(path);
   if (options_.on_response) options_.on_response(res ? res->status : 0);
   if (!res) return http_->transportProblem("DELETE", path, res.error());

@@ -132,6 +132,7 @@ class RemoteClient {
                                     std::chrono::milliseconds wait = std::chrono::milliseconds(0));
   RemoteResult<api::JobPage> listJobs(const JobQuery& query = {});
   RemoteResult<api::JobInfo> cancelJob(const std::string& id);
+  RemoteResult<Done> deleteJob(const std::string& id);  // a final job, its result and the inputs only it used
 
   // Writes the body of GET /v1/jobs/{id}/result (or /diagnostics) to `path`
   // (through `path`.part, renamed when complete); returns the bytes written.
@@ -152,6 +153,7 @@ class RemoteClient {
                                      std::chrono::milliseconds timeout = std::chrono::milliseconds(0));
 
  private:
+  RemoteResult<Done> deleteAt(const std::string& path);
   struct Http;
   RemoteOptions options_;
   std::unique_ptr<Http> http_;

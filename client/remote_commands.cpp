@@ -239,6 +239,7 @@ struct RemoteCommands::State {
   CLI::App* jobs_list = nullptr;
   CLI::App* jobs_cancel = nullptr;
   CLI::App* jobs_result = nullptr;
+  CLI::App* jobs_delete = nullptr;
   std::string job_id;
   std::filesystem::path spec_file;
   std::vector<std::string> file_fields;  // "field=path"
@@ -274,7 +275,7 @@ RemoteCommands::RemoteCommands(CLI::App& app, CLI::App& transfer) : state_(std::
     addConnectionOptions(cmd, s.connections[cmd], true);
   }
 
-  auto* jobs = app.add_subcommand("jobs", "Jobs on the service: submit, get, wait, list, cancel, result");
+  auto* jobs = app.add_subcommand("jobs", "Jobs on the service: submit, get, wait, list, cancel, result, delete");
   jobs->require_subcommand(1);
   s.jobs_submit = jobs->add_subcommand("submit", "Submit a job: a spec JSON plus named files (any kind)");
   s.jobs_submit->add_option("--spec", s.spec_file, "Job spec JSON {\"kind\":...,\"rig\":...,\"options\":{...}}")
@@ -298,7 +299,9 @@ RemoteCommands::RemoteCommands(CLI::App& app, CLI::App& transfer) : state_(std::
   s.jobs_result->add_option("id", s.job_id, "Job id")->required();
   s.jobs_result->add_option("-o,--output", s.result_output, "GLB to write")->required()->check(kGlbPath);
   s.jobs_result->add_option("--diagnostics", s.result_diagnostics, "Diagnostics JSON to write");
-  for (auto* cmd : {s.jobs_submit, s.jobs_get, s.jobs_wait, s.jobs_list, s.jobs_cancel, s.jobs_result}) {
+  s.jobs_delete = jobs->add_subcommand("delete", "Delete a finished job: its result, diagnostics and the inputs only it used");
+  s.jobs_delete->add_option("id", s.job_id, "Job id")->required();
+  for (auto* cmd : {s.jobs_submit, s.jobs_get, s.jobs_wait, s.jobs_list, s.jobs_cancel, s.jobs_result, s.jobs_delete}) {
     addConnectionOptions(cmd, s.connections[cmd], true);
   }
 
@@ -328,7 +331,9 @@ std::optional<int> RemoteCommands::run(const TransferArgs& transfer) const {
     return runRemoteTransfer(transfer, s.connection);
   }
   if (*s.rigs_upload || *s.rigs_list || *s.rigs_get || *s.rigs_delete) return s.runRigs();
-  if (*s.jobs_submit || *s.jobs_get || *s.jobs_wait || *s.jobs_list || *s.jobs_cancel || *s.jobs_result) return s.runJobs();
+  if (*s.jobs_submit || *s.jobs_get || *s.jobs_wait || *s.jobs_list || *s.jobs_cancel || *s.jobs_result || *s.jobs_delete) {
+    return s.runJobs();
+  }
   if (*s.bench) {
     BenchArgs args = s.bench_args;
     args.server = s.connection.server;
@@ -408,6 +413,12 @@ int RemoteCommands::State::runJobs() const {
     auto job = client.cancelJob(job_id);
     if (!job) return fail(job.problem());
     printJson(api::toJson(*job));
+    return 0;
+  }
+  if (*jobs_delete) {
+    auto deleted = client.deleteJob(job_id);
+    if (!deleted) return fail(deleted.problem());
+    printJson({{"id", job_id}, {"deleted", true}});
     return 0;
   }
   auto bytes = client.downloadResult(job_id, result_output);

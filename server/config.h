@@ -36,6 +36,11 @@ struct ServerConfig {
   int retry_after_s = 1;                       // Retry-After of a 429
   double job_time_limit_s = 300.0;             // a running job is stopped at its next stage after this
   double shutdown_grace_s = 30.0;              // SIGTERM: running jobs get this long to finish
+
+  // Retention: finished jobs (and the blobs only they used) are deleted this
+  // long after they finished; 0 keeps them until DELETE /v1/jobs/{id}.
+  double keep_jobs_days = 30.0;
+  double retention_sweep_s = 600.0;            // how often expired jobs are looked for
 };
 
 }  // namespace server

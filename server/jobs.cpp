@@ -49,9 +49,9 @@ api::JobInfo jobInfoOf(const JobRecord& job, const std::optional<LiveProgress>& 
   return info;
 }
 
-JobManager::JobManager(MetadataStore& store, BlobStore& blobs, Caches& caches, Metrics& metrics,
-                       const ServerConfig& config, JsonLog log)
-    : store_(store), blobs_(blobs), caches_(caches), metrics_(metrics), config_(config), log_(std::move(log)) {}
+JobManager::JobManager(MetadataStore& store, BlobStore& blobs, std::shared_mutex& blob_collection, Caches& caches,
+                       Metrics& metrics, const ServerConfig& config, JsonLog log)
+    : store_(store), blobs_(blobs), blob_collection_(blob_collection), caches_(caches), metrics_(metrics), config_(config), log_(std::move(log)) {}
 
 JobManager::~JobManager() { stop(0.0); }
 
@@ -247,6 +247,9 @@ void JobManager::runOne(const std::string& tenant, const std::string& id) {
   if (!stage_name.empty()) metrics_.observeStage(stage_name, std::chrono::duration<double>(Clock::now() - stage_start).count());
 
   job->finished_ms = nowMs();
+  // Held until the row references the result blobs: a job deleted meanwhile
+  // may share their bytes (same inputs, same result) and must not remove them.
+  std::shared_lock collection(blob_collection_);
   if (auto* out = std::get_if<JobOutput>(&outcome)) {
     // Results are durable before the row points at them: a crash in between
     // leaves the job running (requeued), never half-written.

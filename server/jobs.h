@@ -14,6 +14,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <shared_mutex>
 #include <string>
 #include <thread>
 #include <utility>
@@ -38,8 +39,10 @@ struct LiveProgress {
 
 class JobManager {
  public:
-  JobManager(MetadataStore& store, BlobStore& blobs, Caches& caches, Metrics& metrics, const ServerConfig& config,
-             JsonLog log);
+  // Workers hold `blob_collection` shared from writing a result blob until the
+  // row references it (see server/retention.h).
+  JobManager(MetadataStore& store, BlobStore& blobs, std::shared_mutex& blob_collection, Caches& caches, Metrics& metrics,
+             const ServerConfig& config, JsonLog log);
   ~JobManager();  // stop(0): workers abandon nothing durable, queued/running rows stay for the next start
   JobManager(const JobManager&) = delete;
   JobManager& operator=(const JobManager&) = delete;
@@ -82,6 +85,7 @@ class JobManager {
 
   MetadataStore& store_;
   BlobStore& blobs_;
+  std::shared_mutex& blob_collection_;
   Caches& caches_;
   Metrics& metrics_;
   const ServerConfig config_;

@@ -34,6 +34,9 @@ int main(int argc, char** argv) {
   app.add_option("--http-threads", config.http_threads, "HTTP connection threads")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--max-body-mb", max_body_mb, "Largest request body, MiB")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--max-vertices", config.max_vertices, "Largest mesh, vertices")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--keep-jobs-days", config.keep_jobs_days,
+                 "Finished jobs (results, inputs) are deleted this many days after they finished (0 = keep until deleted)")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
   app.add_option("--shutdown-grace", config.shutdown_grace_s, "SIGTERM: seconds running jobs get to finish")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 

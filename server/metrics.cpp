@@ -28,6 +28,11 @@ void Metrics::countJobOutcome(const std::string& status) {
   ++outcomes_[status];
 }
 
+void Metrics::countJobDeleted(const std::string& reason) {
+  std::lock_guard lock(mutex_);
+  ++deleted_[reason];
+}
+
 std::string Metrics::render(const GaugeSnapshot& g) const {
   std::ostringstream out;
   out.precision(10);
@@ -53,6 +58,9 @@ std::string Metrics::render(const GaugeSnapshot& g) const {
   std::lock_guard lock(mutex_);
   out << "# HELP rigport_job_outcomes_total Jobs finished since start, by final state.\n# TYPE rigport_job_outcomes_total counter\n";
   for (const auto& [status, n] : outcomes_) out << "rigport_job_outcomes_total{status=\"" << status << "\"} " << n << "\n";
+  out << "# HELP rigport_jobs_deleted_total Jobs deleted since start (with the blobs only they used), by reason.\n"
+         "# TYPE rigport_jobs_deleted_total counter\n";
+  for (const auto& [reason, n] : deleted_) out << "rigport_jobs_deleted_total{reason=\"" << reason << "\"} " << n << "\n";
   out << "# HELP rigport_http_requests_total HTTP requests by method, route and status.\n# TYPE rigport_http_requests_total counter\n";
   for (const auto& [key, n] : requests_) {
     out << "rigport_http_requests_total{method=\"" << key.first << "\",route=\"" << key.second.first << "\",status=\""

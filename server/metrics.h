@@ -31,6 +31,7 @@ class Metrics {
   void countRequest(const std::string& method, const std::string& route, int status);
   void observeStage(const std::string& stage, double seconds);
   void countJobOutcome(const std::string& status);
+  void countJobDeleted(const std::string& reason);    // "request" or "retention"
   std::string render(const GaugeSnapshot& gauges) const;
 
  private:
@@ -44,6 +45,7 @@ class Metrics {
   std::map<std::pair<std::string, std::pair<std::string, int>>, std::uint64_t> requests_;  // (method, (route, status))
   std::map<std::string, Histogram> stages_;
   std::map<std::string, std::uint64_t> outcomes_;
+  std::map<std::string, std::uint64_t> deleted_;
 };
 
 // The route pattern of a request path: hex ids become {id} ("/v1/jobs/{id}/result").

@@ -14,6 +14,7 @@
 #include "core/error.h"
 #include "core/mesh_io.h"
 #include "server/convert.h"
+#include "server/retention.h"
 #include "server/uploads.h"
 
 namespace server {
@@ -384,6 +385,7 @@ void getJobBlob(const Request& req, Response& res, RouteContext& ctx, bool diagn
   const auto tenant = authenticate(req, res, ctx);
   if (!tenant) return;
   const std::string id = req.matches[1];
+  std::shared_lock collection(ctx.blob_collection);  // a concurrent DELETE of this job waits for the read
   auto job = ctx.store.getJob(*tenant, id);
   if (!job) return sendProblem(res, api::makeProblem(api::WireError::kNotFound, "no job " + id, req.path), ctx);
   if (job->status != api::JobStatus::kSucceeded) {
@@ -394,12 +396,31 @@ void getJobBlob(const Request& req, Response& res, RouteContext& ctx, bool diagn
                                              req.path), ctx);
   }
   auto blob = ctx.blobs.read(diagnostics ? job->diagnostics_blob : job->result_blob);
+  collection.unlock();
   if (!blob) {
     ctx.log.error("blob_unreadable", {{"job", id}, {"tenant", *tenant}, {"detail", blob.error().message}});
     return sendProblem(res, api::makeProblem(api::WireError::kInternal, "the stored result of job " + id + " is unreadable", req.path), ctx);
   }
   res.status = 200;
   res.set_content(std::string(asText(*blob)), diagnostics ? "application/json" : "model/gltf-binary");
+}
+
+void deleteJobRoute(const Request& req, Response& res, RouteContext& ctx) {
+  const auto tenant = authenticate(req, res, ctx);
+  if (!tenant) return;
+  const std::string id = req.matches[1];
+  switch (deleteJob(ctx.store, ctx.blobs, ctx.blob_collection, ctx.metrics, ctx.log, *tenant, id, "request")) {
+    case JobDeletion::kDeleted: res.status = 204; return;
+    case JobDeletion::kAbsent:
+      return sendProblem(res, api::makeProblem(api::WireError::kNotFound, "no job " + id, req.path), ctx);
+    case JobDeletion::kUnfinished:
+      return sendProblem(res, api::makeProblem(api::WireError::kConflict,
+                                               "job " + id + " is queued or running: cancel it first (POST /v1/jobs/" + id +
+                                                   ":cancel), then delete it once it is cancelled",
+                                               req.path), ctx);
+    case JobDeletion::kStoreError:
+      return sendProblem(res, api::makeProblem(api::WireError::kInternal, "deleting job " + id + " failed", req.path), ctx);
+  }
 }
 
 }  // namespace
@@ -436,6 +457,7 @@ void registerRoutes(httplib::Server& http, RouteContext& ctx) {
   });
   http.Get("/v1/jobs", [&ctx](const Request& req, Response& res) { getJobs(req, res, ctx); });
   http.Get(R"(/v1/jobs/([0-9a-f]{32}))", [&ctx](const Request& req, Response& res) { getJob(req, res, ctx); });
+  http.Delete(R"(/v1/jobs/([0-9a-f]{32}))", [&ctx](const Request& req, Response& res) { deleteJobRoute(req, res, ctx); });
   http.Post(R"(/v1/jobs/([0-9a-f]{32}):cancel)", [&ctx](const Request& req, Response& res) { cancelJob(req, res, ctx); });
   http.Get(R"(/v1/jobs/([0-9a-f]{32})/result)", [&ctx](const Request& req, Response& res) { getJobBlob(req, res, ctx, false); });
   http.Get(R"(/v1/jobs/([0-9a-f]{32})/diagnostics)",

@@ -30,7 +30,7 @@ struct RouteContext {
   std::atomic<bool>& ready;                 // /readyz, and 503 on /v1 while false
   std::atomic<int>& uploads_in_progress;    // bounded by config.max_concurrent_uploads
   // Uploads hold it shared from adopting blobs until their row is committed;
-  // a rig delete holds it exclusively while it collects unreferenced blobs,
+  // a rig or job delete holds it exclusively while it collects unreferenced blobs,
   // so it never removes a blob a concurrent upload is about to reference.
   std::shared_mutex& blob_collection;
 };

@@ -26,7 +26,8 @@ Service::Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<Metad
       store_(std::move(store)),
       blobs_(config.data_dir / "blobs"),
       caches_(config.cache_bytes),
-      jobs_(*store_, blobs_, caches_, metrics_, config_, log_),
+      jobs_(*store_, blobs_, blob_collection_, caches_, metrics_, config_, log_),
+      retention_(*store_, blobs_, blob_collection_, metrics_, config_, log_),
       routes_{config_, keys_, *store_, blobs_, caches_, jobs_, metrics_, log_, ready_, uploads_, blob_collection_} {
   blobs_.removeTemporaries();
   store_->setErrorReporter([this](const std::string& message) { log_.error("store_error", {{"detail", message}}); });
@@ -56,8 +57,9 @@ core::Result<int> Service::start() {
     return core::makeError(core::ErrorCode::kIo, "cannot listen on " + config_.host + ":" + std::to_string(config_.port));
   }
   ready_ = true;
+  retention_.start();
   log_.info("listening", {{"host", config_.host}, {"port", port_}, {"auth", keys_.enabled()},
-                          {"data_dir", config_.data_dir.string()}});
+                          {"data_dir", config_.data_dir.string()}, {"keep_jobs_days", config_.keep_jobs_days}});
   return port_;
 }
 
@@ -68,6 +70,7 @@ void Service::stop(double grace_s) {
   stopped_ = true;
   ready_ = false;
   http_.stop();
+  retention_.stop();
   const bool finished = jobs_.stop(grace_s);
   log_.info("stopped", {{"running_jobs_finished", finished}});
 }

@@ -16,6 +16,7 @@
 #include "server/json_log.h"
 #include "server/metrics.h"
 #include "server/prepared_cache.h"
+#include "server/retention.h"
 #include "server/routes.h"
 #include "server/store.h"
 
@@ -49,10 +50,11 @@ class Service {
   BlobStore blobs_;
   Caches caches_;
   Metrics metrics_;
+  std::shared_mutex blob_collection_;
   JobManager jobs_;
+  RetentionSweeper retention_;
   std::atomic<bool> ready_{false};
   std::atomic<int> uploads_{0};
-  std::shared_mutex blob_collection_;
   RouteContext routes_;
   httplib::Server http_;
   int port_ = 0;

@@ -985,6 +985,31 @@ core::Status MetadataStore::requeue(const std::string& id) {
   return core::Ok{};
 }
 
+core::Result<bool> MetadataStore::deleteFinishedJob(const std::string& tenant, const std::string& id) {
+  std::lock_guard lock(mutex_);
+  Connection& c = *connection_;
+  auto stmt = c.prepare(
+      "DELETE FROM jobs WHERE id = ?1 AND tenant = ?2 AND status IN ('succeeded', 'failed', 'cancelled')");
+  if (!stmt) return stmt.error();
+  Stmt s(*stmt);
+  s.bind(1, id).bind(2, tenant);
+  if (s.step() != SQLITE_DONE) return c.error("cannot delete job " + id);
+  return sqlite3_changes(c.db) > 0;
+}
+
+std::vector<std::pair<std::string, std::string>> MetadataStore::finishedJobsBefore(std::int64_t finished_before_ms,
+                                                                                   int limit) {
+  std::lock_guard lock(mutex_);
+  using Key = std::pair<std::string, std::string>;
+  return valueOr(selectRows<Key>(
+                     *connection_,
+                     "SELECT tenant, id FROM jobs WHERE status IN ('succeeded', 'failed', 'cancelled') AND finished_ms < ?1 "
+                     "ORDER BY finished_ms LIMIT ?2",
+                     [&](Stmt& s) { s.bind(1, finished_before_ms).bind(2, static_cast<std::int64_t>(limit)); },
+                     [](const Stmt& s) { return Key{s.text(0), s.text(1)}; }, "cannot list expired jobs"),
+                 std::vector<Key>{});
+}
+
 std::map<api::JobStatus, std::int64_t> MetadataStore::countJobsByStatus() {
   std::lock_guard lock(mutex_);
   Connection& c = *connection_;

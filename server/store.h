@@ -129,6 +129,13 @@ class MetadataStore {
   core::Status markRunning(const std::string& id, std::int64_t started_ms, bool cache_hit);
   core::Status markFinished(const JobRecord& job);  // status, stage, error_json, result/diagnostics blobs, timings, cache_hit, finished_ms
   core::Status requeue(const std::string& id);       // running -> queued (restart)
+  // Deletes a final job of the tenant (its input rows go with it); false when
+  // the tenant has no such job or it is still queued or running. Its blobs are
+  // the caller's to collect (blobReferenced), under the collection lock.
+  core::Result<bool> deleteFinishedJob(const std::string& tenant, const std::string& id);
+  // (tenant, id) of final jobs that finished before `finished_before_ms`,
+  // oldest first, at most `limit` (the retention sweep).
+  std::vector<std::pair<std::string, std::string>> finishedJobsBefore(std::int64_t finished_before_ms, int limit);
   std::map<api::JobStatus, std::int64_t> countJobsByStatus();
   // Blob hashes referenced by any rig or job row (for garbage collection).
   // Answers true when the database cannot be read (never lets GC delete blindly).

@@ -407,7 +407,7 @@ TEST(ApiOpenApi, EveryRouteOfTheContractHasItsMethods) {
       {"/v1/rigs", {"get", "post"}},
       {"/v1/rigs/{id}", {"get", "delete"}},
       {"/v1/jobs", {"get", "post"}},
-      {"/v1/jobs/{id}", {"get"}},
+      {"/v1/jobs/{id}", {"get", "delete"}},
       {"/v1/jobs/{id}:cancel", {"post"}},
       {"/v1/jobs/{id}/result", {"get"}},
       {"/v1/jobs/{id}/diagnostics", {"get"}},

@@ -3,30 +3,20 @@
 // its version; only commands that exist in its help.
 #include "client/cli_hints.h"
 
-#include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <string>
 
 #include <gtest/gtest.h>
 
 #include "core/error.h"
+#include "tests/server/service_fixture.h"
 #include "tests/test_support.h"
 
 namespace {
 
-struct CliRun {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr
-};
+using rigport_test::CliRun;
 
-CliRun rigport(const std::string& arguments) {
-  const auto log = rigport_test::makeTempDir("cli_hints") / "log.txt";
-  const std::string cmd = std::string("'") + RIGPORT_CLI_PATH + "' " + arguments + " > '" + log.string() + "' 2>&1";
-  const int status = std::system(cmd.c_str());
-  std::ifstream in(log);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, std::string((std::istreambuf_iterator<char>(in)), {})};
-}
+CliRun rigport(const std::string& arguments) { return rigport_test::runRigportCli(arguments); }
 
 TEST(ClosestName, FindsTheNameATypoMeant) {
   const std::vector<std::string> commands = {"warp", "transfer", "retarget", "generate-head", "rigs", "jobs", "bench"};
@@ -40,14 +30,14 @@ TEST(ClosestName, FindsTheNameATypoMeant) {
 TEST(CliHints, TyposAreAnsweredWithWhatTheyMeant) {
   const CliRun command = rigport("tranfser");
   EXPECT_NE(command.exit_code, 0);
-  EXPECT_NE(command.output.find("'tranfser' is not a command; did you mean 'transfer'?"), std::string::npos)
-      << command.output;
+  EXPECT_NE(command.log.find("'tranfser' is not a command; did you mean 'transfer'?"), std::string::npos)
+      << command.log;
   const CliRun nested = rigport("rigs lst");
-  EXPECT_NE(nested.output.find("did you mean 'list'?"), std::string::npos) << nested.output;
+  EXPECT_NE(nested.log.find("did you mean 'list'?"), std::string::npos) << nested.log;
   const CliRun flag = rigport("transfer --outptu x.glb");
   EXPECT_NE(flag.exit_code, 0);
-  EXPECT_NE(flag.output.find("'--outptu' is not a flag of transfer; did you mean '--output'?"), std::string::npos)
-      << flag.output;
+  EXPECT_NE(flag.log.find("'--outptu' is not a flag of transfer; did you mean '--output'?"), std::string::npos)
+      << flag.log;
 }
 
 TEST(CliHints, AnOutputItCannotWriteIsRefusedBeforeAnyWork) {
@@ -55,21 +45,21 @@ TEST(CliHints, AnOutputItCannotWriteIsRefusedBeforeAnyWork) {
   const CliRun fbx = rigport("generate-head -o '" + (dir / "head.fbx").string() + "' --landmarks '" +
                           (dir / "head.json").string() + "'");
   EXPECT_NE(fbx.exit_code, 0);
-  EXPECT_NE(fbx.output.find("rigport writes binary glTF; name the output .glb"), std::string::npos) << fbx.output;
+  EXPECT_NE(fbx.log.find("rigport writes binary glTF; name the output .glb"), std::string::npos) << fbx.log;
   EXPECT_FALSE(std::filesystem::exists(dir / "head.fbx"));
   const CliRun glb = rigport("-q generate-head -o '" + (dir / "head.GLB").string() + "' --landmarks '" +
                           (dir / "head.json").string() + "'");
-  EXPECT_EQ(glb.exit_code, 0) << glb.output;
+  EXPECT_EQ(glb.exit_code, 0) << glb.log;
   EXPECT_TRUE(std::filesystem::exists(dir / "head.GLB"));
 }
 
 TEST(CliHints, VersionAndHelpSayWhatIsThere) {
   const CliRun version = rigport("--version");
   EXPECT_EQ(version.exit_code, 0);
-  EXPECT_EQ(version.output.rfind("rigport ", 0), 0u) << version.output;
+  EXPECT_EQ(version.log.rfind("rigport ", 0), 0u) << version.log;
   const CliRun help = rigport("--help");
   EXPECT_EQ(help.exit_code, 0);
-  EXPECT_EQ(help.output.find("fit"), std::string::npos) << help.output;  // not built yet: not offered
+  EXPECT_EQ(help.log.find("fit"), std::string::npos) << help.log;  // not built yet: not offered
 }
 
 }  // namespace

@@ -1,9 +1,14 @@
 // Cancellation (queued: at once; running: at the next stage boundary), the
-// bounded queue (429 with Retry-After), and graceful stop keeping queued jobs.
+// bounded queue (429 with Retry-After), graceful stop keeping queued jobs, and
+// deleting jobs (on request and by retention) with the files only they used.
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <fstream>
+#include <set>
 #include <thread>
+
+#include "api/content_id.h"
 
 #include "tests/server/service_fixture.h"
 #include "tests/test_support.h"
@@ -135,6 +140,92 @@ TEST(JobControl, GracefulStopKeepsQueuedJobsForTheNextStart) {
   InProcessService restarted(config);
   auto client = restarted.client();
   for (const auto& id : ids) EXPECT_EQ(waitForJob(*client, id)["status"], "succeeded") << id;
+}
+
+// The blob files under a data directory, by hash.
+std::set<std::string> blobHashes(const std::filesystem::path& data_dir) {
+  std::set<std::string> out;
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(data_dir / "blobs")) {
+    if (entry.is_regular_file()) out.insert(entry.path().filename().string());
+  }
+  return out;
+}
+
+std::string fileHash(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  return api::sha256Hex(std::string_view(bytes));
+}
+
+TEST(JobControl, DeletingAFinishedJobRemovesTheFilesOnlyItUsed) {
+  const auto dir = makeTempDir("delete_job");
+  const TransferFiles slow = writeTransferFiles(dir, 200);
+  const TransferFiles files = writeTransferFiles(dir / "small");
+  server::ServerConfig config = testConfig(dir / "data");
+  config.workers = 1;
+  InProcessService service(config);
+  auto client = service.client();
+  const std::string rig_id = uploadRig(*client, files).body["id"];
+  const std::string slow_rig = uploadRig(*client, slow).body["id"];
+
+  // Unfinished jobs are refused with a way out.
+  Reply running = submitTransfer(*client, slow_rig, slow);
+  ASSERT_EQ(running.status, 202) << running.raw;
+  const std::string running_id = running.body["id"];
+  waitForStatus(*client, running_id, "running");
+  Reply refused = del(*client, "/v1/jobs/" + running_id);
+  EXPECT_EQ(refused.status, 409) << refused.raw;
+  EXPECT_EQ(refused.body.value("type", ""), "urn:rigport:problem:conflict");
+  EXPECT_NE(refused.body.value("detail", "").find(":cancel"), std::string::npos) << refused.raw;
+  ASSERT_EQ(post(*client, "/v1/jobs/" + running_id + ":cancel").status, 202);
+  EXPECT_EQ(waitForJob(*client, running_id)["status"], "cancelled");
+  EXPECT_EQ(del(*client, "/v1/jobs/" + running_id).status, 204);
+
+  // Two jobs on the same files share their input and result blobs: deleting
+  // one keeps what the other still uses.
+  const std::string first = submitTransfer(*client, rig_id, files).body["id"];
+  const std::string second = submitTransfer(*client, rig_id, files).body["id"];
+  ASSERT_EQ(waitForJob(*client, first)["status"], "succeeded");
+  ASSERT_EQ(waitForJob(*client, second)["status"], "succeeded");
+  const std::string result = get(*client, "/v1/jobs/" + second + "/result").raw;
+  ASSERT_FALSE(result.empty());
+  EXPECT_EQ(del(*client, "/v1/jobs/" + first).status, 204);
+  EXPECT_EQ(get(*client, "/v1/jobs/" + first).status, 404);
+  EXPECT_EQ(get(*client, "/v1/jobs/" + first + "/result").status, 404);
+  EXPECT_EQ(del(*client, "/v1/jobs/" + first).status, 404) << "deleted twice";
+  EXPECT_EQ(get(*client, "/v1/jobs/" + second + "/result").raw, result) << "a shared blob went with the first job";
+  EXPECT_EQ(del(*client, "/v1/jobs/" + second).status, 204);
+
+  // What is left on disk is the two rigs' files, nothing of the jobs.
+  const std::set<std::string> rig_files = {fileHash(files.rig), fileHash(files.landmarks), fileHash(slow.rig),
+                                           fileHash(slow.landmarks)};
+  EXPECT_EQ(blobHashes(dir / "data"), rig_files);
+  EXPECT_TRUE(get(*client, "/v1/jobs").body["items"].empty());
+  EXPECT_EQ(metricValue(*client, "rigport_jobs_deleted_total{reason=\"request\"}"), 3.0);
+  // The service still works after its deletes.
+  const std::string third = submitTransfer(*client, rig_id, files).body["id"];
+  EXPECT_EQ(waitForJob(*client, third)["status"], "succeeded");
+  EXPECT_EQ(get(*client, "/v1/jobs/" + third + "/result").raw, result);
+}
+
+TEST(JobControl, RetentionDeletesJobsFinishedLongerAgoThanItKeepsThem) {
+  const auto dir = makeTempDir("retention");
+  const TransferFiles files = writeTransferFiles(dir);
+  server::ServerConfig config = testConfig(dir / "data");
+  config.keep_jobs_days = 1e-9;    // ~0.1 ms: every finished job has expired by the next sweep
+  config.retention_sweep_s = 0.02;
+  InProcessService service(config);
+  auto client = service.client();
+  const std::string rig_id = uploadRig(*client, files).body["id"];
+  const std::string id = submitTransfer(*client, rig_id, files).body["id"];
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (get(*client, "/v1/jobs/" + id).status != 404 && std::chrono::steady_clock::now() < give_up) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  EXPECT_EQ(get(*client, "/v1/jobs/" + id).status, 404) << "the sweep never deleted the finished job";
+  EXPECT_EQ(blobHashes(dir / "data"), (std::set<std::string>{fileHash(files.rig), fileHash(files.landmarks)}));
+  EXPECT_EQ(metricValue(*client, "rigport_jobs_deleted_total{reason=\"retention\"}"), 1.0);
+  EXPECT_EQ(get(*client, "/v1/rigs/" + rig_id).status, 200) << "retention is for jobs, not rigs";
 }
 
 }  // namespace

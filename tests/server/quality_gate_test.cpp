@@ -5,7 +5,6 @@
 // the CLI against the service, and the service's REST API.
 #include <cstdlib>
 #include <fstream>
-#include <sstream>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -27,12 +26,6 @@ void writeFile(const std::filesystem::path& path, const std::string& text) {
   out << text;
 }
 
-std::string readFile(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
 
 TransferFiles writeCrossingFiles(const std::filesystem::path& dir) {
   std::filesystem::create_directories(dir);
@@ -49,20 +42,12 @@ TransferFiles writeCrossingFiles(const std::filesystem::path& dir) {
   return f;
 }
 
-struct CliRun {
-  int exit_code = -1;
-  std::string log;  // stderr and stdout
-};
-
 CliRun runCli(const TransferFiles& f, const std::filesystem::path& dir, const std::string& flags) {
-  const std::filesystem::path out = dir / "out.glb", log = dir / "cli.log";
+  const std::filesystem::path out = dir / "out.glb";
   std::filesystem::remove(out);
-  const std::string cmd = std::string("'") + RIGPORT_CLI_PATH + "' transfer --source '" + f.rig.string() +
-                          "' --source-landmarks '" + f.landmarks.string() + "' --target '" + f.target.string() +
-                          "' --target-landmarks '" + f.target_landmarks.string() + "' -o '" + out.string() + "' " +
-                          flags + " > '" + log.string() + "' 2>&1";
-  const int status = std::system(cmd.c_str());
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, readFile(log)};
+  return runRigportCli("transfer --source '" + f.rig.string() + "' --source-landmarks '" + f.landmarks.string() +
+                       "' --target '" + f.target.string() + "' --target-landmarks '" + f.target_landmarks.string() +
+                       "' -o '" + out.string() + "' " + flags);
 }
 
 const nlohmann::json kCrossing = {{"side_matching", false}, {"repair_unsure", false}};

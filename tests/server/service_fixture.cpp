@@ -1,5 +1,7 @@
 #include "tests/server/service_fixture.h"
 
+#include <sys/wait.h>
+
 #include <chrono>
 #include <cstdlib>
 
@@ -8,6 +10,7 @@
 #include "core/rig_io.h"
 #include "core/synthetic_head.h"
 #include "core/synthetic_rig.h"
+#include "tests/test_support.h"
 
 namespace rigport_test {
 
@@ -38,6 +41,19 @@ Reply toReply(const httplib::Result& res) {
 }
 
 }  // namespace
+
+CliRun runRigportCli(const std::string& arguments) {
+  const auto dir = makeTempDir("cli_run");
+  const auto out = dir / "stdout.txt", err = dir / "stderr.txt";
+  const std::string cmd = std::string("'") + RIGPORT_CLI_PATH + "' " + arguments + " > '" + out.string() + "' 2> '" +
+                          err.string() + "'";
+  const int status = std::system(cmd.c_str());
+  CliRun run;
+  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  run.out = readText(out);
+  run.log = readText(err) + run.out;
+  return run;
+}
 
 TransferFiles writeTransferFiles(const std::filesystem::path& dir, int target_cells) {
   std::filesystem::create_directories(dir);

@@ -27,6 +27,14 @@ struct TransferFiles {
 // `target_cells` sets the target's grid (columns; rows follow): larger = slower jobs.
 TransferFiles writeTransferFiles(const std::filesystem::path& dir, int target_cells = 40);
 
+// The rigport CLI binary run with `arguments` (shell words, quoted by the
+// caller); `log` is stderr then stdout, `out` stdout alone (the JSON commands print).
+struct CliRun {
+  int exit_code = -1;
+  std::string log, out;
+};
+CliRun runRigportCli(const std::string& arguments);
+
 // The rigport CLI's in-process transfer of `files` (the reference bytes).
 std::vector<std::uint8_t> runCliTransfer(const TransferFiles& files, const std::filesystem::path& out_dir);
 

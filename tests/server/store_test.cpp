@@ -670,6 +670,60 @@ TEST(MetadataStore, BlobReferencedSeesEveryReferencingColumn) {
   EXPECT_TRUE(store->blobReferenced(h('a'))) << "still referenced by rig2";
 }
 
+TEST(MetadataStore, DeleteFinishedJobTakesOnlyTheTenantsFinalJobAndItsInputRows) {
+  auto store = openStore(rigport_test::makeTempDir("delete_job") / "meta.db");
+  ASSERT_TRUE(store);
+  const auto h = [](char c) { return std::string(64, c); };
+  JobRecord job = makeJob("acme", "job1");  // inputs d, e
+  ASSERT_TRUE(store->insertJob(job).ok());
+  JobRecord sharing = makeJob("acme", "job2");  // the same input bytes, still queued
+  ASSERT_TRUE(store->insertJob(sharing).ok());
+
+  auto queued = store->deleteFinishedJob("acme", "job1");
+  ASSERT_TRUE(queued.ok());
+  EXPECT_FALSE(*queued) << "a queued job was deleted";
+  ASSERT_TRUE(store->markRunning("job1", 1, false).ok());
+  EXPECT_FALSE(*store->deleteFinishedJob("acme", "job1")) << "a running job was deleted";
+  ASSERT_TRUE(store->markFinished(finished(job, JobStatus::kSucceeded)).ok());
+  EXPECT_FALSE(*store->deleteFinishedJob("globex", "job1")) << "another tenant deleted it";
+  EXPECT_TRUE(store->getJob("acme", "job1"));
+
+  auto deleted = store->deleteFinishedJob("acme", "job1");
+  ASSERT_TRUE(deleted.ok());
+  EXPECT_TRUE(*deleted);
+  EXPECT_FALSE(store->getJob("acme", "job1"));
+  EXPECT_FALSE(*store->deleteFinishedJob("acme", "job1")) << "deleted twice";
+  EXPECT_FALSE(store->blobReferenced(h('1')));
+  EXPECT_FALSE(store->blobReferenced(h('2')));
+  EXPECT_TRUE(store->blobReferenced(h('d'))) << "job2 still uses the target";
+
+  ASSERT_TRUE(store->markFinished(finished(sharing, JobStatus::kCancelled)).ok());
+  ASSERT_TRUE(*store->deleteFinishedJob("acme", "job2"));
+  EXPECT_FALSE(store->blobReferenced(h('d'))) << "input rows outlived their job";
+  EXPECT_FALSE(store->blobReferenced(h('e')));
+  EXPECT_TRUE(idsOf(store->listJobs(JobListQuery{"acme", {}, 0, 50})).empty());
+}
+
+TEST(MetadataStore, FinishedJobsBeforeListsExpiredFinalJobsOldestFirst) {
+  auto store = openStore(rigport_test::makeTempDir("expired") / "meta.db");
+  ASSERT_TRUE(store);
+  const std::vector<std::pair<std::string, std::int64_t>> finishing = {{"late", 3000}, {"early", 1000}, {"middle", 2000}};
+  for (const auto& [id, at] : finishing) {
+    JobRecord job = makeJob(id == "middle" ? "globex" : "acme", id);
+    ASSERT_TRUE(store->insertJob(job).ok());
+    JobRecord done = finished(job, JobStatus::kFailed);
+    done.finished_ms = at;
+    ASSERT_TRUE(store->markFinished(done).ok());
+  }
+  ASSERT_TRUE(store->insertJob(makeJob("acme", "waiting")).ok());  // unfinished: never expires
+
+  using Key = std::pair<std::string, std::string>;
+  EXPECT_EQ(store->finishedJobsBefore(2500, 10), (std::vector<Key>{{"acme", "early"}, {"globex", "middle"}}));
+  EXPECT_EQ(store->finishedJobsBefore(1000, 10), std::vector<Key>{});
+  EXPECT_EQ(store->finishedJobsBefore(1'000'000, 1), (std::vector<Key>{{"acme", "early"}}));
+  EXPECT_EQ(store->finishedJobsBefore(1'000'000, 10).size(), 3u);
+}
+
 TEST(MetadataStore, ConcurrentWritersAllLand) {
   auto store = openStore(rigport_test::makeTempDir("threads") / "meta.db");
   ASSERT_TRUE(store);

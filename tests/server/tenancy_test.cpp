@@ -77,6 +77,7 @@ TEST(Tenancy, ATenantCannotSeeFetchCancelOrDeleteAnothersRigsAndJobs) {
   EXPECT_EQ(get(*bob, "/v1/jobs/" + job_id + "/diagnostics").status, 404);
   EXPECT_EQ(post(*bob, "/v1/jobs/" + job_id + ":cancel").status, 404);
   EXPECT_EQ(del(*bob, "/v1/rigs/" + rig_id).status, 404);
+  EXPECT_EQ(del(*bob, "/v1/jobs/" + job_id).status, 404);
   EXPECT_TRUE(get(*bob, "/v1/jobs").body["items"].empty());
   Reply bob_job = submitTransfer(*bob, rig_id, files);  // bob cannot use alice's rig either
   EXPECT_EQ(bob_job.status, 404) << bob_job.raw;
