@@ -34,6 +34,6 @@ enum class WireError {
 int httpStatus(WireError error);
 const char* wireErrorSlug(WireError error);   // "invalid-mesh"
 std::string problemType(WireError error);     // "urn:rigport:problem:invalid-mesh"
-Problem makeProblem(WireError error, std::string detail, std::string instance = {});
+Problem makeProblem(WireError error, std::string detail, std::string instance);
 
 }  // namespace api

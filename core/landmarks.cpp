@@ -11,6 +11,7 @@
 #include "core/closest_point.h"
 #include "core/json_text.h"
 #include "core/mesh_io.h"
+#include "core/tps.h"
 
 namespace core {
 
@@ -217,12 +218,15 @@ Result<Eigen::MatrixX3d> resolveLandmarks(const LandmarkSet& set, const Mesh& me
   return out;
 }
 
-Result<LandmarkPairs> pairLandmarks(const LandmarkSet& source, const Eigen::MatrixX3d& source_positions,
-                                    const LandmarkSet& target, const Eigen::MatrixX3d& target_positions,
-                                    const std::string& target_label) {
+Status checkSharedLandmarkNames(const LandmarkSet& source, const LandmarkSet& target, const std::string& target_label) {
   std::vector<std::string> unknown;
+  int shared = 0;
   for (const auto& lm : target.landmarks) {
-    if (source.indexOf(lm.name) < 0) unknown.push_back(lm.name);
+    if (source.indexOf(lm.name) < 0) {
+      unknown.push_back(lm.name);
+    } else {
+      ++shared;
+    }
   }
   if (!unknown.empty()) {
     std::string list;
@@ -231,16 +235,23 @@ Result<LandmarkPairs> pairLandmarks(const LandmarkSet& source, const Eigen::Matr
     return makeError(ErrorCode::kInvalidLandmarks, target_label + ": " + std::to_string(unknown.size()) +
                                                        " landmark name(s) not in the source: " + list);
   }
+  if (shared < 4) {
+    return makeError(ErrorCode::kInvalidLandmarks, target_label + ": only " + std::to_string(shared) +
+                                                       " landmark name(s) shared with the source; at least 4 "
+                                                       "non-coplanar ones are needed");
+  }
+  return Ok{};
+}
+
+Result<LandmarkPairs> pairLandmarks(const LandmarkSet& source, const Eigen::MatrixX3d& source_positions,
+                                    const LandmarkSet& target, const Eigen::MatrixX3d& target_positions,
+                                    const std::string& target_label) {
+  if (auto ok = checkSharedLandmarkNames(source, target, target_label); !ok) return ok.error();
   LandmarkPairs pairs;
   std::vector<std::pair<int, int>> index;
   for (std::size_t s = 0; s < source.landmarks.size(); ++s) {
     const int t = target.indexOf(source.landmarks[s].name);
     if (t >= 0) index.emplace_back(static_cast<int>(s), t);
-  }
-  if (index.size() < 4) {
-    return makeError(ErrorCode::kInvalidLandmarks, target_label + ": only " + std::to_string(index.size()) +
-                                                       " landmark name(s) shared with the source; at least 4 "
-                                                       "non-coplanar ones are needed");
   }
   pairs.source.resize(static_cast<Eigen::Index>(index.size()), 3);
   pairs.target.resize(static_cast<Eigen::Index>(index.size()), 3);
@@ -250,6 +261,27 @@ Result<LandmarkPairs> pairLandmarks(const LandmarkSet& source, const Eigen::Matr
     pairs.target.row(static_cast<Eigen::Index>(k)) = target_positions.row(index[k].second);
   }
   return pairs;
+}
+
+Status checkWarpTarget(const LandmarkSet& source, const Mesh& target, const LandmarkSet& target_landmarks,
+                       const Eigen::MatrixX3d& target_positions, const std::string& target_label,
+                       const TpsOptions& landmark_tps) {
+  if (auto ok = validateSurfaceMesh(target, target_label); !ok) return ok;
+  if (auto ok = checkSharedLandmarkNames(source, target_landmarks, target_label); !ok) return ok;
+  std::vector<std::string> names;
+  std::vector<Eigen::Index> rows;
+  for (const Landmark& lm : source.landmarks) {
+    const int t = target_landmarks.indexOf(lm.name);
+    if (t < 0) continue;
+    names.push_back(lm.name);
+    rows.push_back(t);
+  }
+  Eigen::MatrixX3d shared(static_cast<Eigen::Index>(rows.size()), 3);
+  for (std::size_t k = 0; k < rows.size(); ++k) shared.row(static_cast<Eigen::Index>(k)) = target_positions.row(rows[k]);
+  if (auto ok = checkTpsCentres(shared, landmark_tps, names); !ok) {
+    return Error{ok.error().code, target_label + ": " + ok.error().message};
+  }
+  return Ok{};
 }
 
 }  // namespace core

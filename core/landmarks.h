@@ -17,6 +17,7 @@
 namespace core {
 
 class ClosestPointIndex;
+struct TpsOptions;
 
 enum class LandmarkKind { kVertex, kPosition, kFace };
 
@@ -70,9 +71,22 @@ struct LandmarkPairs {
 };
 
 // Every target name must exist in the source (an unknown name is an error, not
-// a silent skip); the target may use any subset of >= 4 names.
+// a silent skip); the target may use any subset of >= 4 names. Names only, so
+// it can be checked before any mesh is read.
+Status checkSharedLandmarkNames(const LandmarkSet& source, const LandmarkSet& target, const std::string& target_label);
+
+// checkSharedLandmarkNames, then the positions paired in source order.
 Result<LandmarkPairs> pairLandmarks(const LandmarkSet& source, const Eigen::MatrixX3d& source_positions,
                                     const LandmarkSet& target, const Eigen::MatrixX3d& target_positions,
                                     const std::string& target_label);
+
+// What a landmark warp needs of a target, checked alone so that a service can
+// answer at submission what the warp would refuse later: a surface mesh
+// (validateSurfaceMesh), landmark names shared with the source
+// (checkSharedLandmarkNames) and, at `target_positions` (resolveLandmarks),
+// shared landmarks that span 3D (checkTpsCentres with `landmark_tps`).
+Status checkWarpTarget(const LandmarkSet& source, const Mesh& target, const LandmarkSet& target_landmarks,
+                       const Eigen::MatrixX3d& target_positions, const std::string& target_label,
+                       const TpsOptions& landmark_tps);
 
 }  // namespace core

@@ -489,4 +489,16 @@ std::vector<BoundaryLoop> boundaryLoops(const Mesh& mesh) {
   return loops;
 }
 
+Status validateSurfaceMesh(const Mesh& mesh, const std::string& label) {
+  if (auto ok = validateMesh(mesh, label); !ok) return ok;
+  if (mesh.triangleCount() == 0) {
+    return makeError(ErrorCode::kInvalidMesh, label + ": not a triangle mesh (it has no faces)");
+  }
+  if (countDegenerateTriangles(mesh) == static_cast<int>(mesh.triangleCount())) {
+    return makeError(ErrorCode::kInvalidMesh, label + ": all " + std::to_string(mesh.triangleCount()) +
+                                                  " triangles have zero area (the mesh has no surface)");
+  }
+  return Ok{};
+}
+
 }  // namespace core

@@ -185,5 +185,8 @@ Eigen::Index firstInvalidRegionLabel(const Eigen::VectorXi& labels);
 // `label` names the mesh in messages (usually its file name); the message names
 // the first offending vertex or triangle.
 Status validateMesh(const Mesh& mesh, const std::string& label);
+// validateMesh, and a surface to work on: at least one triangle, not all of
+// them degenerate (a mesh flattened to a line or a point).
+Status validateSurfaceMesh(const Mesh& mesh, const std::string& label);
 
 }  // namespace core

@@ -213,8 +213,7 @@ std::size_t MarkerDistances::memoryBytes() const {
 Result<MarkerDistances> computeMarkerDistances(const Mesh& mesh, const LandmarkSet& markers, const std::string& label,
                                                const MarkerDistanceOptions& options) {
   const auto t0 = Clock::now();
-  if (auto ok = validateMesh(mesh, label); !ok) return ok.error();
-  if (mesh.triangleCount() == 0) return makeError(ErrorCode::kInvalidMesh, label + ": the mesh has no triangles");
+  if (auto ok = validateSurfaceMesh(mesh, label); !ok) return ok.error();
   if (markers.landmarks.size() < 4) {
     return makeError(ErrorCode::kInvalidLandmarks,
                      label + ": " + std::to_string(markers.landmarks.size()) + " markers (at least 4 needed)");

@@ -79,7 +79,12 @@ Result<std::map<std::string, double>> parseStiffness(const std::string& text, co
   std::map<std::string, double> out;
   for (const auto& [name, value] : doc.items()) {
     if (!value.is_number()) return makeError(ErrorCode::kParse, label + ": stiffness of " + name + " is not a number");
-    out[name] = value.get<double>();
+    const double stiffness = value.get<double>();
+    if (!(stiffness >= 1.0 && stiffness <= 9.0)) {
+      return makeError(ErrorCode::kInvalidArgument, label + ": stiffness of " + name + " is " + value.dump() +
+                                                        " (the scale is 1-9)");
+    }
+    out[name] = stiffness;
   }
   return out;
 }

@@ -532,10 +532,7 @@ std::size_t PreparedSource::memoryBytes() const {
 Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std::string& label,
                                      const PrepareOptions& options) {
   const auto t0 = Clock::now();
-  if (auto ok = validateMesh(mesh, label); !ok) return ok.error();
-  if (mesh.triangleCount() == 0) {
-    return makeError(ErrorCode::kInvalidMesh, label + ": the source must be a triangle mesh (it has no faces)");
-  }
+  if (auto ok = validateSurfaceMesh(mesh, label); !ok) return ok.error();
   if (options.dense_centres < 0) return makeError(ErrorCode::kInvalidArgument, "dense_centres must be >= 0");
   PreparedSource prepared;
   prepared.label = label;
@@ -620,10 +617,7 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   if (!source.guide_index) {
     return makeError(ErrorCode::kInvalidArgument, "the source was not prepared (prepareSource) before the warp");
   }
-  if (auto ok = validateMesh(target, target_label); !ok) return ok.error();
-  if (target.triangleCount() == 0) {
-    return makeError(ErrorCode::kInvalidMesh, target_label + ": the target must be a triangle mesh (it has no faces)");
-  }
+  if (auto ok = validateSurfaceMesh(target, target_label); !ok) return ok.error();
   WarpResult result;
   WarpReport& report = result.report;
   report.source_vertices = static_cast<int>(source.mesh.vertexCount());

@@ -27,16 +27,18 @@ std::string_view asText(Bytes bytes) { return {reinterpret_cast<const char*>(byt
 bool isGlb(Bytes bytes) { return bytes.size() >= 4 && asText(bytes.first(4)) == "glTF"; }
 
 std::optional<api::Problem> checkCounts(const core::Mesh& mesh, std::size_t landmarks, const std::string& label,
-                                        const ServerConfig& limits) {
+                                        const ServerConfig& limits, const std::string& instance) {
   if (mesh.vertexCount() > limits.max_vertices) {
     return api::makeProblem(api::WireError::kPayloadTooLarge, label + ": " + std::to_string(mesh.vertexCount()) +
                                                                   " vertices, over the limit of " +
-                                                                  std::to_string(limits.max_vertices));
+                                                                  std::to_string(limits.max_vertices),
+                            instance);
   }
   if (landmarks > static_cast<std::size_t>(limits.max_landmarks)) {
     return api::makeProblem(api::WireError::kPayloadTooLarge, label + ": " + std::to_string(landmarks) +
                                                                   " landmarks, over the limit of " +
-                                                                  std::to_string(limits.max_landmarks));
+                                                                  std::to_string(limits.max_landmarks),
+                            instance);
   }
   return std::nullopt;
 }
@@ -80,7 +82,10 @@ std::variant<api::RigInfo, api::Problem> checkRigUpload(Bytes rig_bytes, const s
   if (!rig) return problemFromCoreError(rig.error(), "/v1/rigs");
   auto landmarks = core::parseLandmarks(asText(landmark_bytes), "landmarks");
   if (!landmarks) return problemFromCoreError(landmarks.error(), "/v1/rigs");
-  if (auto p = checkCounts(rig->rig.mesh, landmarks->landmarks.size(), "rig '" + rig_name + "'", limits)) return *p;
+  if (auto p = checkCounts(rig->rig.mesh, landmarks->landmarks.size(), "rig '" + rig_name + "'", limits, "/v1/rigs")) return *p;
+  if (auto ok = core::validateSurfaceMesh(rig->rig.mesh, "rig '" + rig_name + "'"); !ok) {
+    return problemFromCoreError(ok.error(), "/v1/rigs");
+  }
   auto positions = core::resolveLandmarks(*landmarks, rig->rig.mesh, "landmarks");
   if (!positions) return problemFromCoreError(positions.error(), "/v1/rigs");
   std::vector<std::string> names;
@@ -112,7 +117,7 @@ std::variant<api::RigInfo, api::Problem> checkRigUpload(Bytes rig_bytes, const s
 
 std::optional<api::Problem> checkJobInputs(const api::JobSpec& spec,
                                            const std::map<std::string, std::pair<std::string, Bytes>>& files,
-                                           const ServerConfig& limits) {
+                                           const core::LandmarkSet* rig_landmarks, const ServerConfig& limits) {
   const std::string instance = "/v1/jobs";
   if (spec.kind == "transfer") {
     auto settings = core::parseTransferOptions(spec.options.dump(), "spec.options");
@@ -122,9 +127,17 @@ std::optional<api::Problem> checkJobInputs(const api::JobSpec& spec,
     if (!target) return problemFromCoreError(target.error(), instance);
     auto landmarks = core::parseLandmarks(asText(files.at("target_landmarks").second), "target_landmarks");
     if (!landmarks) return problemFromCoreError(landmarks.error(), instance);
-    if (auto p = checkCounts(target->mesh, landmarks->landmarks.size(), "target '" + target_name + "'", limits)) return p;
+    if (auto p = checkCounts(target->mesh, landmarks->landmarks.size(), "target '" + target_name + "'", limits, instance)) return p;
     auto positions = core::resolveLandmarks(*landmarks, target->mesh, "target_landmarks");
     if (!positions) return problemFromCoreError(positions.error(), instance);
+    if (rig_landmarks) {
+      // The label the job's own errors use (the target's file name).
+      if (auto ok = core::checkWarpTarget(*rig_landmarks, target->mesh, *landmarks, *positions, target_name,
+                                          settings->transfer.warp.landmark_tps);
+          !ok) {
+        return problemFromCoreError(ok.error(), instance);
+      }
+    }
     return std::nullopt;
   }
   if (spec.kind == "retarget") {
@@ -135,15 +148,26 @@ std::optional<api::Problem> checkJobInputs(const api::JobSpec& spec,
     if (!mesh) return problemFromCoreError(mesh.error(), instance);
     auto markers = core::parseLandmarks(asText(files.at("markers").second), "markers");
     if (!markers) return problemFromCoreError(markers.error(), instance);
-    if (auto p = checkCounts(mesh->mesh, markers->landmarks.size(), "mesh '" + mesh_name + "'", limits)) return p;
+    if (auto p = checkCounts(mesh->mesh, markers->landmarks.size(), "mesh '" + mesh_name + "'", limits, instance)) return p;
+    if (auto ok = core::validateSurfaceMesh(mesh->mesh, mesh_name); !ok) return problemFromCoreError(ok.error(), instance);
+    if (markers->landmarks.size() < 4) {
+      return api::makeProblem(api::WireError::kInvalidLandmarks,
+                              "markers: " + std::to_string(markers->landmarks.size()) + " markers (at least 4 needed)",
+                              instance);
+    }
     if (auto positions = core::resolveLandmarks(*markers, mesh->mesh, "markers"); !positions) {
       return problemFromCoreError(positions.error(), instance);
     }
     auto clip = core::parseTrc(asText(files.at("mocap").second), files.at("mocap").first, settings->clip);
     if (!clip) return problemFromCoreError(clip.error(), instance);
     if (const auto it = files.find("stiffness"); it != files.end()) {
-      if (auto stiffness = core::parseStiffness(std::string(asText(it->second.second)), "stiffness"); !stiffness) {
-        return problemFromCoreError(stiffness.error(), instance);
+      auto stiffness = core::parseStiffness(std::string(asText(it->second.second)), "stiffness");
+      if (!stiffness) return problemFromCoreError(stiffness.error(), instance);
+      for (const auto& [name, value] : *stiffness) {
+        if (markers->indexOf(name) < 0) {
+          return api::makeProblem(api::WireError::kInvalidOption, "stiffness: '" + name + "' is not a marker of the placement",
+                                  instance);
+        }
       }
     }
     return std::nullopt;

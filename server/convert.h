@@ -16,6 +16,7 @@
 #include "api/error_codes.h"
 #include "api/types.h"
 #include "core/error.h"
+#include "core/landmarks.h"
 #include "server/config.h"
 #include "server/prepared_cache.h"
 #include "server/store.h"
@@ -35,11 +36,16 @@ std::variant<api::RigInfo, api::Problem> checkRigUpload(Bytes rig, const std::st
                                                         const std::optional<Bytes>& components,
                                                         const ServerConfig& limits);
 
-// A job's inputs before it is queued: the kind's options parse, its files read
-// and lie within the limits. `files` maps multipart field -> (file name, bytes).
+// A job's inputs before it is queued, so that what the job would refuse is
+// answered at submission (422), not accepted and failed later: the kind's
+// options parse, its files read, lie within the limits and are usable (a
+// surface mesh; landmarks sharing >= 4 names with the rig's `rig_landmarks`
+// and spanning 3D; markers on the mesh; stiffness 1-9 of known markers).
+// `files` maps multipart field -> (file name, bytes); `rig_landmarks` is null
+// for kinds without a rig.
 std::optional<api::Problem> checkJobInputs(const api::JobSpec& spec,
                                            const std::map<std::string, std::pair<std::string, Bytes>>& files,
-                                           const ServerConfig& limits);
+                                           const core::LandmarkSet* rig_landmarks, const ServerConfig& limits);
 
 struct JobOutput {
   std::vector<std::uint8_t> result;       // GLB

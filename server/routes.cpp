@@ -4,7 +4,6 @@
 #include <charconv>
 #include <chrono>
 #include <fstream>
-#include <random>
 #include <set>
 
 #include "api/content_id.h"
@@ -12,6 +11,7 @@
 #include "api/json.h"
 #include "api/openapi_document.h"
 #include "core/error.h"
+#include "core/landmarks.h"
 #include "core/mesh_io.h"
 #include "server/convert.h"
 #include "server/retention.h"
@@ -49,14 +49,6 @@ std::optional<std::string> authenticate(const Request& req, Response& res, const
                 ctx);
   }
   return tenant;
-}
-
-std::string randomJobId() {
-  thread_local std::mt19937_64 rng{std::random_device{}()};
-  char buf[33];
-  std::snprintf(buf, sizeof(buf), "%016llx%016llx", static_cast<unsigned long long>(rng()),
-                static_cast<unsigned long long>(rng()));
-  return buf;
 }
 
 bool isHexId(const std::string& s, std::size_t length) {
@@ -248,14 +240,25 @@ void postJob(const Request& req, Response& res, const httplib::ContentReader& re
     return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest, "spec.kind: unknown kind '" + spec.kind +
                                              "' (known: " + core::joinNames(known) + ")", req.path), ctx);
   }
+  std::optional<core::LandmarkSet> rig_landmarks;
   if (kind->needs_rig) {
     if (!isHexId(spec.rig, 64)) {
       return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest,
                                                "spec.rig: expected the 64-hex-digit id of an uploaded rig", req.path), ctx);
     }
-    if (!ctx.store.getRig(*tenant, spec.rig)) {
+    auto rig = ctx.store.getRig(*tenant, spec.rig);
+    if (!rig) {
       return sendProblem(res, api::makeProblem(api::WireError::kNotFound, "spec.rig: no rig " + spec.rig, req.path), ctx);
     }
+    // The rig's landmark names, so a target that shares too few is a 422 now.
+    auto landmark_bytes = ctx.blobs.read(rig->landmarks_blob);
+    auto landmarks = landmark_bytes ? core::parseLandmarks(asText(*landmark_bytes), "rig " + spec.rig + " landmarks")
+                                    : core::Result<core::LandmarkSet>(landmark_bytes.error());
+    if (!landmarks) {
+      ctx.log.error("rig_unreadable", {{"rig", spec.rig}, {"tenant", *tenant}, {"detail", landmarks.error().message}});
+      return sendProblem(res, api::makeProblem(api::WireError::kInternal, "the stored rig " + spec.rig + " is unreadable", req.path), ctx);
+    }
+    rig_landmarks = std::move(*landmarks);
   }
   std::set<std::string> required(kind->required_files.begin(), kind->required_files.end());
   required.insert("spec");
@@ -267,11 +270,15 @@ void postJob(const Request& req, Response& res, const httplib::ContentReader& re
     const std::string& filename = upload.parts.at(field).filename;
     files[field] = {filename.empty() ? field : filename, Bytes(data)};
   }
-  if (auto p = checkJobInputs(spec, files, ctx.config)) return sendProblem(res, *p, ctx);
+  if (auto p = checkJobInputs(spec, files, rig_landmarks ? &*rig_landmarks : nullptr, ctx.config)) {
+    return sendProblem(res, *p, ctx);
+  }
 
   JobRecord job;
   job.tenant = *tenant;
-  job.id = randomJobId();
+  auto job_id = secureRandomHex(16);  // unguessable: ids are not secrets, but need not be predictable
+  if (!job_id) return sendProblem(res, api::makeProblem(api::WireError::kInternal, "no random job id available", req.path), ctx);
+  job.id = *job_id;
   job.kind = spec.kind;
   job.rig = spec.rig;
   job.spec_json = api::dumpJson(api::toJson(spec));

@@ -165,13 +165,12 @@ core::Status ensureDurableDirs(const fs::path& dir) {
 }
 
 std::string randomHex(std::size_t bytes) {
+  if (auto hex = secureRandomHex(bytes)) return *hex;
+  // Fall back to time and pid: uniqueness, not secrecy, is what matters for temporary names.
   std::vector<unsigned char> buf(bytes);
-  if (RAND_bytes(buf.data(), static_cast<int>(buf.size())) != 1) {
-    // Fall back to time and pid: uniqueness, not secrecy, is what matters here.
-    const auto t = std::chrono::steady_clock::now().time_since_epoch().count();
-    const auto seed = static_cast<unsigned long long>(t) ^ (static_cast<unsigned long long>(::getpid()) << 32);
-    for (std::size_t i = 0; i < bytes; ++i) buf[i] = static_cast<unsigned char>(seed >> (8 * (i % 8)));
-  }
+  const auto t = std::chrono::steady_clock::now().time_since_epoch().count();
+  const auto seed = static_cast<unsigned long long>(t) ^ (static_cast<unsigned long long>(::getpid()) << 32);
+  for (std::size_t i = 0; i < bytes; ++i) buf[i] = static_cast<unsigned char>(seed >> (8 * (i % 8)));
   return toHex(buf.data(), buf.size());
 }
 
@@ -1047,6 +1046,12 @@ bool MetadataStore::blobReferenced(const std::string& hash) {
   s.bind(1, hash);
   if (s.step() != SQLITE_ROW) return valueOr<bool>(c.error("cannot check references to blob " + hash), true);
   return s.int32(0) != 0;
+}
+
+std::optional<std::string> secureRandomHex(std::size_t bytes) {
+  std::vector<unsigned char> buf(bytes);
+  if (RAND_bytes(buf.data(), static_cast<int>(buf.size())) != 1) return std::nullopt;
+  return toHex(buf.data(), buf.size());
 }
 
 }  // namespace server

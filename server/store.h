@@ -46,6 +46,10 @@ class BlobStore {
   std::filesystem::path root_;
 };
 
+// `bytes` bytes from OpenSSL's CSPRNG as lower-case hex (job ids); nullopt
+// when it cannot deliver.
+std::optional<std::string> secureRandomHex(std::size_t bytes);
+
 // sha256 of a file, streamed, lower-case hex (bytes in memory: api::sha256Hex).
 core::Result<std::string> sha256HexOfFile(const std::filesystem::path& file);
 

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "core/closest_point.h"
+#include "core/tps.h"
 #include "core/synthetic_head.h"
 #include "tests/test_support.h"
 
@@ -136,6 +137,40 @@ TEST(Landmarks, PairsByNameAndRejectsUnknownOrTooFewShared) {
   auto few = core::pairLandmarks(source, sp, target, tp.topRows(3), "t.json");
   ASSERT_FALSE(few);
   EXPECT_NE(few.error().message.find("only 3"), std::string::npos) << few.error().message;
+}
+
+// What the warp needs of a target, checked before any work: the same errors a
+// warp would give later, each naming the target.
+TEST(Landmarks, WarpTargetCheckRefusesNoSurfaceTooFewNamesAndFlatLandmarks) {
+  core::LandmarkSet source;
+  for (int i = 0; i < 4; ++i) source.landmarks.push_back({"l" + std::to_string(i), core::LandmarkKind::kVertex, i, {}, -1, {}});
+  const core::Mesh tetra = unitTetrahedron();
+  const Eigen::MatrixX3d corners = tetra.positions;
+  const core::TpsOptions tps;
+  EXPECT_TRUE(core::checkWarpTarget(source, tetra, source, corners, "t.glb", tps));
+
+  core::Mesh line = tetra;
+  line.positions.col(1).setZero();
+  line.positions.col(2).setZero();
+  auto flat_mesh = core::checkWarpTarget(source, line, source, line.positions, "t.glb", tps);
+  ASSERT_FALSE(flat_mesh);
+  EXPECT_EQ(flat_mesh.error().code, core::ErrorCode::kInvalidMesh);
+  EXPECT_EQ(flat_mesh.error().message, "t.glb: all 4 triangles have zero area (the mesh has no surface)");
+
+  core::LandmarkSet three = source;
+  three.landmarks.pop_back();
+  auto few = core::checkWarpTarget(source, tetra, three, corners.topRows(3), "t.glb", tps);
+  ASSERT_FALSE(few);
+  EXPECT_EQ(few.error().code, core::ErrorCode::kInvalidLandmarks);
+  EXPECT_NE(few.error().message.find("t.glb: only 3 landmark name(s) shared"), std::string::npos) << few.error().message;
+
+  Eigen::MatrixX3d in_plane = corners;
+  in_plane.row(3) << 0.5, 0.5, 0.0;  // all four landmarks on z = 0
+  auto coplanar = core::checkWarpTarget(source, tetra, source, in_plane, "t.glb", tps);
+  ASSERT_FALSE(coplanar);
+  EXPECT_EQ(coplanar.error().code, core::ErrorCode::kIllConditioned);
+  EXPECT_NE(coplanar.error().message.find("t.glb: landmarks are (nearly) coplanar"), std::string::npos)
+      << coplanar.error().message;
 }
 
 }  // namespace

@@ -16,6 +16,9 @@ void expectProblem(const Reply& r, int status, const std::string& slug, const st
   EXPECT_EQ(r.content_type, "application/problem+json") << r.raw;
   EXPECT_EQ(r.body.value("type", ""), "urn:rigport:problem:" + slug) << r.raw;
   EXPECT_EQ(r.body.value("status", 0), status) << r.raw;
+  // A complete problem (RFC 9457): what, a title, the status, the detail, and where.
+  EXPECT_FALSE(r.body.value("title", "").empty()) << r.raw;
+  EXPECT_EQ(r.body.value("instance", "").rfind('/', 0), 0u) << "no instance: " << r.raw;
   EXPECT_NE(r.body.value("detail", "").find(detail_part), std::string::npos)
       << "detail should name '" << detail_part << "': " << r.raw;
 }
@@ -126,6 +129,40 @@ TEST_F(ServiceErrors, UnusableFilesAre400Or422NamingTheFile) {
   EXPECT_EQ(r.content_type, "application/problem+json");
 }
 
+// What a job would refuse is answered at submission (422), never accepted and
+// failed later: a target with no surface, landmarks sharing fewer than 4 names
+// with the rig, shared landmarks that do not span 3D. Nothing is stored.
+TEST_F(ServiceErrors, UnusableInputsAre422AtSubmissionNotFailedLater) {
+  const nlohmann::json target_landmarks = nlohmann::json::parse(fileText(files_.target_landmarks));
+  std::vector<std::string> names;
+  for (const auto& lm : target_landmarks["landmarks"]) names.push_back(lm["name"]);
+  ASSERT_GE(names.size(), 4u);
+
+  nlohmann::json on_line = {{"landmarks", nlohmann::json::array()}};
+  for (int i = 0; i < 4; ++i) on_line["landmarks"].push_back({{"name", names[static_cast<std::size_t>(i)]}, {"position", {i, 0, 0}}});
+  auto parts = jobParts(spec());
+  parts[1] = {"target", "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 3 0 0\nf 1 2 3\nf 2 3 4\n", "line.obj", "text/plain"};
+  parts[2] = {"target_landmarks", on_line.dump(), "line.json", "application/json"};
+  const Reply flat = postParts(*client_, "/v1/jobs", parts);
+  expectProblem(flat, 422, "invalid-mesh", "line.obj: all 2 triangles have zero area");
+
+  nlohmann::json three = target_landmarks;
+  three["landmarks"].erase(three["landmarks"].begin() + 3, three["landmarks"].end());
+  parts = jobParts(spec());
+  parts[2] = {"target_landmarks", three.dump(), "three.json", "application/json"};
+  expectProblem(postParts(*client_, "/v1/jobs", parts), 422, "invalid-landmarks",
+                "only 3 landmark name(s) shared with the source");
+
+  nlohmann::json one_point = {{"landmarks", nlohmann::json::array()}};
+  for (int i = 0; i < 4; ++i) one_point["landmarks"].push_back({{"name", names[static_cast<std::size_t>(i)]}, {"vertex", 7}});
+  parts = jobParts(spec());
+  parts[2] = {"target_landmarks", one_point.dump(), "one_point.json", "application/json"};
+  expectProblem(postParts(*client_, "/v1/jobs", parts), 422, "ill-conditioned",
+                "target_head.glb: all landmarks are at the same position");
+
+  EXPECT_TRUE(get(*client_, "/v1/jobs").body["items"].empty()) << "a refused job was stored";
+}
+
 // Nesting that would overflow a thread's stack in a recursive copy or
 // conversion (spec.options 100,000 deep; glTF extras 20,000 deep), and
 // numbers out of range, are refused naming the part and the depth; the
@@ -188,20 +225,24 @@ TEST_F(ServiceErrors, OversizedMeshesAre413) {
   expectProblem(postParts(*client_, "/v1/jobs", parts), 413, "payload-too-large", "vertices");
 }
 
-TEST_F(ServiceErrors, AJobThatFailsCarriesItsProblemAndHasNoResult) {
-  auto parts = jobParts(spec());
-  // Valid on the target, but names the source rig does not have: fails on the worker.
-  parts[2] = {"target_landmarks",
-              R"({"landmarks":[{"name":"p0","vertex":0},{"name":"p1","vertex":100},{"name":"p2","vertex":700},{"name":"p3","vertex":1200}]})",
-              "unknown_names.json", "application/json"};
-  Reply job = postParts(*client_, "/v1/jobs", parts);
+// Inputs are checked at submission, so a job fails on the worker only for
+// what cannot be known before it runs: here its time limit.
+TEST(ServiceJobFailures, AJobThatFailsCarriesItsProblemAndHasNoResult) {
+  const auto dir = makeTempDir("failing_job");
+  const TransferFiles files = writeTransferFiles(dir);
+  server::ServerConfig config = testConfig(dir / "data");
+  config.job_time_limit_s = 1e-9;
+  InProcessService service(config);
+  auto client = service.client();
+  const std::string rig_id = uploadRig(*client, files).body["id"];
+  Reply job = submitTransfer(*client, rig_id, files);
   ASSERT_EQ(job.status, 202) << job.raw;
-  const nlohmann::json done = waitForJob(*client_, job.body["id"]);
+  const nlohmann::json done = waitForJob(*client, job.body["id"]);
   EXPECT_EQ(done["status"], "failed");
-  EXPECT_EQ(done["error"]["type"], "urn:rigport:problem:invalid-landmarks") << done.dump();
-  EXPECT_NE(done["error"]["detail"].get<std::string>().find("p0"), std::string::npos) << done.dump();
-  expectProblem(get(*client_, "/v1/jobs/" + done["id"].get<std::string>() + "/result"), 409, "conflict", "failed");
-  expectProblem(post(*client_, "/v1/jobs/" + done["id"].get<std::string>() + ":cancel"), 409, "conflict", "already failed");
+  EXPECT_EQ(done["error"]["type"], "urn:rigport:problem:job-timeout") << done.dump();
+  EXPECT_NE(done["error"]["detail"].get<std::string>().find("exceeded the time limit"), std::string::npos) << done.dump();
+  expectProblem(get(*client, "/v1/jobs/" + done["id"].get<std::string>() + "/result"), 409, "conflict", "failed");
+  expectProblem(post(*client, "/v1/jobs/" + done["id"].get<std::string>() + ":cancel"), 409, "conflict", "already failed");
 }
 
 TEST(ServiceLimits, BodiesOverTheLimitAre413) {

@@ -219,12 +219,14 @@ TEST(JobControl, RetentionDeletesJobsFinishedLongerAgoThanItKeepsThem) {
   const std::string rig_id = uploadRig(*client, files).body["id"];
   const std::string id = submitTransfer(*client, rig_id, files).body["id"];
   const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(120);
-  while (get(*client, "/v1/jobs/" + id).status != 404 && std::chrono::steady_clock::now() < give_up) {
+  // The count goes up once the job's row and its blobs are gone.
+  const std::string deleted_metric = "rigport_jobs_deleted_total{reason=\"retention\"}";
+  while (metricValue(*client, deleted_metric) < 1.0 && std::chrono::steady_clock::now() < give_up) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
-  EXPECT_EQ(get(*client, "/v1/jobs/" + id).status, 404) << "the sweep never deleted the finished job";
+  EXPECT_EQ(metricValue(*client, deleted_metric), 1.0) << "the sweep never deleted the finished job";
+  EXPECT_EQ(get(*client, "/v1/jobs/" + id).status, 404);
   EXPECT_EQ(blobHashes(dir / "data"), (std::set<std::string>{fileHash(files.rig), fileHash(files.landmarks)}));
-  EXPECT_EQ(metricValue(*client, "rigport_jobs_deleted_total{reason=\"retention\"}"), 1.0);
   EXPECT_EQ(get(*client, "/v1/rigs/" + rig_id).status, 200) << "retention is for jobs, not rigs";
 }
 

@@ -139,6 +139,39 @@ TEST(RetargetJobs, BadOptionsAndClipsAreRejectedBeforeQueueing) {
   EXPECT_TRUE(get(*client, "/v1/jobs").body["items"].empty());
 }
 
+// Stiffness out of its 1-9 scale, or for a marker the placement does not
+// have, is refused at submission naming the marker (invalid-option, 400, as
+// every option out of range), not accepted and failed later.
+TEST(RetargetJobs, BadStiffnessIsRefusedAtSubmissionNamingTheMarker) {
+  const auto dir = makeTempDir("retarget_stiffness");
+  const RetargetFiles files = writeRetargetFiles(dir);
+  InProcessService service(testConfig(dir / "data"));
+  auto client = service.client();
+  auto submit = [&](const std::string& stiffness) {
+    httplib::MultipartFormDataItems items = {
+        {"spec", R"({"kind":"retarget"})", "spec.json", "application/json"},
+        {"mesh", fileText(files.mesh), "face.glb", "model/gltf-binary"},
+        {"markers", fileText(files.markers), "face.markers.json", "application/json"},
+        {"mocap", fileText(files.mocap), "jaw.trc", "text/plain"},
+        {"stiffness", stiffness, "stiffness.json", "application/json"}};
+    auto res = client->Post("/v1/jobs", items);
+    return res ? std::make_pair(res->status, nlohmann::json::parse(res->body, nullptr, false))
+               : std::make_pair(0, nlohmann::json());
+  };
+  const auto [negative_status, negative] = submit(R"({"jaw_08": -2})");
+  EXPECT_EQ(negative_status, 400) << negative.dump();
+  EXPECT_EQ(negative.value("type", ""), "urn:rigport:problem:invalid-option");
+  EXPECT_NE(negative.value("detail", "").find("stiffness of jaw_08 is -2 (the scale is 1-9)"), std::string::npos)
+      << negative.dump();
+  const auto [unknown_status, unknown] = submit(R"({"chin_tip": 3})");
+  EXPECT_EQ(unknown_status, 400) << unknown.dump();
+  EXPECT_NE(unknown.value("detail", "").find("'chin_tip' is not a marker"), std::string::npos) << unknown.dump();
+  EXPECT_TRUE(get(*client, "/v1/jobs").body["items"].empty());
+  const auto [good_status, good] = submit(R"({"jaw_08": 4})");
+  ASSERT_EQ(good_status, 202) << good.dump();
+  EXPECT_EQ(waitForJob(*client, good["id"])["status"], "succeeded");
+}
+
 // A marker hidden for 16 frames (longer than the 10 interpolated by
 // default): carried by its neighbours and listed in the diagnostics; an
 // error when long-gap filling is off; interpolated when max_gap_frames covers it.

@@ -118,6 +118,17 @@ TEST(Sha256, MatchesKnownVectors) {
   EXPECT_NE(missing.error().message.find((dir / "missing").string()), std::string::npos) << missing.error().message;
 }
 
+TEST(SecureRandomHex, GivesDistinctLowerCaseHexOfTheAskedLength) {
+  std::set<std::string> seen;
+  for (int i = 0; i < 64; ++i) {
+    auto hex = server::secureRandomHex(16);
+    ASSERT_TRUE(hex);
+    EXPECT_TRUE(std::regex_match(*hex, std::regex("[0-9a-f]{32}"))) << *hex;
+    seen.insert(*hex);
+  }
+  EXPECT_EQ(seen.size(), 64u);
+}
+
 TEST(BlobStore, PutThenReadReturnsTheBytesUnderTheirHash) {
   BlobStore blobs(rigport_test::makeTempDir("blobs") / "store");
   const auto bytes = bytesOf("abc");
