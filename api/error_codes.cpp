@@ -31,6 +31,7 @@ constexpr Row kTable[] = {
     {WireError::kJobTimeout, 504, "job-timeout", "Job exceeded its time limit"},
     {WireError::kInternal, 500, "internal", "Internal error"},
     {WireError::kNotReady, 503, "not-ready", "Service not ready"},
+    {WireError::kStorageUnavailable, 503, "storage-unavailable", "Storage unavailable; retry later"},
 };
 
 const Row& row(WireError error) {

@@ -29,6 +29,7 @@ enum class WireError {
   kJobTimeout,            // 504 (job error) over the per-job time limit
   kInternal,              // 500
   kNotReady,              // 503 starting up or shutting down
+  kStorageUnavailable,    // 503 with Retry-After: the data directory does not take writes (accepted jobs wait)
 };
 
 int httpStatus(WireError error);

@@ -41,6 +41,12 @@ struct ServerConfig {
   // long after they finished; 0 keeps them until DELETE /v1/jobs/{id}.
   double keep_jobs_days = 30.0;
   double retention_sweep_s = 600.0;            // how often expired jobs are looked for
+
+  // Storage health (server/storage_health.h): how often the data directory is
+  // probed for writes while it takes them, and while it does not.
+  double storage_probe_s = 10.0;
+  double storage_retry_s = 1.0;
+  int storage_retries_per_job = 5;             // a job whose own data keeps failing (a corrupted blob) then fails
 };
 
 }  // namespace server

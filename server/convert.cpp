@@ -72,6 +72,12 @@ api::WireError wireErrorOf(core::ErrorCode code) {
 }
 
 api::Problem problemFromCoreError(const core::Error& error, const std::string& instance) {
+  // In the service, core reads only memory and the service's own files: an I/O
+  // error is about server paths, which tenants never see (the log has them).
+  if (error.code == core::ErrorCode::kIo) {
+    return api::makeProblem(api::WireError::kInternal, "the service could not read or write its storage (see its log)",
+                            instance);
+  }
   return api::makeProblem(wireErrorOf(error.code), error.message, instance);
 }
 

@@ -49,9 +49,9 @@ api::JobInfo jobInfoOf(const JobRecord& job, const std::optional<LiveProgress>& 
   return info;
 }
 
-JobManager::JobManager(MetadataStore& store, BlobStore& blobs, std::shared_mutex& blob_collection, Caches& caches,
-                       Metrics& metrics, const ServerConfig& config, JsonLog log)
-    : store_(store), blobs_(blobs), blob_collection_(blob_collection), caches_(caches), metrics_(metrics), config_(config), log_(std::move(log)) {}
+JobManager::JobManager(MetadataStore& store, BlobStore& blobs, std::shared_mutex& blob_collection, StorageHealth& storage,
+                       Caches& caches, Metrics& metrics, const ServerConfig& config, JsonLog log)
+    : store_(store), blobs_(blobs), blob_collection_(blob_collection), storage_(storage), caches_(caches), metrics_(metrics), config_(config), log_(std::move(log)) {}
 
 JobManager::~JobManager() { stop(0.0); }
 
@@ -93,7 +93,9 @@ std::variant<std::pair<JobRecord, bool>, api::Problem> JobManager::submit(const 
   std::lock_guard lock(mutex_);
   --reserved_;
   if (!inserted) {
-    return api::makeProblem(api::WireError::kInternal, "could not store the job: " + inserted.error().message, "/v1/jobs");
+    storage_.reportFault("job_submit", inserted.error().message);
+    return api::makeProblem(api::WireError::kStorageUnavailable, "the job could not be stored: the service's storage "
+                            "does not take writes now; nothing was accepted, submit it again", "/v1/jobs");
   }
   if (inserted->second) {
     queue_.emplace_back(inserted->first.tenant, inserted->first.id);
@@ -123,8 +125,15 @@ std::variant<JobRecord, api::Problem> JobManager::cancel(const std::string& tena
   job->finished_ms = nowMs();
   job->error_json = api::dumpJson(api::toJson(api::makeProblem(api::WireError::kJobCancelled, "cancelled while queued", instance)));
   if (auto ok = store_.markFinished(*job); !ok) {
-    return api::makeProblem(api::WireError::kInternal, "could not cancel: " + ok.error().message, instance);
+    storage_.reportFault("job_cancel", ok.error().message);
+    queue_.emplace_front(tenant, id);  // still queued, as the store says
+    return api::makeProblem(api::WireError::kStorageUnavailable,
+                            "the cancel could not be stored: the service's storage does not take writes now; the job is "
+                            "still queued, cancel it again",
+                            instance);
   }
+  requeue_first_.erase(id);
+  storage_faults_.erase(id);
   metrics_.countJobOutcome("cancelled");
   log_.info("job_cancelled", {{"job", id}, {"tenant", tenant}, {"while", "queued"}});
   return *job;
@@ -170,17 +179,27 @@ bool JobManager::stop(double grace_s) {
 void JobManager::workerLoop() {
   for (;;) {
     std::pair<std::string, std::string> next;
+    bool requeue_first = false;
     {
       std::unique_lock lock(mutex_);
-      wake_.wait(lock, [&] { return stopping_ || !queue_.empty(); });
+      // No job starts while storage does not take writes; its health changes
+      // without a notification here, hence the bounded wait.
+      while (!stopping_ && (queue_.empty() || !storage_.ok())) wake_.wait_for(lock, std::chrono::milliseconds(200));
       if (stopping_) return;  // queued jobs stay queued in the store
       next = std::move(queue_.front());
       queue_.pop_front();
+      requeue_first = requeue_first_.erase(next.second) > 0;
       running_.emplace(next.second, std::make_shared<Running>());
     }
-    runOne(next.first, next.second);
+    const Retry retry = runOne(next.first, next.second, requeue_first);
     std::lock_guard lock(mutex_);
     running_.erase(next.second);
+    if (retry != Retry::kNo) {
+      // Back at the front, to run once storage takes writes again (a stop
+      // meanwhile leaves it in the store, recovered at the next start).
+      queue_.push_front(next);
+      if (retry == Retry::kRunning) requeue_first_.insert(next.second);
+    }
     settled_.notify_all();
     if (running_.empty()) idle_.notify_all();
   }
@@ -199,19 +218,54 @@ bool JobManager::waitUntilSettled(const std::string& id, std::chrono::millisecon
   return true;
 }
 
-void JobManager::runOne(const std::string& tenant, const std::string& id) {
+JobManager::Retry JobManager::storageFault(const std::string& tenant, const std::string& id, const std::string& where,
+                                          const std::string& detail, Retry retry) {
+  storage_.reportFault(where, "job " + id + ": " + detail);
+  int count = 0;
+  {
+    std::lock_guard lock(mutex_);
+    count = ++storage_faults_[id];
+  }
+  if (count <= config_.storage_retries_per_job) return retry;
+  // The job's own data keeps failing though the probe passes between tries (a
+  // corrupted or vanished blob): it fails, saying so without server paths.
+  JobRecord failed;
+  failed.id = id;
+  failed.status = api::JobStatus::kFailed;
+  failed.error_json = api::dumpJson(api::toJson(api::makeProblem(
+      api::WireError::kInternal,
+      "the service could not read or write this job's stored data " + std::to_string(count) +
+          " times (the cause is in the service log); submit the job again",
+      "/v1/jobs/" + id)));
+  if (!store_.markFinished(failed)) return retry;
+  {
+    std::lock_guard lock(mutex_);
+    storage_faults_.erase(id);
+  }
+  metrics_.countJobOutcome("failed");
+  log_.error("job_failed_on_storage", {{"job", id}, {"tenant", tenant}, {"tries", count}});
+  return Retry::kNo;
+}
+
+JobManager::Retry JobManager::runOne(const std::string& tenant, const std::string& id, bool requeue_first) {
   std::shared_ptr<Running> state;
   {
     std::lock_guard lock(mutex_);
     state = running_.at(id);
   }
+  const auto isStorage = [](const core::Error& e) { return e.code == core::ErrorCode::kIo; };
+  if (requeue_first) {  // left running by a storage fault after it started
+    if (auto ok = store_.requeue(id); !ok) {
+      return isStorage(ok.error()) ? storageFault(tenant, id, "job_requeue", ok.error().message, Retry::kRunning) : Retry::kNo;
+    }
+  }
   auto job = store_.getJob(tenant, id);
-  if (!job || api::isFinal(job->status)) return;  // cancelled while queued, or deleted
-  const std::string instance = "/v1/jobs/" + id;
+  if (!job || api::isFinal(job->status)) return Retry::kNo;  // cancelled while queued, or deleted
   const std::int64_t started_ms = nowMs();
   if (auto ok = store_.markRunning(id, started_ms, false); !ok) {
+    if (isStorage(ok.error())) return storageFault(tenant, id, "job_start", ok.error().message, Retry::kQueued);
     log_.error("job_start_failed", {{"job", id}, {"tenant", tenant}, {"detail", ok.error().message}});
-    return;
+    return Retry::kNo;
   }
   job->status = api::JobStatus::kRunning;
   job->attempts += 1;
@@ -220,37 +274,15 @@ void JobManager::runOne(const std::string& tenant, const std::string& id) {
   log_.info("job_started", {{"job", id}, {"tenant", tenant}, {"kind", job->kind}, {"attempt", job->attempts}});
 
   const auto t_start = Clock::now();
-  const auto deadline = t_start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(config_.job_time_limit_s));
-  bool timed_out = false;
-  auto stage_start = t_start;
-  std::string stage_name;
-  StageHook on_stage = [&](std::string_view stage, double progress) {
-    const auto now = Clock::now();
-    if (!stage_name.empty()) metrics_.observeStage(stage_name, std::chrono::duration<double>(now - stage_start).count());
-    stage_name = stage;
-    stage_start = now;
-    {
-      std::lock_guard lock(mutex_);
-      state->stage = stage;
-      state->progress = progress;
-    }
-    if (now > deadline) timed_out = true;
-    return !(state->cancel.load() || timed_out);
-  };
-
-  std::optional<RigRecord> rig;
-  if (!job->rig.empty()) rig = store_.getRig(tenant, job->rig);
-  auto outcome = (!job->rig.empty() && !rig)
-                     ? std::variant<JobOutput, core::Error>(core::makeError(
-                           core::ErrorCode::kInvalidArgument, "rig " + job->rig + " was deleted before the job ran"))
-                     : runJob(*job, rig ? &*rig : nullptr, blobs_, caches_, on_stage, config_.threads_per_job);
-  if (!stage_name.empty()) metrics_.observeStage(stage_name, std::chrono::duration<double>(Clock::now() - stage_start).count());
-
+  Execution run = execute(*job, *state);
+  if (auto* error = std::get_if<core::Error>(&run.outcome); error && isStorage(*error)) {
+    return storageFault(tenant, id, "job_inputs", error->message, Retry::kRunning);
+  }
   job->finished_ms = nowMs();
   // Held until the row references the result blobs: a job deleted meanwhile
   // may share their bytes (same inputs, same result) and must not remove them.
   std::shared_lock collection(blob_collection_);
-  if (auto* out = std::get_if<JobOutput>(&outcome)) {
+  if (auto* out = std::get_if<JobOutput>(&run.outcome)) {
     // Results are durable before the row points at them: a crash in between
     // leaves the job running (requeued), never half-written.
     auto result_blob = blobs_.put(out->result);
@@ -258,17 +290,16 @@ void JobManager::runOne(const std::string& tenant, const std::string& id) {
                                                  out->diagnostics.size()));
     if (!result_blob || !diagnostics_blob) {
       const core::Error& e = !result_blob ? result_blob.error() : diagnostics_blob.error();
-      outcome = core::makeError(core::ErrorCode::kIo, "storing the result: " + e.message);
-    } else {
-      job->status = api::JobStatus::kSucceeded;
-      job->stage = "done";
-      job->result_blob = *result_blob;
-      job->diagnostics_blob = *diagnostics_blob;
-      job->cache_hit = out->cache_hit;
-      job->timings_json = nlohmann::json(out->timings_ms).dump();
+      return storageFault(tenant, id, "job_result", e.message, Retry::kRunning);
     }
+    job->status = api::JobStatus::kSucceeded;
+    job->stage = "done";
+    job->result_blob = *result_blob;
+    job->diagnostics_blob = *diagnostics_blob;
+    job->cache_hit = out->cache_hit;
+    job->timings_json = nlohmann::json(out->timings_ms).dump();
   }
-  if (auto* error = std::get_if<core::Error>(&outcome)) {
+  if (auto* error = std::get_if<core::Error>(&run.outcome)) {
     bool abandoned = false;
     {
       std::lock_guard lock(mutex_);
@@ -279,23 +310,18 @@ void JobManager::runOne(const std::string& tenant, const std::string& id) {
         log_.error("job_requeue_failed", {{"job", id}, {"tenant", tenant}, {"detail", ok.error().message}});
       }
       log_.warn("job_requeued_at_shutdown", {{"job", id}, {"tenant", tenant}});
-      return;
+      return Retry::kNo;
     }
-    api::Problem problem = problemFromCoreError(*error, instance);
-    if (error->code == core::ErrorCode::kCancelled && timed_out) {
-      problem = api::makeProblem(api::WireError::kJobTimeout,
-                                 "job " + id + " exceeded the time limit of " + std::to_string(config_.job_time_limit_s) +
-                                     " s (stopped before stage '" + stage_name + "')",
-                                 instance);
-    }
-    job->status = error->code == core::ErrorCode::kCancelled && !timed_out ? api::JobStatus::kCancelled
-                                                                           : api::JobStatus::kFailed;
-    job->stage = stage_name.empty() ? "failed" : stage_name;
-    job->error_json = api::dumpJson(api::toJson(problem));
+    recordFailure(*job, *error, run);
   }
   if (auto ok = store_.markFinished(*job); !ok) {
+    if (isStorage(ok.error())) return storageFault(tenant, id, "job_finish", ok.error().message, Retry::kRunning);
     log_.error("job_finish_failed", {{"job", id}, {"tenant", tenant}, {"detail", ok.error().message}});
-    return;
+    return Retry::kNo;
+  }
+  {
+    std::lock_guard lock(mutex_);
+    storage_faults_.erase(id);
   }
   metrics_.countJobOutcome(api::jobStatusName(job->status));
   const double total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t_start).count();
@@ -305,6 +331,51 @@ void JobManager::runOne(const std::string& tenant, const std::string& id) {
     log_.warn("job_" + std::string(api::jobStatusName(job->status)),
               {{"job", id}, {"tenant", tenant}, {"ms", total_ms}, {"error", nlohmann::json::parse(job->error_json)}});
   }
+  return Retry::kNo;
+}
+
+JobManager::Execution JobManager::execute(const JobRecord& job, Running& state) {
+  Execution run;
+  const auto t_start = Clock::now();
+  const auto deadline = t_start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(config_.job_time_limit_s));
+  auto stage_start = t_start;
+  StageHook on_stage = [&](std::string_view stage, double progress) {
+    const auto now = Clock::now();
+    if (!run.stage.empty()) metrics_.observeStage(run.stage, std::chrono::duration<double>(now - stage_start).count());
+    run.stage = stage;
+    stage_start = now;
+    {
+      std::lock_guard lock(mutex_);
+      state.stage = stage;
+      state.progress = progress;
+    }
+    if (now > deadline) run.timed_out = true;
+    return !(state.cancel.load() || run.timed_out);
+  };
+  std::optional<RigRecord> rig;
+  if (!job.rig.empty()) rig = store_.getRig(job.tenant, job.rig);
+  if (!job.rig.empty() && !rig) {
+    run.outcome = core::makeError(core::ErrorCode::kInvalidArgument, "rig " + job.rig + " was deleted before the job ran");
+  } else {
+    run.outcome = runJob(job, rig ? &*rig : nullptr, blobs_, caches_, on_stage, config_.threads_per_job);
+  }
+  if (!run.stage.empty()) metrics_.observeStage(run.stage, std::chrono::duration<double>(Clock::now() - stage_start).count());
+  return run;
+}
+
+void JobManager::recordFailure(JobRecord& job, const core::Error& error, const Execution& run) const {
+  const std::string instance = "/v1/jobs/" + job.id;
+  api::Problem problem = problemFromCoreError(error, instance);
+  if (error.code == core::ErrorCode::kCancelled && run.timed_out) {
+    problem = api::makeProblem(api::WireError::kJobTimeout,
+                               "job " + job.id + " exceeded the time limit of " + std::to_string(config_.job_time_limit_s) +
+                                   " s (stopped before stage '" + run.stage + "')",
+                               instance);
+  }
+  job.status = error.code == core::ErrorCode::kCancelled && !run.timed_out ? api::JobStatus::kCancelled
+                                                                            : api::JobStatus::kFailed;
+  job.stage = run.stage.empty() ? "failed" : run.stage;
+  job.error_json = api::dumpJson(api::toJson(problem));
 }
 
 }  // namespace server

@@ -14,6 +14,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <shared_mutex>
 #include <string>
 #include <thread>
@@ -23,9 +24,11 @@
 
 #include "api/types.h"
 #include "server/config.h"
+#include "server/convert.h"
 #include "server/json_log.h"
 #include "server/metrics.h"
 #include "server/prepared_cache.h"
+#include "server/storage_health.h"
 #include "server/store.h"
 #include "server/timestamps.h"
 
@@ -41,8 +44,12 @@ class JobManager {
  public:
   // Workers hold `blob_collection` shared from writing a result blob until the
   // row references it (see server/retention.h).
-  JobManager(MetadataStore& store, BlobStore& blobs, std::shared_mutex& blob_collection, Caches& caches, Metrics& metrics,
-             const ServerConfig& config, JsonLog log);
+  // Storage faults (a failed store or blob read or write) are reported to
+  // `storage`; the job goes back to the front of the queue, and no job starts
+  // until storage takes writes again (it fails only when its own data keeps
+  // failing, config.storage_retries_per_job times).
+  JobManager(MetadataStore& store, BlobStore& blobs, std::shared_mutex& blob_collection, StorageHealth& storage,
+             Caches& caches, Metrics& metrics, const ServerConfig& config, JsonLog log);
   ~JobManager();  // stop(0): workers abandon nothing durable, queued/running rows stay for the next start
   JobManager(const JobManager&) = delete;
   JobManager& operator=(const JobManager&) = delete;
@@ -80,12 +87,26 @@ class JobManager {
     double progress = 0.0;
     std::atomic<bool> cancel{false};
   };
+  // What becomes of a job its worker gives back: nothing more (final, or
+  // gone), or run again once storage recovers, its row still queued or left
+  // running (requeued in the store first).
+  enum class Retry { kNo, kQueued, kRunning };
+  struct Execution {
+    std::variant<JobOutput, core::Error> outcome = core::Error{core::ErrorCode::kCancelled, "not run"};
+    std::string stage;       // the last stage reached
+    bool timed_out = false;
+  };
   void workerLoop();
-  void runOne(const std::string& tenant, const std::string& id);
+  Retry runOne(const std::string& tenant, const std::string& id, bool requeue_first);
+  Execution execute(const JobRecord& job, Running& state);  // the job body with stage, cancel and time-limit hooks
+  void recordFailure(JobRecord& job, const core::Error& error, const Execution& run) const;
+  Retry storageFault(const std::string& tenant, const std::string& id, const std::string& where, const std::string& detail,
+                     Retry retry);
 
   MetadataStore& store_;
   BlobStore& blobs_;
   std::shared_mutex& blob_collection_;
+  StorageHealth& storage_;
   Caches& caches_;
   Metrics& metrics_;
   const ServerConfig config_;
@@ -99,6 +120,8 @@ class JobManager {
   std::deque<std::pair<std::string, std::string>> queue_;   // (tenant, id)
   int reserved_ = 0;                                         // submissions between capacity check and commit
   std::map<std::string, std::shared_ptr<Running>> running_;  // by job id
+  std::set<std::string> requeue_first_;                      // queued here, left running in the store
+  std::map<std::string, int> storage_faults_;                // storage faults per job since its last finish
   bool stopping_ = false;
   bool abandoning_ = false;                                  // stop() past its grace period
   std::vector<std::thread> workers_;

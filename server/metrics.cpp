@@ -42,7 +42,10 @@ std::string Metrics::render(const GaugeSnapshot& g) const {
       << "rigport_queue_depth " << g.queue_depth << "\n"
       << "# HELP rigport_running_jobs Jobs on a worker now.\n# TYPE rigport_running_jobs gauge\n"
       << "rigport_running_jobs " << g.running_jobs << "\n"
-      ;
+      << "# HELP rigport_storage_ok 1 while the data directory takes writes, 0 after a fault until a probe passes.\n"
+      << "# TYPE rigport_storage_ok gauge\nrigport_storage_ok " << (g.storage_ok ? 1 : 0) << "\n"
+      << "# HELP rigport_storage_faults_total Failed store or blob reads and writes since start.\n"
+      << "# TYPE rigport_storage_faults_total counter\nrigport_storage_faults_total " << g.storage_faults << "\n";
   // One family per statistic, one series per cache ("rig", "distances").
   const std::pair<const char*, std::int64_t CacheStats::*> families[] = {
       {"bytes", &CacheStats::bytes},   {"capacity_bytes", &CacheStats::capacity_bytes},

@@ -22,6 +22,8 @@ struct GaugeSnapshot {
   std::int64_t queue_depth = 0;
   std::int64_t running_jobs = 0;
   std::map<std::string, CacheStats> caches;           // "rig", "distances"
+  bool storage_ok = true;                              // StorageHealth
+  std::int64_t storage_faults = 0;
 };
 
 class Metrics {

@@ -27,7 +27,7 @@ using nlohmann::json;
 
 void sendProblem(Response& res, const api::Problem& problem, const RouteContext& ctx) {
   res.status = problem.status;
-  if (problem.status == 429) res.set_header("Retry-After", std::to_string(ctx.config.retry_after_s));
+  if (problem.status == 429 || problem.status == 503) res.set_header("Retry-After", std::to_string(ctx.config.retry_after_s));
   res.set_content(api::dumpJson(api::toJson(problem)), "application/problem+json");
 }
 
@@ -49,6 +49,27 @@ std::optional<std::string> authenticate(const Request& req, Response& res, const
                 ctx);
   }
   return tenant;
+}
+
+api::Problem storageProblem(const Request& req) {
+  return api::makeProblem(api::WireError::kStorageUnavailable,
+                          "the service's storage does not take writes now; nothing was changed, retry later", req.path);
+}
+
+// A write to the store or the blobs failed: readiness turns red and the
+// client is told to retry; what failed (with server paths) goes to the log.
+void sendStorageFault(const Request& req, Response& res, RouteContext& ctx, const std::string& where,
+                      const std::string& detail) {
+  ctx.storage.reportFault(where, detail);
+  sendProblem(res, storageProblem(req), ctx);
+}
+
+// False, with 503 storage-unavailable sent, while storage is faulty: no
+// request that writes starts then.
+bool storageWritable(const Request& req, Response& res, RouteContext& ctx) {
+  if (ctx.storage.ok()) return true;
+  sendProblem(res, storageProblem(req), ctx);
+  return false;
 }
 
 bool isHexId(const std::string& s, std::size_t length) {
@@ -119,7 +140,7 @@ struct ReceivedUpload {
 std::optional<ReceivedUpload> receiveUpload(const Request& req, Response& res, const httplib::ContentReader& reader,
                                             RouteContext& ctx) {
   auto tenant = authenticate(req, res, ctx);
-  if (!tenant) return std::nullopt;
+  if (!tenant || !storageWritable(req, res, ctx)) return std::nullopt;
   UploadSlot slot(ctx.uploads_in_progress, ctx.config.max_concurrent_uploads);
   if (!slot.ok()) {
     sendProblem(res, api::makeProblem(api::WireError::kQueueFull, "too many uploads in progress", req.path), ctx);
@@ -127,6 +148,7 @@ std::optional<ReceivedUpload> receiveUpload(const Request& req, Response& res, c
   }
   auto spooled = spoolMultipart(req, reader, ctx.config.data_dir / "uploads", ctx.config.max_body_bytes);
   if (auto* p = std::get_if<api::Problem>(&spooled)) {
+    if (p->status == 503) ctx.storage.reportFault("upload_spool", p->detail);
     sendProblem(res, *p, ctx);
     return std::nullopt;
   }
@@ -165,14 +187,12 @@ void postRig(const Request& req, Response& res, const httplib::ContentReader& re
   std::shared_lock collection(ctx.blob_collection);
   for (const auto& [field, part] : upload.parts) {
     auto hash = ctx.blobs.adopt(part.path);
-    if (!hash) return sendProblem(res, api::makeProblem(api::WireError::kInternal, "storing the upload failed", req.path), ctx);
+    if (!hash) return sendStorageFault(req, res, ctx, "rig_upload", hash.error().message);
     (field == "rig" ? record.rig_blob : field == "landmarks" ? record.landmarks_blob : record.components_blob) = *hash;
   }
   auto inserted = ctx.store.insertRig(record);
   collection.unlock();
-  if (!inserted) {
-    return sendProblem(res, api::makeProblem(api::WireError::kInternal, "storing the rig failed", req.path), ctx);
-  }
+  if (!inserted) return sendStorageFault(req, res, ctx, "rig_insert", inserted.error().message);
   ctx.log.info("rig_uploaded", {{"tenant", *tenant}, {"rig", id}, {"name", rig_name}, {"vertices", record.info.vertices}});
   res.set_header("Location", "/v1/rigs/" + id);
   sendJson(res, inserted->second ? 201 : 200, api::toJson(inserted->first.info));
@@ -197,7 +217,7 @@ void getRig(const Request& req, Response& res, RouteContext& ctx) {
 
 void deleteRig(const Request& req, Response& res, RouteContext& ctx) {
   const auto tenant = authenticate(req, res, ctx);
-  if (!tenant) return;
+  if (!tenant || !storageWritable(req, res, ctx)) return;
   const std::string id = req.matches[1];
   std::unique_lock collection(ctx.blob_collection);
   auto rig = ctx.store.getRig(*tenant, id);
@@ -288,7 +308,7 @@ void postJob(const Request& req, Response& res, const httplib::ContentReader& re
   for (const auto& [field, part] : upload.parts) {
     if (field == "spec") continue;
     auto hash = ctx.blobs.adopt(part.path);
-    if (!hash) return sendProblem(res, api::makeProblem(api::WireError::kInternal, "storing the upload failed", req.path), ctx);
+    if (!hash) return sendStorageFault(req, res, ctx, "job_upload", hash.error().message);
     job.inputs[field] = *hash;
     job.input_names[field] = files.at(field).first;
   }
@@ -380,7 +400,7 @@ void getJob(const Request& req, Response& res, RouteContext& ctx) {
 
 void cancelJob(const Request& req, Response& res, RouteContext& ctx) {
   const auto tenant = authenticate(req, res, ctx);
-  if (!tenant) return;
+  if (!tenant || !storageWritable(req, res, ctx)) return;
   const std::string id = req.matches[1];
   auto cancelled = ctx.jobs.cancel(*tenant, id);
   if (auto* p = std::get_if<api::Problem>(&cancelled)) return sendProblem(res, *p, ctx);
@@ -405,7 +425,7 @@ void getJobBlob(const Request& req, Response& res, RouteContext& ctx, bool diagn
   auto blob = ctx.blobs.read(diagnostics ? job->diagnostics_blob : job->result_blob);
   collection.unlock();
   if (!blob) {
-    ctx.log.error("blob_unreadable", {{"job", id}, {"tenant", *tenant}, {"detail", blob.error().message}});
+    ctx.storage.reportFault("job_result_read", "job " + id + ": " + blob.error().message);
     return sendProblem(res, api::makeProblem(api::WireError::kInternal, "the stored result of job " + id + " is unreadable", req.path), ctx);
   }
   res.status = 200;
@@ -414,7 +434,7 @@ void getJobBlob(const Request& req, Response& res, RouteContext& ctx, bool diagn
 
 void deleteJobRoute(const Request& req, Response& res, RouteContext& ctx) {
   const auto tenant = authenticate(req, res, ctx);
-  if (!tenant) return;
+  if (!tenant || !storageWritable(req, res, ctx)) return;
   const std::string id = req.matches[1];
   switch (deleteJob(ctx.store, ctx.blobs, ctx.blob_collection, ctx.metrics, ctx.log, *tenant, id, "request")) {
     case JobDeletion::kDeleted: res.status = 204; return;
@@ -426,7 +446,7 @@ void deleteJobRoute(const Request& req, Response& res, RouteContext& ctx) {
                                                    ":cancel), then delete it once it is cancelled",
                                                req.path), ctx);
     case JobDeletion::kStoreError:
-      return sendProblem(res, api::makeProblem(api::WireError::kInternal, "deleting job " + id + " failed", req.path), ctx);
+      return sendStorageFault(req, res, ctx, "job_delete", "job " + id);
   }
 }
 
@@ -437,7 +457,11 @@ void registerRoutes(httplib::Server& http, RouteContext& ctx) {
     res.set_content("ok rigport " RIGPORT_VERSION "\n", "text/plain");
   });
   http.Get("/readyz", [&ctx](const Request& req, Response& res) {
-    if (ctx.ready) return res.set_content("ready\n", "text/plain");
+    if (ctx.ready && ctx.storage.ok()) return res.set_content("ready\n", "text/plain");
+    if (ctx.ready) {
+      return sendProblem(res, api::makeProblem(api::WireError::kStorageUnavailable,
+                                               "the service's storage does not take writes now", req.path), ctx);
+    }
     sendProblem(res, api::makeProblem(api::WireError::kNotReady, "starting up or shutting down", req.path), ctx);
   });
   http.Get("/metrics", [&ctx](const Request&, Response& res) {
@@ -445,6 +469,8 @@ void registerRoutes(httplib::Server& http, RouteContext& ctx) {
     for (const auto& [status, n] : ctx.store.countJobsByStatus()) g.jobs_by_state[api::jobStatusName(status)] = n;
     g.queue_depth = ctx.jobs.queueDepth();
     g.running_jobs = ctx.jobs.runningJobs();
+    g.storage_ok = ctx.storage.ok();
+    g.storage_faults = ctx.storage.faults();
     g.caches = {{"rig", ctx.caches.rigs.stats()}, {"distances", ctx.caches.distances.stats()}};
     res.set_content(ctx.metrics.render(g), "text/plain; version=0.0.4");
   });

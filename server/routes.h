@@ -14,6 +14,7 @@
 #include "server/json_log.h"
 #include "server/metrics.h"
 #include "server/prepared_cache.h"
+#include "server/storage_health.h"
 #include "server/store.h"
 
 namespace server {
@@ -33,6 +34,9 @@ struct RouteContext {
   // a rig or job delete holds it exclusively while it collects unreferenced blobs,
   // so it never removes a blob a concurrent upload is about to reference.
   std::shared_mutex& blob_collection;
+  // Red: /readyz and every request that would write answer 503
+  // storage-unavailable; a failed write reports here.
+  StorageHealth& storage;
 };
 
 // Registers every route and the error/exception/logger hooks. `context` must

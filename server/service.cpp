@@ -1,5 +1,6 @@
 #include "server/service.h"
 
+#include <chrono>
 #include <system_error>
 #include <thread>
 
@@ -26,9 +27,10 @@ Service::Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<Metad
       store_(std::move(store)),
       blobs_(config.data_dir / "blobs"),
       caches_(config.cache_bytes),
-      jobs_(*store_, blobs_, blob_collection_, caches_, metrics_, config_, log_),
+      storage_(*store_, blobs_, config_, log_),
+      jobs_(*store_, blobs_, blob_collection_, storage_, caches_, metrics_, config_, log_),
       retention_(*store_, blobs_, blob_collection_, metrics_, config_, log_),
-      routes_{config_, keys_, *store_, blobs_, caches_, jobs_, metrics_, log_, ready_, uploads_, blob_collection_} {
+      routes_{config_, keys_, *store_, blobs_, caches_, jobs_, metrics_, log_, ready_, uploads_, blob_collection_, storage_} {
   blobs_.removeTemporaries();
   store_->setErrorReporter([this](const std::string& message) { log_.error("store_error", {{"detail", message}}); });
   // cpp-httplib serves one connection per pool thread: the pool is sized
@@ -46,6 +48,7 @@ Service::Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<Metad
 Service::~Service() { stop(0.0); }
 
 core::Result<int> Service::start() {
+  storage_.probe();  // a read-only or full data dir is red from the start: no job runs
   jobs_.start();
   if (config_.port == 0) {
     port_ = http_.bind_to_any_port(config_.host);
@@ -57,20 +60,31 @@ core::Result<int> Service::start() {
     return core::makeError(core::ErrorCode::kIo, "cannot listen on " + config_.host + ":" + std::to_string(config_.port));
   }
   ready_ = true;
+  storage_.start();
   retention_.start();
   log_.info("listening", {{"host", config_.host}, {"port", port_}, {"auth", keys_.enabled()},
                           {"data_dir", config_.data_dir.string()}, {"keep_jobs_days", config_.keep_jobs_days}});
   return port_;
 }
 
-void Service::serve() { http_.listen_after_bind(); }
+void Service::serve() {
+  serving_ = true;
+  if (!stopped_) http_.listen_after_bind();  // a stop() that came first would not reach a listener not yet running
+  serving_ = false;
+}
 
 void Service::stop(double grace_s) {
-  if (stopped_) return;
-  stopped_ = true;
+  if (stopped_.exchange(true)) return;
   ready_ = false;
+  // httplib's stop() only reaches a listener already running: repeated until
+  // serve() has returned (or, entered after this, sees stopped_ and returns).
   http_.stop();
+  while (serving_) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    http_.stop();
+  }
   retention_.stop();
+  storage_.stop();
   const bool finished = jobs_.stop(grace_s);
   log_.info("stopped", {{"running_jobs_finished", finished}});
 }

@@ -17,6 +17,7 @@
 #include "server/metrics.h"
 #include "server/prepared_cache.h"
 #include "server/retention.h"
+#include "server/storage_health.h"
 #include "server/routes.h"
 #include "server/store.h"
 
@@ -51,6 +52,7 @@ class Service {
   Caches caches_;
   Metrics metrics_;
   std::shared_mutex blob_collection_;
+  StorageHealth storage_;
   JobManager jobs_;
   RetentionSweeper retention_;
   std::atomic<bool> ready_{false};
@@ -58,7 +60,8 @@ class Service {
   RouteContext routes_;
   httplib::Server http_;
   int port_ = 0;
-  bool stopped_ = false;
+  std::atomic<bool> stopped_{false};
+  std::atomic<bool> serving_{false};  // serve() entered and not returned
 };
 
 }  // namespace server

@@ -272,6 +272,22 @@ core::Result<std::string> BlobStore::put(std::span<const std::uint8_t> bytes) {
   return hash;
 }
 
+core::Status BlobStore::probeWrite() {
+  // Bigger than a page and a spool chunk, so a device that takes only small
+  // writes (nearly full, a file-size limit) fails here as the real writes would.
+  static const std::vector<std::uint8_t> kProbe(64 * 1024, 0x5a);
+  const fs::path tmp_dir = root_ / "tmp";
+  if (auto st = ensureDurableDirs(tmp_dir); !st) return st;
+  const fs::path tmp = tmp_dir / (randomHex(16) + ".probe");
+  Fd fd(openRetrying(tmp, O_WRONLY | O_CREAT | O_EXCL, 0600));
+  if (!fd.valid()) return ioError("cannot create", tmp, errno);
+  core::Status status = writeAll(fd.get(), kProbe.data(), kProbe.size(), tmp);
+  if (status && ::fsync(fd.get()) != 0) status = ioError("cannot fsync", tmp, errno);
+  if (const int err = fd.close(); status && err != 0) status = ioError("cannot close", tmp, err);
+  if (::unlink(tmp.c_str()) != 0 && status) status = ioError("cannot remove", tmp, errno);
+  return status;
+}
+
 core::Result<std::string> BlobStore::adopt(const fs::path& file) {
   auto hashed = sha256HexOfFile(file);
   if (!hashed) return hashed.error();
@@ -342,7 +358,7 @@ void BlobStore::removeTemporaries() {
 
 namespace {
 
-constexpr int kSchemaVersion = 2;
+constexpr int kSchemaVersion = 3;
 constexpr int kBusyTimeoutMs = 5000;
 
 // Schema version 1. Rig created_at is stored as RFC 3339 UTC text (the wire
@@ -411,6 +427,15 @@ CREATE INDEX job_inputs_blob ON job_inputs(blob);
 // stored by version 1, which did not: "unknown", not "none").
 constexpr const char* kMigrateV1ToV2 = R"sql(
 ALTER TABLE rigs ADD COLUMN region_labels TEXT NOT NULL DEFAULT '';
+)sql";
+
+// Version 3: one row rewritten by the storage probe (StorageHealth), so a
+// probe is a real write transaction.
+constexpr const char* kMigrateV2ToV3 = R"sql(
+CREATE TABLE storage_probe (
+  id    INTEGER PRIMARY KEY CHECK (id = 1),
+  at_ms INTEGER NOT NULL
+);
 )sql";
 
 constexpr const char* kRigColumns =
@@ -725,6 +750,12 @@ core::Result<std::unique_ptr<MetadataStore>> MetadataStore::open(const fs::path&
       }
       now_version = 2;
     }
+    if (now_version == 2) {
+      if (auto st = c->exec(kMigrateV2ToV3); !st) {
+        return Error{st.error().code, "database " + file.string() + ": upgrading schema 2 to 3: " + st.error().message};
+      }
+      now_version = 3;
+    }
     if (auto st = c->exec(("PRAGMA user_version=" + std::to_string(now_version)).c_str()); !st) return st.error();
     if (auto st = tx.commit(); !st) return st.error();
   }
@@ -981,6 +1012,17 @@ core::Status MetadataStore::requeue(const std::string& id) {
     if (s.step() != SQLITE_DONE) return c.error("cannot requeue job " + id);
   }
   if (sqlite3_changes(c.db) == 0) return transitionRefused(c, id, "requeue");
+  return core::Ok{};
+}
+
+core::Status MetadataStore::probeWrite() {
+  std::lock_guard lock(mutex_);
+  Connection& c = *connection_;
+  auto stmt = c.prepare("INSERT INTO storage_probe (id, at_ms) VALUES (1, ?1) ON CONFLICT (id) DO UPDATE SET at_ms = ?1");
+  if (!stmt) return stmt.error();
+  Stmt s(*stmt);
+  s.bind(1, nowMs());
+  if (s.step() != SQLITE_DONE) return c.error("storage probe write failed");
   return core::Ok{};
 }
 

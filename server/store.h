@@ -36,6 +36,9 @@ class BlobStore {
   // Reads and verifies the hash (a corrupted blob is an error, never served).
   core::Result<std::vector<std::uint8_t>> read(const std::string& hash) const;
   void remove(const std::string& hash);
+  // Writes, fsyncs and removes a 64 KiB file where blobs are written: whether
+  // the blob storage takes writes now (StorageHealth).
+  core::Status probeWrite();
   // Removes leftover temporary files (from a crash mid-write).
   // Call at startup before any put()/adopt(): it also deletes the temporary
   // file of a put() in flight, which would then fail.
@@ -94,7 +97,8 @@ class MetadataStore {
   // Opens or creates <file> (WAL, synchronous=FULL, foreign keys, schema
   // version checked); errors name the file. A store of an older schema is
   // upgraded in place, in one transaction (schema 1 -> 2: rigs gain their
-  // region labels, unknown for the rigs already stored); a newer one is refused.
+  // region labels, unknown for the rigs already stored; 2 -> 3: the storage
+  // probe's row); a newer one is refused.
   static core::Result<std::unique_ptr<MetadataStore>> open(const std::filesystem::path& file);
   // Where the read functions (which return empty results on a SQLite error)
   // report the error: the server passes its structured log. Default: dropped.
@@ -141,6 +145,9 @@ class MetadataStore {
   // oldest first, at most `limit` (the retention sweep).
   std::vector<std::pair<std::string, std::string>> finishedJobsBefore(std::int64_t finished_before_ms, int limit);
   std::map<api::JobStatus, std::int64_t> countJobsByStatus();
+  // One durable write transaction: whether the database takes writes now
+  // (StorageHealth).
+  core::Status probeWrite();
   // Blob hashes referenced by any rig or job row (for garbage collection).
   // Answers true when the database cannot be read (never lets GC delete blindly).
   bool blobReferenced(const std::string& hash);

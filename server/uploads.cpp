@@ -40,8 +40,10 @@ std::variant<SpooledUpload, api::Problem> spoolMultipart(const httplib::Request&
   std::FILE* current = nullptr;
   SpooledPart* part = nullptr;
   std::string problem;
+  bool spool_failed = false;  // a write to the spool dir failed: storage, not the client
   auto closeCurrent = [&] {
-    if (current) std::fclose(current);
+    // fclose flushes: its failure (a full disk) means a truncated part.
+    if (current && std::fclose(current) != 0) spool_failed = true;
     current = nullptr;
   };
   const bool ok = reader(
@@ -66,15 +68,19 @@ std::variant<SpooledUpload, api::Problem> spoolMultipart(const httplib::Request&
         p.path = spool_dir / ("upload-" + std::to_string(counter.fetch_add(1)) + ".part");
         current = std::fopen(p.path.c_str(), "wb");
         if (!current) {
-          problem = "cannot spool the upload";
+          spool_failed = true;
           return false;
         }
         part = &p;
         return true;
       },
       [&](const char* data, std::size_t length) {
-        if (!current || std::fwrite(data, 1, length, current) != length) {
-          problem = "cannot spool the upload";
+        if (!current) {
+          problem = "multipart data before any part header";
+          return false;
+        }
+        if (std::fwrite(data, 1, length, current) != length) {
+          spool_failed = true;
           return false;
         }
         part->size += length;
@@ -82,11 +88,12 @@ std::variant<SpooledUpload, api::Problem> spoolMultipart(const httplib::Request&
         return received <= max_body_bytes;
       });
   closeCurrent();
-  if (!problem.empty()) {
-    const auto kind = problem.find("cannot spool") == std::string::npos ? api::WireError::kMalformedRequest
-                                                                          : api::WireError::kInternal;
-    return api::makeProblem(kind, problem, request.path);
+  if (spool_failed) {
+    return api::makeProblem(api::WireError::kStorageUnavailable,
+                            "the upload could not be spooled: the service's storage does not take writes now; retry later",
+                            request.path);
   }
+  if (!problem.empty()) return api::makeProblem(api::WireError::kMalformedRequest, problem, request.path);
   if (received > max_body_bytes) return tooLarge();
   if (!ok) return api::makeProblem(api::WireError::kMalformedRequest, "the multipart body could not be read", request.path);
   return upload;

@@ -323,7 +323,8 @@ TEST(ApiErrorCodes, TableMapsEveryCodeToItsContractStatus) {
       {W::kPayloadTooLarge, 413},  {W::kUnsupportedMediaType, 415}, {W::kInvalidMesh, 422},
       {W::kInvalidLandmarks, 422}, {W::kIllConditioned, 422},  {W::kUnsupportedFeature, 422},
       {W::kQueueFull, 429},        {W::kJobCancelled, 409},    {W::kJobTimeout, 504},
-      {W::kInternal, 500},         {W::kNotReady, 503}};
+      {W::kInternal, 500},         {W::kNotReady, 503},
+      {W::kStorageUnavailable, 503}};
   std::set<std::string> slugs;
   for (const auto& [error, status] : expected) {
     SCOPED_TRACE(api::wireErrorSlug(error));

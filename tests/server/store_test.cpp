@@ -322,10 +322,10 @@ TEST(MetadataStore, SchemaOneIsUpgradedKeepingItsRigs) {
     old_rig.info.region_labels = std::vector<int>{1, 2};
     ASSERT_TRUE(store->insertRig(old_rig).ok());
   }
-  // Back to what schema 1 wrote.
+  // Back to what schema 1 wrote (without what versions 2 and 3 added).
   sqlite3* db = nullptr;
   ASSERT_EQ(sqlite3_open(file.c_str(), &db), SQLITE_OK);
-  ASSERT_EQ(sqlite3_exec(db, "ALTER TABLE rigs DROP COLUMN region_labels; PRAGMA user_version=1;", nullptr, nullptr,
+  ASSERT_EQ(sqlite3_exec(db, "ALTER TABLE rigs DROP COLUMN region_labels; DROP TABLE storage_probe; PRAGMA user_version=1;", nullptr, nullptr,
                          nullptr),
             SQLITE_OK)
       << sqlite3_errmsg(db);
@@ -352,11 +352,12 @@ TEST(MetadataStore, SchemaOneIsUpgradedKeepingItsRigs) {
   EXPECT_EQ(reopened->getRig("acme", "unlabelled")->info.region_labels, std::vector<int>{});
   EXPECT_FALSE(reopened->getRig("acme", "old")->info.region_labels.has_value());
   EXPECT_EQ(reopened->listRigs("acme").size(), 3u);
+  EXPECT_TRUE(reopened->probeWrite().ok()) << "version 3's probe table must exist";
   ASSERT_EQ(sqlite3_open(file.c_str(), &db), SQLITE_OK);
   sqlite3_stmt* stmt = nullptr;
   ASSERT_EQ(sqlite3_prepare_v2(db, "PRAGMA user_version", -1, &stmt, nullptr), SQLITE_OK);
   ASSERT_EQ(sqlite3_step(stmt), SQLITE_ROW);
-  EXPECT_EQ(sqlite3_column_int(stmt, 0), 2);
+  EXPECT_EQ(sqlite3_column_int(stmt, 0), 3);
   sqlite3_finalize(stmt);
   sqlite3_close(db);
 }
