@@ -15,7 +15,9 @@ enum class WireError {
   kInvalidOption,         // 400 an option out of its documented range
   kUnauthorized,          // 401 missing or unknown API key
   kNotFound,              // 404 unknown route, rig or job (or another tenant's)
+  kRequestTimeout,        // 408 the request head did not arrive in time (answered before any thread is taken)
   kConflict,              // 409 e.g. result of a job that has not succeeded
+  kLengthRequired,        // 411 a chunked body on a route that takes no upload
   kPayloadTooLarge,       // 413 body, vertex or landmark count over the limit
   kUnsupportedMediaType,  // 415 not multipart/form-data where files are expected
   kInvalidMesh,           // 422 NaN/Inf, bad indices, no faces
@@ -24,6 +26,8 @@ enum class WireError {
   kUnsupportedFeature,    // 422 valid file using a feature rigport does not handle
   kQualityGate,           // 422 (job error) a strict transfer's output failed its quality check
   kQueueFull,             // 429 with Retry-After
+  kTooManyUploads,        // 429 with Retry-After: upload slots of the service, the tenant or the client address taken
+  kHeadersTooLarge,       // 431 request head over its limit
   // 5xx and job outcomes
   kJobCancelled,          // 409 (job error) cancelled on request
   kJobTimeout,            // 504 (job error) over the per-job time limit

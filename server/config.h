@@ -19,19 +19,30 @@ struct ServerConfig {
   std::filesystem::path api_keys_file;   // "key tenant" per line; empty + no env = auth off
   bool auth = true;                      // false: every request is tenant "" (local use, demo)
 
-  // HTTP: cpp-httplib blocks one thread per connection, so the pool is sized
-  // explicitly and keep-alive is bounded, so idle clients cannot pin it.
+  // HTTP (server/http_server.h, server/connection_gate.h): a connection
+  // takes a thread only once its request head is in; a request's time on a
+  // thread is bounded as a whole. Threads are kept in reserve for probes and
+  // small reads: uploads and long-polls together may hold at most
+  // http_threads - 4 of them (checked at start).
   int http_threads = 32;
   int keep_alive_max_count = 100;        // requests per connection
   int keep_alive_timeout_s = 2;          // idle keep-alive connection closed after this
-  int read_timeout_s = 30;               // stalled uploads time out
+  int read_timeout_s = 30;               // one stalled read or write
   int write_timeout_s = 30;
+  double head_timeout_s = 10.0;          // a request head must arrive whole within this (else 408)
+  double request_time_limit_s = 120.0;   // a request on a thread: body, handler and response
+  double upload_time_limit_s = 600.0;    // the same for uploads (POST /v1/rigs, /v1/jobs)
+  int max_waiting_connections = 4096;    // connections waiting for their request head
+  int max_waiting_per_client = 64;       // ... from one client address (its oldest is closed beyond)
 
   // Limits
   std::size_t max_body_bytes = 256ull << 20;   // one request body
   std::int64_t max_vertices = 2'000'000;       // per mesh
   int max_landmarks = 10'000;
-  int max_concurrent_uploads = 16;             // multipart bodies being received (and checked) at once
+  int max_concurrent_uploads = 12;             // multipart bodies being received (and checked) at once
+  int max_uploads_per_tenant = 4;              // ... of one tenant
+  int max_uploads_per_client = 8;              // ... from one client address
+  int max_concurrent_waits = 8;                // long-polls (GET /v1/jobs/{id}?wait_ms) waiting at once
   int queue_capacity = 256;                    // queued jobs; beyond -> 429
   int retry_after_s = 1;                       // Retry-After of a 429
   double job_time_limit_s = 300.0;             // a running job is stopped at its next stage after this

@@ -1,5 +1,8 @@
 // rigport-server: wiring only. Configuration from the command line, logger,
 // service, signals.
+#include <sys/resource.h>
+
+#include <algorithm>
 #include <csignal>
 #include <cstdlib>
 #include <thread>
@@ -24,6 +27,10 @@ int main(int argc, char** argv) {
   bool no_auth = false;
   app.add_option("--listen", listen, "host:port to listen on (port 0 = any free port)")->capture_default_str();
   app.add_option("--data-dir", config.data_dir, "Store directory (SQLite + blobs)")->required();
+  app.add_option("--max-uploads-per-tenant", config.max_uploads_per_tenant, "Uploads one tenant may send at once")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--max-uploads-per-client", config.max_uploads_per_client, "Uploads one client address may send at once")
+      ->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--workers", config.workers, "Job worker threads (0 = hardware threads)")->check(CLI::NonNegativeNumber);
   app.add_option("--cache-mb", cache_mb, "Prepared-rig cache bound, MiB")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--api-keys", config.api_keys_file, "API key file: '<key> <tenant>' per line (also RIGPORT_API_KEYS)")
@@ -63,6 +70,12 @@ int main(int argc, char** argv) {
     keys = std::move(*loaded);
   }
 
+  // Connections waiting at the gate hold a descriptor each; the usual soft
+  // limit (1024) is below what the gate is sized for.
+  if (rlimit files{}; getrlimit(RLIMIT_NOFILE, &files) == 0 && files.rlim_cur < files.rlim_max) {
+    files.rlim_cur = std::min<rlim_t>(files.rlim_max, 65536);
+    setrlimit(RLIMIT_NOFILE, &files);
+  }
   auto service = server::Service::create(config, std::move(keys), logger);
   if (!service) {
     log.error("startup_failed", {{"detail", service.error().message}});

@@ -81,17 +81,6 @@ bool isHexId(const std::string& s, std::size_t length) {
 }
 
 // Counts a multipart body being received; over the limit -> 429.
-class UploadSlot {
- public:
-  explicit UploadSlot(std::atomic<int>& counter, int limit) : counter_(counter) { ok_ = ++counter_ <= limit; }
-  ~UploadSlot() { --counter_; }
-  bool ok() const { return ok_; }
-
- private:
-  std::atomic<int>& counter_;
-  bool ok_ = false;
-};
-
 std::string_view asText(const std::vector<std::uint8_t>& bytes) {
   return {reinterpret_cast<const char*>(bytes.data()), bytes.size()};
 }
@@ -141,9 +130,10 @@ std::optional<ReceivedUpload> receiveUpload(const Request& req, Response& res, c
                                             RouteContext& ctx) {
   auto tenant = authenticate(req, res, ctx);
   if (!tenant || !storageWritable(req, res, ctx)) return std::nullopt;
-  UploadSlot slot(ctx.uploads_in_progress, ctx.config.max_concurrent_uploads);
-  if (!slot.ok()) {
-    sendProblem(res, api::makeProblem(api::WireError::kQueueFull, "too many uploads in progress", req.path), ctx);
+  auto slot = ctx.uploads.acquire(*tenant, req.remote_addr);
+  if (auto* refusal = std::get_if<std::string>(&slot)) {
+    res.set_header("Connection", "close");  // the body is left unread
+    sendProblem(res, api::makeProblem(api::WireError::kTooManyUploads, *refusal + "; retry later", req.path), ctx);
     return std::nullopt;
   }
   auto spooled = spoolMultipart(req, reader, ctx.config.data_dir / "uploads", ctx.config.max_body_bytes);
@@ -371,8 +361,8 @@ void getJobs(const Request& req, Response& res, RouteContext& ctx) {
   sendJson(res, 200, api::toJson(page));
 }
 
-// Longest long-poll a client may ask for (`wait_ms`), and the share of HTTP
-// threads that may be waiting at once (the rest keep serving uploads).
+// Longest long-poll a client may ask for (`wait_ms`); at most
+// config.max_concurrent_waits wait at once (the others answer at once).
 constexpr int kMaxWaitMs = 60000;
 
 void getJob(const Request& req, Response& res, RouteContext& ctx) {
@@ -392,7 +382,7 @@ void getJob(const Request& req, Response& res, RouteContext& ctx) {
   auto job = ctx.store.getJob(*tenant, id);
   if (!job) return sendProblem(res, api::makeProblem(api::WireError::kNotFound, "no job " + id, req.path), ctx);
   if (wait_ms > 0 && !api::isFinal(job->status) &&
-      ctx.jobs.waitUntilSettled(id, std::chrono::milliseconds(wait_ms), std::max(1, ctx.config.http_threads / 2))) {
+      ctx.jobs.waitUntilSettled(id, std::chrono::milliseconds(wait_ms), ctx.config.max_concurrent_waits)) {
     if (auto again = ctx.store.getJob(*tenant, id)) job = std::move(again);
   }
   sendJson(res, 200, api::toJson(jobInfoOf(*job, ctx.jobs.live(id))));

@@ -16,6 +16,7 @@
 #include "server/prepared_cache.h"
 #include "server/storage_health.h"
 #include "server/store.h"
+#include "server/uploads.h"
 
 namespace server {
 
@@ -29,7 +30,7 @@ struct RouteContext {
   Metrics& metrics;
   JsonLog log;
   std::atomic<bool>& ready;                 // /readyz, and 503 on /v1 while false
-  std::atomic<int>& uploads_in_progress;    // bounded by config.max_concurrent_uploads
+  UploadSlots& uploads;                     // per service, tenant and client address
   // Uploads hold it shared from adopting blobs until their row is committed;
   // a rig or job delete holds it exclusively while it collects unreferenced blobs,
   // so it never removes a blob a concurrent upload is about to reference.

@@ -15,10 +15,38 @@ core::Result<std::unique_ptr<Service>> Service::create(const ServerConfig& confi
   for (const auto& entry : std::filesystem::directory_iterator(config.data_dir / "uploads", ec)) {
     std::filesystem::remove(entry.path(), ec);
   }
+  // Threads kept for probes and small reads whatever uploads and long-polls do.
+  constexpr int kReservedHttpThreads = 4;
+  if (config.max_concurrent_uploads + config.max_concurrent_waits > config.http_threads - kReservedHttpThreads) {
+    return core::makeError(core::ErrorCode::kInvalidArgument,
+                           "max_concurrent_uploads (" + std::to_string(config.max_concurrent_uploads) +
+                               ") + max_concurrent_waits (" + std::to_string(config.max_concurrent_waits) +
+                               ") must leave " + std::to_string(kReservedHttpThreads) + " of the " +
+                               std::to_string(config.http_threads) + " HTTP threads free");
+  }
   auto store = MetadataStore::open(config.data_dir / "rigport.sqlite");
   if (!store) return store.error();
   return std::unique_ptr<Service>(new Service(config, std::move(keys), std::move(*store), JsonLog(std::move(logger))));
 }
+
+namespace {
+
+HttpLimits httpLimits(const ServerConfig& config) {
+  HttpLimits limits;
+  limits.threads = config.http_threads;
+  limits.keep_alive_max_count = config.keep_alive_max_count;
+  limits.read_timeout_s = config.read_timeout_s;
+  limits.write_timeout_s = config.write_timeout_s;
+  limits.request_time_s = config.request_time_limit_s;
+  limits.upload_time_s = config.upload_time_limit_s;
+  limits.gate.head_timeout_s = config.head_timeout_s;
+  limits.gate.keep_alive_idle_s = config.keep_alive_timeout_s;
+  limits.gate.max_waiting = config.max_waiting_connections;
+  limits.gate.max_waiting_per_client = config.max_waiting_per_client;
+  return limits;
+}
+
+}  // namespace
 
 Service::Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<MetadataStore> store, JsonLog log)
     : config_(config),
@@ -30,17 +58,14 @@ Service::Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<Metad
       storage_(*store_, blobs_, config_, log_),
       jobs_(*store_, blobs_, blob_collection_, storage_, caches_, metrics_, config_, log_),
       retention_(*store_, blobs_, blob_collection_, metrics_, config_, log_),
-      routes_{config_, keys_, *store_, blobs_, caches_, jobs_, metrics_, log_, ready_, uploads_, blob_collection_, storage_} {
+      uploads_(config.max_concurrent_uploads, config.max_uploads_per_tenant, config.max_uploads_per_client),
+      routes_{config_, keys_, *store_, blobs_, caches_, jobs_, metrics_, log_, ready_, uploads_, blob_collection_, storage_},
+      http_(httpLimits(config),
+            [this](const std::string& event, const std::string& client, const std::string& detail) {
+              log_.info(event, {{"client", client}, {"detail", detail}});
+            }) {
   blobs_.removeTemporaries();
   store_->setErrorReporter([this](const std::string& message) { log_.error("store_error", {{"detail", message}}); });
-  // cpp-httplib serves one connection per pool thread: the pool is sized
-  // explicitly and keep-alive bounded so idle clients cannot pin every thread.
-  const int http_threads = config_.http_threads;
-  http_.new_task_queue = [http_threads] { return new httplib::ThreadPool(static_cast<std::size_t>(http_threads)); };
-  http_.set_keep_alive_max_count(static_cast<std::size_t>(config_.keep_alive_max_count));
-  http_.set_keep_alive_timeout(config_.keep_alive_timeout_s);
-  http_.set_read_timeout(config_.read_timeout_s, 0);
-  http_.set_write_timeout(config_.write_timeout_s, 0);
   http_.set_payload_max_length(config_.max_body_bytes);
   registerRoutes(http_, routes_);
 }
@@ -85,7 +110,8 @@ void Service::stop(double grace_s) {
   }
   retention_.stop();
   storage_.stop();
-  const bool finished = jobs_.stop(grace_s);
+  const bool finished = jobs_.stop(grace_s);  // also wakes long-polls
+  http_.drain();  // waiting connections closed, requests in service finished
   log_.info("stopped", {{"running_jobs_finished", finished}});
 }
 

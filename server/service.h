@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "server/auth.h"
 #include "server/config.h"
+#include "server/http_server.h"
 #include "server/jobs.h"
 #include "server/json_log.h"
 #include "server/metrics.h"
@@ -56,9 +57,9 @@ class Service {
   JobManager jobs_;
   RetentionSweeper retention_;
   std::atomic<bool> ready_{false};
-  std::atomic<int> uploads_{0};
+  UploadSlots uploads_;
   RouteContext routes_;
-  httplib::Server http_;
+  GatedHttpServer http_;
   int port_ = 0;
   std::atomic<bool> stopped_{false};
   std::atomic<bool> serving_{false};  // serve() entered and not returned

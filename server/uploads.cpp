@@ -99,4 +99,41 @@ std::variant<SpooledUpload, api::Problem> spoolMultipart(const httplib::Request&
   return upload;
 }
 
+UploadSlots::UploadSlots(int total, int per_tenant, int per_client)
+    : total_(total), per_tenant_(per_tenant), per_client_(per_client) {}
+
+UploadSlots::Ticket::Ticket(UploadSlots* slots, std::string tenant, std::string client)
+    : slots_(slots), tenant_(std::move(tenant)), client_(std::move(client)) {}
+
+UploadSlots::Ticket::Ticket(Ticket&& other) noexcept
+    : slots_(other.slots_), tenant_(std::move(other.tenant_)), client_(std::move(other.client_)) {
+  other.slots_ = nullptr;
+}
+
+UploadSlots::Ticket::~Ticket() {
+  if (slots_) slots_->release(tenant_, client_);
+}
+
+std::variant<UploadSlots::Ticket, std::string> UploadSlots::acquire(const std::string& tenant, const std::string& client) {
+  std::lock_guard lock(mutex_);
+  if (by_tenant_[tenant] >= per_tenant_) {
+    return "this tenant already has " + std::to_string(per_tenant_) + " uploads in progress (the limit per tenant)";
+  }
+  if (by_client_[client] >= per_client_) {
+    return "this client address already has " + std::to_string(per_client_) + " uploads in progress (the limit per address)";
+  }
+  if (in_progress_ >= total_) return "the service has " + std::to_string(total_) + " uploads in progress (its limit)";
+  ++in_progress_;
+  ++by_tenant_[tenant];
+  ++by_client_[client];
+  return Ticket(this, tenant, client);
+}
+
+void UploadSlots::release(const std::string& tenant, const std::string& client) {
+  std::lock_guard lock(mutex_);
+  --in_progress_;
+  if (--by_tenant_[tenant] <= 0) by_tenant_.erase(tenant);
+  if (--by_client_[client] <= 0) by_client_.erase(client);
+}
+
 }  // namespace server

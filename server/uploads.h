@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <mutex>
 #include <string>
 #include <variant>
 
@@ -39,5 +40,35 @@ std::variant<SpooledUpload, api::Problem> spoolMultipart(const httplib::Request&
                                                          const httplib::ContentReader& reader,
                                                          const std::filesystem::path& spool_dir,
                                                          std::uint64_t max_body_bytes);
+
+// Upload slots: a multipart body being received holds one slot of the
+// service's, one of its tenant's and one of its client address's, so a
+// tenant or an address trickling uploads blocks only itself.
+class UploadSlots {
+ public:
+  UploadSlots(int total, int per_tenant, int per_client);
+  // Held while the upload is received and checked; released when destroyed.
+  class Ticket {
+   public:
+    Ticket(UploadSlots* slots, std::string tenant, std::string client);
+    Ticket(Ticket&& other) noexcept;
+    Ticket& operator=(Ticket&&) = delete;
+    Ticket(const Ticket&) = delete;
+    ~Ticket();
+
+   private:
+    UploadSlots* slots_;
+    std::string tenant_, client_;
+  };
+  // A ticket, or which limit is reached (a sentence for the 429).
+  std::variant<Ticket, std::string> acquire(const std::string& tenant, const std::string& client);
+
+ private:
+  void release(const std::string& tenant, const std::string& client);
+  const int total_, per_tenant_, per_client_;
+  std::mutex mutex_;
+  int in_progress_ = 0;
+  std::map<std::string, int> by_tenant_, by_client_;
+};
 
 }  // namespace server

@@ -324,7 +324,8 @@ TEST(ApiErrorCodes, TableMapsEveryCodeToItsContractStatus) {
       {W::kInvalidLandmarks, 422}, {W::kIllConditioned, 422},  {W::kUnsupportedFeature, 422},
       {W::kQueueFull, 429},        {W::kJobCancelled, 409},    {W::kJobTimeout, 504},
       {W::kInternal, 500},         {W::kNotReady, 503},
-      {W::kStorageUnavailable, 503}};
+      {W::kStorageUnavailable, 503}, {W::kRequestTimeout, 408}, {W::kLengthRequired, 411},
+      {W::kTooManyUploads, 429},     {W::kHeadersTooLarge, 431}};
   std::set<std::string> slugs;
   for (const auto& [error, status] : expected) {
     SCOPED_TRACE(api::wireErrorSlug(error));

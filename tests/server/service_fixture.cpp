@@ -95,7 +95,6 @@ server::ServerConfig testConfig(const std::filesystem::path& dir) {
   config.port = 0;
   config.data_dir = dir;
   config.workers = 2;
-  config.http_threads = 16;
   return config;
 }
 

@@ -1,0 +1,362 @@
+#include "server/connection_gate.h"
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <sys/epoll.h>
+#include <sys/eventfd.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <string_view>
+#include <tuple>
+
+#include "api/error_codes.h"
+#include "api/json.h"
+
+namespace server {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+Clock::time_point after(double seconds) {
+  return Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
+}
+
+bool equalsIgnoreCase(std::string_view a, std::string_view b) {
+  return a.size() == b.size() &&
+         std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) { return std::tolower(x) == std::tolower(y); });
+}
+
+std::string_view trim(std::string_view s) {
+  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t')) s.remove_suffix(1);
+  return s;
+}
+
+// What the door needs to know of a complete request head.
+struct Head {
+  std::string method, path;
+  std::optional<std::size_t> content_length;
+  bool chunked = false;
+  bool expects_continue = false;
+};
+
+// The head's request line and framing headers, or the problem with it.
+std::variant<Head, api::Problem> parseHead(std::string_view head) {
+  const auto bad = [](const std::string& detail, const std::string& path) {
+    return api::makeProblem(api::WireError::kMalformedRequest, detail, path.empty() ? "/" : path);
+  };
+  Head out;
+  std::size_t line_end = head.find("\r\n");
+  const std::string_view request_line = head.substr(0, line_end);
+  const std::size_t sp1 = request_line.find(' ');
+  const std::size_t sp2 = sp1 == std::string_view::npos ? sp1 : request_line.find(' ', sp1 + 1);
+  if (sp2 == std::string_view::npos || request_line.substr(sp2 + 1).substr(0, 7) != "HTTP/1.") {
+    return bad("the request line is not 'METHOD target HTTP/1.x'", "");
+  }
+  out.method = request_line.substr(0, sp1);
+  const std::string_view target = request_line.substr(sp1 + 1, sp2 - sp1 - 1);
+  out.path = target.substr(0, target.find('?'));
+  while (line_end + 2 < head.size()) {
+    const std::size_t start = line_end + 2;
+    line_end = head.find("\r\n", start);
+    const std::string_view line = head.substr(start, line_end - start);
+    if (line.empty()) break;
+    const std::size_t colon = line.find(':');
+    if (colon == std::string_view::npos) continue;  // httplib judges the rest of the head
+    const std::string_view name = line.substr(0, colon);
+    const std::string_view value = trim(line.substr(colon + 1));
+    if (equalsIgnoreCase(name, "Content-Length")) {
+      std::size_t length = 0;
+      const auto [end, ec] = std::from_chars(value.data(), value.data() + value.size(), length);
+      if (ec != std::errc() || end != value.data() + value.size()) {
+        return bad("Content-Length '" + std::string(value) + "' is not a byte count", out.path);
+      }
+      if (out.content_length && *out.content_length != length) return bad("two different Content-Length headers", out.path);
+      out.content_length = length;
+    } else if (equalsIgnoreCase(name, "Transfer-Encoding")) {
+      out.chunked = true;
+    } else if (equalsIgnoreCase(name, "Expect")) {
+      out.expects_continue = true;
+    }
+  }
+  // Both lengths at once is how requests are smuggled past proxies (RFC 9112 6.3).
+  if (out.chunked && out.content_length) return bad("both Transfer-Encoding and Content-Length", out.path);
+  return out;
+}
+
+bool isUploadRoute(const Head& head) {
+  return head.method == "POST" && (head.path == "/v1/rigs" || head.path == "/v1/jobs");
+}
+
+const char* reasonPhrase(int status) {
+  switch (status) {
+    case 400: return "Bad Request";
+    case 408: return "Request Timeout";
+    case 411: return "Length Required";
+    case 413: return "Content Too Large";
+    case 431: return "Request Header Fields Too Large";
+    default: return "Error";
+  }
+}
+
+}  // namespace
+
+std::pair<std::string, int> addressText(const sockaddr_storage& address) {
+  char text[INET6_ADDRSTRLEN] = {};
+  if (address.ss_family == AF_INET) {
+    const auto* in = reinterpret_cast<const sockaddr_in*>(&address);
+    inet_ntop(AF_INET, &in->sin_addr, text, sizeof text);
+    return {text, ntohs(in->sin_port)};
+  }
+  if (address.ss_family == AF_INET6) {
+    const auto* in6 = reinterpret_cast<const sockaddr_in6*>(&address);
+    inet_ntop(AF_INET6, &in6->sin6_addr, text, sizeof text);
+    return {text, ntohs(in6->sin6_port)};
+  }
+  return {"", 0};
+}
+
+ConnectionGate::ConnectionGate(GateLimits limits, Dispatch dispatch, Event on_event)
+    : limits_(limits), dispatch_(std::move(dispatch)), on_event_(std::move(on_event)) {
+  peek_.resize(limits_.max_head_bytes + limits_.max_small_body_bytes + 1);
+}
+
+ConnectionGate::~ConnectionGate() { stop(); }
+
+void ConnectionGate::start() {
+  if (thread_.joinable()) return;
+  epoll_fd_ = epoll_create1(EPOLL_CLOEXEC);
+  wake_fd_ = eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
+  epoll_event ev{};
+  ev.events = EPOLLIN;
+  ev.data.fd = wake_fd_;
+  epoll_ctl(epoll_fd_, EPOLL_CTL_ADD, wake_fd_, &ev);
+  thread_ = std::thread([this] { run(); });
+}
+
+void ConnectionGate::stop() {
+  {
+    std::lock_guard lock(mutex_);
+    if (stopping_) return;
+    stopping_ = true;
+  }
+  if (thread_.joinable()) {
+    const std::uint64_t one = 1;
+    [[maybe_unused]] const auto n = ::write(wake_fd_, &one, sizeof one);
+    thread_.join();
+  }
+  std::lock_guard lock(mutex_);
+  for (const auto& [fd, served] : incoming_) ::close(fd);
+  incoming_.clear();
+  if (epoll_fd_ >= 0) ::close(epoll_fd_);
+  if (wake_fd_ >= 0) ::close(wake_fd_);
+  epoll_fd_ = wake_fd_ = -1;
+}
+
+void ConnectionGate::admit(int fd, int served) {
+  {
+    std::lock_guard lock(mutex_);
+    if (!stopping_ && thread_.joinable()) {
+      incoming_.emplace_back(fd, served);
+      const std::uint64_t one = 1;
+      [[maybe_unused]] const auto n = ::write(wake_fd_, &one, sizeof one);
+      return;
+    }
+  }
+  ::shutdown(fd, SHUT_RDWR);
+  ::close(fd);
+}
+
+int ConnectionGate::waiting() const {
+  std::lock_guard lock(mutex_);
+  return waiting_count_;
+}
+
+void ConnectionGate::run() {
+  std::vector<epoll_event> events(256);
+  for (;;) {
+    // Deadlines are checked at least every 100 ms.
+    const int n = epoll_wait(epoll_fd_, events.data(), static_cast<int>(events.size()), 100);
+    std::vector<std::pair<int, int>> incoming;
+    {
+      std::lock_guard lock(mutex_);
+      if (stopping_) break;
+      incoming.swap(incoming_);
+    }
+    for (int i = 0; i < n; ++i) {
+      const int fd = events[i].data.fd;
+      if (fd == wake_fd_) {
+        std::uint64_t count = 0;
+        [[maybe_unused]] const auto r = ::read(wake_fd_, &count, sizeof count);
+      } else if (waiting_.count(fd)) {
+        inspect(fd);
+      }
+    }
+    for (const auto& [fd, served] : incoming) take(fd, served);
+    expire();
+    std::lock_guard lock(mutex_);
+    waiting_count_ = static_cast<int>(waiting_.size());
+  }
+  for (const auto& [fd, w] : waiting_) {
+    ::shutdown(fd, SHUT_RDWR);
+    ::close(fd);
+  }
+  waiting_.clear();
+  per_client_.clear();
+}
+
+void ConnectionGate::take(int fd, int served) {
+  Waiting w;
+  sockaddr_storage peer{};
+  socklen_t length = sizeof peer;
+  if (getpeername(fd, reinterpret_cast<sockaddr*>(&peer), &length) == 0) {
+    std::tie(w.client, w.client_port) = addressText(peer);
+  }
+  if (served == 0) {
+    // httplib writes a response's head and body separately; with Nagle's
+    // algorithm the body then waits for the client's delayed ACK (40 ms per
+    // request on a kept-alive connection).
+    const int on = 1;
+    setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &on, sizeof on);
+  }
+  w.served = served;
+  w.order = next_order_++;
+  w.deadline = after(served == 0 ? limits_.head_timeout_s : limits_.keep_alive_idle_s);
+  // Edge-triggered: peeked bytes stay in the buffer, so level-triggered
+  // readiness would fire for them forever; each new segment fires once.
+  epoll_event ev{};
+  ev.events = EPOLLIN | EPOLLRDHUP | EPOLLET;
+  ev.data.fd = fd;
+  if (epoll_ctl(epoll_fd_, EPOLL_CTL_ADD, fd, &ev) != 0) {
+    ::close(fd);
+    return;
+  }
+  const std::string client = w.client;
+  waiting_.emplace(fd, std::move(w));
+  if (++per_client_[client] > limits_.max_waiting_per_client) evictOldest(&client, "connection_evicted_per_client");
+  if (static_cast<int>(waiting_.size()) > limits_.max_waiting) evictOldest(nullptr, "connection_evicted");
+  if (waiting_.count(fd)) inspect(fd);  // bytes that came before it was watched raise no edge
+}
+
+void ConnectionGate::inspect(int fd) {
+  Waiting& w = waiting_.at(fd);
+  const ssize_t got = ::recv(fd, peek_.data(), peek_.size(), MSG_PEEK | MSG_DONTWAIT);
+  if (got == 0 || (got < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) {
+    return close(fd, "");  // the client went away
+  }
+  if (got < 0) return;
+  if (!w.started) {  // the head's time runs from its first byte (an idle keep-alive had its own)
+    w.started = true;
+    w.deadline = after(limits_.head_timeout_s);
+  }
+  const std::string_view bytes(peek_.data(), static_cast<std::size_t>(got));
+  const std::size_t end = bytes.find("\r\n\r\n");
+  if (end == std::string_view::npos || end + 4 > limits_.max_head_bytes) {
+    if (bytes.size() >= limits_.max_head_bytes) {
+      answer(fd, api::makeProblem(api::WireError::kHeadersTooLarge,
+                                  "the request head is over " + std::to_string(limits_.max_head_bytes) + " bytes", "/"));
+    }
+    return;  // not complete yet: wait for more
+  }
+  auto parsed = parseHead(bytes.substr(0, end + 4));
+  if (auto* problem = std::get_if<api::Problem>(&parsed)) return answer(fd, *problem);
+  const Head& head = std::get<Head>(parsed);
+  ReadyConnection ready;
+  ready.fd = fd;
+  ready.client = w.client;
+  ready.client_port = w.client_port;
+  ready.served = w.served;
+  ready.head_bytes = end + 4;
+  ready.upload = isUploadRoute(head);
+  if (!ready.upload) {
+    if (head.chunked) {
+      return answer(fd, api::makeProblem(api::WireError::kLengthRequired,
+                                         "a body on " + head.method + " " + head.path +
+                                             " must be sent with Content-Length (only uploads may be chunked)",
+                                         head.path));
+    }
+    const std::size_t body = head.content_length.value_or(0);
+    if (body > limits_.max_small_body_bytes) {
+      return answer(fd, api::makeProblem(api::WireError::kPayloadTooLarge,
+                                         head.method + " " + head.path + " takes a body of at most " +
+                                             std::to_string(limits_.max_small_body_bytes) + " bytes",
+                                         head.path));
+    }
+    // The whole small body must be here too (unless the client waits for
+    // 100 Continue before sending it), so no thread waits on it.
+    if (!head.expects_continue && bytes.size() < ready.head_bytes + body) return;
+  }
+  // No length and not chunked: the body is empty (RFC 9112 6.3), whatever
+  // the method; the stream ends there for httplib, which would otherwise
+  // read until the connection closes.
+  if (!head.chunked) ready.request_bytes = ready.head_bytes + head.content_length.value_or(0);
+  epoll_ctl(epoll_fd_, EPOLL_CTL_DEL, fd, nullptr);
+  if (--per_client_[w.client] <= 0) per_client_.erase(w.client);
+  waiting_.erase(fd);
+  dispatch_(std::move(ready));
+}
+
+void ConnectionGate::close(int fd, const std::string& event) {
+  auto it = waiting_.find(fd);
+  if (it == waiting_.end()) return;
+  if (!event.empty() && on_event_) on_event_(event, it->second.client, "");
+  if (--per_client_[it->second.client] <= 0) per_client_.erase(it->second.client);
+  epoll_ctl(epoll_fd_, EPOLL_CTL_DEL, fd, nullptr);
+  waiting_.erase(it);
+  ::shutdown(fd, SHUT_RDWR);
+  ::close(fd);
+}
+
+void ConnectionGate::answer(int fd, const api::Problem& problem) {
+  const std::string body = api::dumpJson(api::toJson(problem));
+  const std::string response = "HTTP/1.1 " + std::to_string(problem.status) + " " + reasonPhrase(problem.status) +
+                               "\r\nContent-Type: application/problem+json\r\nContent-Length: " +
+                               std::to_string(body.size()) + "\r\nConnection: close\r\n\r\n" + body;
+  // Best effort: a client that does not read its answer just loses it.
+  [[maybe_unused]] const ssize_t n = ::send(fd, response.data(), response.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+  // What the client sent and we did not read would make close() reset the
+  // connection, and a reset can discard the answer before the client reads
+  // it: what is already here is read and dropped.
+  char sink[16384];
+  for (int i = 0; i < 64 && ::recv(fd, sink, sizeof sink, MSG_DONTWAIT) > 0; ++i) {
+  }
+  if (on_event_) on_event_("request_refused_at_gate", waiting_.at(fd).client, problem.detail);
+  close(fd, "");
+}
+
+void ConnectionGate::expire() {
+  const auto now = Clock::now();
+  std::vector<int> late;
+  for (const auto& [fd, w] : waiting_) {
+    if (w.deadline <= now) late.push_back(fd);
+  }
+  for (int fd : late) {
+    if (waiting_.at(fd).started) {
+      answer(fd, api::makeProblem(api::WireError::kRequestTimeout,
+                                  "the request head did not arrive within " +
+                                      std::to_string(static_cast<int>(limits_.head_timeout_s)) + " s",
+                                  "/"));
+    } else {
+      close(fd, "");  // idle: a new connection that sent nothing, or a kept-alive one
+    }
+  }
+}
+
+void ConnectionGate::evictOldest(const std::string* client, const std::string& event) {
+  int oldest = -1;
+  std::uint64_t order = UINT64_MAX;
+  for (const auto& [fd, w] : waiting_) {
+    if ((!client || w.client == *client) && w.order < order) {
+      order = w.order;
+      oldest = fd;
+    }
+  }
+  if (oldest >= 0) close(oldest, event);
+}
+
+}  // namespace server
