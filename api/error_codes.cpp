@@ -29,6 +29,7 @@ constexpr Row kTable[] = {
     {WireError::kUnsupportedFeature, 422, "unsupported-feature", "File uses an unsupported feature"},
     {WireError::kQualityGate, 422, "quality-gate", "Transfer output failed its quality check"},
     {WireError::kQueueFull, 429, "queue-full", "Job queue full; retry later"},
+    {WireError::kAuthThrottled, 429, "auth-throttled", "Too many failed authentications; retry later"},
     {WireError::kTooManyUploads, 429, "too-many-uploads", "Too many uploads in progress; retry later"},
     {WireError::kHeadersTooLarge, 431, "headers-too-large", "Request head too large"},
     {WireError::kJobCancelled, 409, "job-cancelled", "Job cancelled"},

@@ -26,6 +26,7 @@ enum class WireError {
   kUnsupportedFeature,    // 422 valid file using a feature rigport does not handle
   kQualityGate,           // 422 (job error) a strict transfer's output failed its quality check
   kQueueFull,             // 429 with Retry-After
+  kAuthThrottled,         // 429 with Retry-After: too many failed authentications from the client address
   kTooManyUploads,        // 429 with Retry-After: upload slots of the service, the tenant or the client address taken
   kHeadersTooLarge,       // 431 request head over its limit
   // 5xx and job outcomes

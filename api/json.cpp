@@ -73,7 +73,8 @@ json toJson(const JobInfo& job) {
             {"created_at", job.created_at},
             {"started_at", nullIfEmpty(job.started_at)},
             {"finished_at", nullIfEmpty(job.finished_at)},
-            {"timings_ms", job.timings_ms}};
+            {"timings_ms", job.timings_ms},
+            {"files", job.files}};
   j["error"] = job.error ? toJson(*job.error) : json(nullptr);
   return j;
 }
@@ -164,6 +165,11 @@ Parsed<JobInfo> jobInfoFromJson(const json& j) {
   if (const auto it = j.find("timings_ms"); it != j.end() && it->is_object()) {
     for (const auto& [stage, ms] : it->items()) {
       if (ms.is_number()) job.timings_ms[stage] = ms.get<double>();
+    }
+  }
+  if (const auto it = j.find("files"); it != j.end() && it->is_object()) {
+    for (const auto& [field, name] : it->items()) {
+      if (name.is_string()) job.files[field] = name.get<std::string>();
     }
   }
   if (const auto it = j.find("error"); it != j.end() && !it->is_null()) {

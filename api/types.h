@@ -64,6 +64,7 @@ struct JobInfo {
   bool cache_hit = false;      // the prepared rig came from the cache
   std::string created_at, started_at, finished_at;  // RFC 3339 UTC, empty when not yet
   std::map<std::string, double> timings_ms;          // per stage, when finished
+  std::map<std::string, std::string> files;          // the uploaded files' names, by field ("target": "actor_07.glb")
   std::optional<Problem> error;                      // when failed or cancelled
 };
 

@@ -92,4 +92,35 @@ std::optional<std::string> ApiKeys::tenantFor(const std::string& header) const {
   return tenant;
 }
 
+int AuthFailureLimit::blockedFor(const std::string& client) {
+  if (max_per_minute_ <= 0) return 0;
+  std::lock_guard lock(mutex_);
+  const auto it = by_client_.find(client);
+  if (it == by_client_.end()) return 0;
+  const auto left = it->second.blocked_until - Clock::now();
+  if (left <= Clock::duration::zero()) return 0;
+  return static_cast<int>(std::chrono::ceil<std::chrono::seconds>(left).count());
+}
+
+bool AuthFailureLimit::recordFailure(const std::string& client) {
+  if (max_per_minute_ <= 0) return false;
+  std::lock_guard lock(mutex_);
+  const auto now = Clock::now();
+  if (by_client_.size() > 10000) forgetOld(now);
+  Failures& f = by_client_[client];
+  f.times.push_back(now);
+  while (!f.times.empty() && now - f.times.front() > std::chrono::minutes(1)) f.times.pop_front();
+  if (static_cast<int>(f.times.size()) <= max_per_minute_) return false;
+  const bool starts = f.blocked_until <= now;
+  f.blocked_until = now + std::chrono::minutes(1);
+  return starts;
+}
+
+void AuthFailureLimit::forgetOld(Clock::time_point now) {
+  for (auto it = by_client_.begin(); it != by_client_.end();) {
+    const bool quiet = it->second.times.empty() || now - it->second.times.back() > std::chrono::minutes(1);
+    it = quiet && it->second.blocked_until <= now ? by_client_.erase(it) : std::next(it);
+  }
+}
+
 }  // namespace server

@@ -4,8 +4,12 @@
 #pragma once
 
 #include <array>
+#include <chrono>
+#include <deque>
 #include <filesystem>
 #include <map>
+#include <mutex>
+#include <unordered_map>
 #include <optional>
 #include <string>
 #include <utility>
@@ -35,6 +39,31 @@ class ApiKeys {
   bool enabled_ = false;
   std::map<std::string, std::string> tenants_;            // key -> tenant (loading: duplicates refused)
   std::vector<std::pair<Digest, std::string>> digests_;   // what requests are compared with
+};
+
+// Failed authentications per client address: past `max_per_minute` in the
+// last minute, the address is refused (429 auth-throttled, every request that
+// needs a key) until a minute after its last counted failure, so keys cannot
+// be guessed at speed. 0 turns it off. Behind a proxy every client has the
+// proxy's address: raise it or turn it off there.
+class AuthFailureLimit {
+ public:
+  explicit AuthFailureLimit(int max_per_minute) : max_per_minute_(max_per_minute) {}
+  // Seconds until `client` may try again; 0 when it may now.
+  int blockedFor(const std::string& client);
+  // Counts a failure; true when this one starts the client's block.
+  bool recordFailure(const std::string& client);
+
+ private:
+  using Clock = std::chrono::steady_clock;
+  struct Failures {
+    std::deque<Clock::time_point> times;  // within the last minute
+    Clock::time_point blocked_until{};
+  };
+  void forgetOld(Clock::time_point now);  // bounds the map under address churn
+  const int max_per_minute_;
+  std::mutex mutex_;
+  std::unordered_map<std::string, Failures> by_client_;
 };
 
 }  // namespace server

@@ -18,6 +18,7 @@ struct ServerConfig {
   std::size_t cache_bytes = 512ull << 20;  // prepared rigs (3/4) + marker distances (1/4), bytes
   std::filesystem::path api_keys_file;   // "key tenant" per line; empty + no env = auth off
   bool auth = true;                      // false: every request is tenant "" (local use, demo)
+  bool public_metrics = false;           // /metrics without a key (with auth on, it needs one)
 
   // HTTP (server/http_server.h, server/connection_gate.h): a connection
   // takes a thread only once its request head is in; a request's time on a
@@ -42,6 +43,7 @@ struct ServerConfig {
   int max_concurrent_uploads = 12;             // multipart bodies being received (and checked) at once
   int max_uploads_per_tenant = 4;              // ... of one tenant
   int max_uploads_per_client = 8;              // ... from one client address
+  int max_auth_failures_per_minute = 120;      // per client address, then 429 for a minute (0 = no limit)
   int max_concurrent_waits = 8;                // long-polls (GET /v1/jobs/{id}?wait_ms) waiting at once
   int queue_capacity = 256;                    // queued jobs; beyond -> 429
   int retry_after_s = 1;                       // Retry-After of a 429

@@ -51,6 +51,12 @@ std::variant<Head, api::Problem> parseHead(std::string_view head) {
     return api::makeProblem(api::WireError::kMalformedRequest, detail, path.empty() ? "/" : path);
   };
   Head out;
+  // RFC 9110 5.5 / RFC 9112 2.2: NUL and a CR not before LF are refused, not
+  // passed on to a parser that might read them otherwise.
+  if (head.find('\0') != std::string_view::npos) return bad("the request head holds a NUL byte", "");
+  for (std::size_t at = head.find('\r'); at != std::string_view::npos; at = head.find('\r', at + 1)) {
+    if (at + 1 >= head.size() || head[at + 1] != '\n') return bad("the request head holds a CR not followed by LF", "");
+  }
   std::size_t line_end = head.find("\r\n");
   const std::string_view request_line = head.substr(0, line_end);
   const std::size_t sp1 = request_line.find(' ');

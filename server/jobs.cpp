@@ -30,6 +30,7 @@ api::JobInfo jobInfoOf(const JobRecord& job, const std::optional<LiveProgress>& 
   }
   info.attempts = job.attempts;
   info.cache_hit = job.cache_hit;
+  info.files = job.input_names;
   info.created_at = formatTimestamp(job.created_ms);
   info.started_at = formatTimestamp(job.started_ms);
   info.finished_at = formatTimestamp(job.finished_ms);

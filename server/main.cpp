@@ -27,6 +27,10 @@ int main(int argc, char** argv) {
   bool no_auth = false;
   app.add_option("--listen", listen, "host:port to listen on (port 0 = any free port)")->capture_default_str();
   app.add_option("--data-dir", config.data_dir, "Store directory (SQLite + blobs)")->required();
+  app.add_flag("--public-metrics", config.public_metrics, "Serve /metrics without an API key");
+  app.add_option("--max-auth-failures-per-minute", config.max_auth_failures_per_minute,
+                 "Failed authentications a client address may make per minute before it is refused for a minute (0 = no limit)")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
   app.add_option("--max-uploads-per-tenant", config.max_uploads_per_tenant, "Uploads one tenant may send at once")
       ->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--max-uploads-per-client", config.max_uploads_per_client, "Uploads one client address may send at once")

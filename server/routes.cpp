@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <charconv>
+#include <cmath>
+#include <cstdlib>
 #include <chrono>
 #include <fstream>
 #include <set>
@@ -27,7 +29,9 @@ using nlohmann::json;
 
 void sendProblem(Response& res, const api::Problem& problem, const RouteContext& ctx) {
   res.status = problem.status;
-  if (problem.status == 429 || problem.status == 503) res.set_header("Retry-After", std::to_string(ctx.config.retry_after_s));
+  if ((problem.status == 429 || problem.status == 503) && !res.has_header("Retry-After")) {
+    res.set_header("Retry-After", std::to_string(ctx.config.retry_after_s));
+  }
   res.set_content(api::dumpJson(api::toJson(problem)), "application/problem+json");
 }
 
@@ -36,10 +40,34 @@ void sendJson(Response& res, int status, const json& body) {
   res.set_content(api::dumpJson(body), "application/json");
 }
 
-// The tenant of the request, or a 401 problem sent.
+// What the access log says of the request being served: set when routing
+// starts, on the thread that serves the whole request (server/http_server.h).
+struct RequestLogContext {
+  std::chrono::steady_clock::time_point start;
+  std::string request_id;
+  std::string tenant;
+};
+thread_local RequestLogContext t_request;
+
+// The tenant of the request, or a 401 (or, for an address that failed too
+// often, 429) problem sent.
 std::optional<std::string> authenticate(const Request& req, Response& res, const RouteContext& ctx) {
+  if (ctx.keys.enabled()) {
+    if (const int wait_s = ctx.auth_failures.blockedFor(req.remote_addr); wait_s > 0) {
+      res.set_header("Retry-After", std::to_string(wait_s));
+      sendProblem(res, api::makeProblem(api::WireError::kAuthThrottled,
+                                        "too many failed authentications from this address; retry in " +
+                                            std::to_string(wait_s) + " s",
+                                        req.path), ctx);
+      return std::nullopt;
+    }
+  }
   auto tenant = ctx.keys.tenantFor(req.get_header_value("Authorization"));
   if (!tenant) {
+    const bool blocks = ctx.auth_failures.recordFailure(req.remote_addr);
+    ctx.log.warn(blocks ? "auth_blocked" : "auth_failed",
+                 {{"client", req.remote_addr}, {"method", req.method}, {"path", req.path},
+                  {"reason", req.has_header("Authorization") ? "unknown key" : "no key"}});
     res.set_header("WWW-Authenticate", "Bearer");
     sendProblem(res,
                 api::makeProblem(api::WireError::kUnauthorized,
@@ -47,7 +75,9 @@ std::optional<std::string> authenticate(const Request& req, Response& res, const
                                                                  : "missing 'Authorization: Bearer <api key>' header",
                                  req.path),
                 ctx);
+    return tenant;
   }
+  t_request.tenant = *tenant;
   return tenant;
 }
 
@@ -454,7 +484,10 @@ void registerRoutes(httplib::Server& http, RouteContext& ctx) {
     }
     sendProblem(res, api::makeProblem(api::WireError::kNotReady, "starting up or shutting down", req.path), ctx);
   });
-  http.Get("/metrics", [&ctx](const Request&, Response& res) {
+  http.Get("/metrics", [&ctx](const Request& req, Response& res) {
+    // Queue depths and job counts are the service's business: a key (any
+    // tenant's) unless the operator made them public.
+    if (!ctx.config.public_metrics && !authenticate(req, res, ctx)) return;
     GaugeSnapshot g;
     for (const auto& [status, n] : ctx.store.countJobsByStatus()) g.jobs_by_state[api::jobStatusName(status)] = n;
     g.queue_depth = ctx.jobs.queueDepth();
@@ -516,11 +549,27 @@ void registerRoutes(httplib::Server& http, RouteContext& ctx) {
     ctx.log.error("unhandled_exception", {{"path", req.path}, {"detail", what}});
     sendProblem(res, api::makeProblem(api::WireError::kInternal, "internal error while serving " + req.path, req.path), ctx);
   });
+  http.set_pre_routing_handler([](const Request&, Response& res) {
+    t_request = {std::chrono::steady_clock::now(), secureRandomHex(8).value_or(""), ""};
+    res.set_header("X-Request-Id", t_request.request_id);
+    return httplib::Server::HandlerResponse::Unhandled;
+  });
+  // One access-log line per request that reached routing (what the gate
+  // answers by itself it logs itself, server/connection_gate.h).
   http.set_logger([&ctx](const Request& req, const Response& res) {
     std::string route = routePattern(req.path);
     if (!knownRoutes().count(route)) route = "unmatched";
     ctx.metrics.countRequest(req.method, route, res.status);
-    if (res.status >= 500) ctx.log.error("http_error", {{"method", req.method}, {"path", req.path}, {"status", res.status}});
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_request.start).count();
+    const nlohmann::json line = {{"request_id", t_request.request_id}, {"method", req.method}, {"route", route},
+                                 {"status", res.status}, {"tenant", t_request.tenant}, {"client", req.remote_addr},
+                                 {"bytes_in", std::strtoull(req.get_header_value("Content-Length").c_str(), nullptr, 10)}, {"bytes_out", res.body.size()},
+                                 {"ms", std::round(ms * 10) / 10}};
+    if (res.status >= 500) {
+      ctx.log.error("request", line);
+    } else {
+      ctx.log.info("request", line);
+    }
   });
 }
 

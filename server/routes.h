@@ -30,6 +30,7 @@ struct RouteContext {
   Metrics& metrics;
   JsonLog log;
   std::atomic<bool>& ready;                 // /readyz, and 503 on /v1 while false
+  AuthFailureLimit& auth_failures;          // per client address
   UploadSlots& uploads;                     // per service, tenant and client address
   // Uploads hold it shared from adopting blobs until their row is committed;
   // a rig or job delete holds it exclusively while it collects unreferenced blobs,

@@ -1,5 +1,7 @@
 #include "server/service.h"
 
+#include <sys/stat.h>
+
 #include <chrono>
 #include <system_error>
 #include <thread>
@@ -8,9 +10,15 @@ namespace server {
 
 core::Result<std::unique_ptr<Service>> Service::create(const ServerConfig& config, ApiKeys keys,
                                                        std::shared_ptr<spdlog::logger> logger) {
+  // The service's files (store, blobs, spooled uploads) are readable by its
+  // own user only: studio assets on a shared machine. umask covers what
+  // SQLite and the spool create; the data dir of an older install is closed too.
+  ::umask(077);
   std::error_code ec;
   std::filesystem::create_directories(config.data_dir / "uploads", ec);
   if (ec) return core::makeError(core::ErrorCode::kIo, config.data_dir.string() + ": cannot create: " + ec.message());
+  std::filesystem::permissions(config.data_dir, std::filesystem::perms::owner_all, ec);
+  if (ec) return core::makeError(core::ErrorCode::kIo, config.data_dir.string() + ": cannot make it private: " + ec.message());
   // Spooled parts of requests that were cut off by a crash: never accepted.
   for (const auto& entry : std::filesystem::directory_iterator(config.data_dir / "uploads", ec)) {
     std::filesystem::remove(entry.path(), ec);
@@ -58,8 +66,9 @@ Service::Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<Metad
       storage_(*store_, blobs_, config_, log_),
       jobs_(*store_, blobs_, blob_collection_, storage_, caches_, metrics_, config_, log_),
       retention_(*store_, blobs_, blob_collection_, metrics_, config_, log_),
+      auth_failures_(config.max_auth_failures_per_minute),
       uploads_(config.max_concurrent_uploads, config.max_uploads_per_tenant, config.max_uploads_per_client),
-      routes_{config_, keys_, *store_, blobs_, caches_, jobs_, metrics_, log_, ready_, uploads_, blob_collection_, storage_},
+      routes_{config_, keys_, *store_, blobs_, caches_, jobs_, metrics_, log_, ready_, auth_failures_, uploads_, blob_collection_, storage_},
       http_(httpLimits(config),
             [this](const std::string& event, const std::string& client, const std::string& detail) {
               log_.info(event, {{"client", client}, {"detail", detail}});

@@ -57,6 +57,7 @@ class Service {
   JobManager jobs_;
   RetentionSweeper retention_;
   std::atomic<bool> ready_{false};
+  AuthFailureLimit auth_failures_;
   UploadSlots uploads_;
   RouteContext routes_;
   GatedHttpServer http_;

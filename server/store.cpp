@@ -150,7 +150,7 @@ core::Status fsyncPath(const fs::path& path, bool directory) {
 // Creates `dir` (one level) when missing and fsyncs its parent so the entry is
 // durable before anything is renamed into it.
 core::Status ensureDurableDir(const fs::path& dir) {
-  if (::mkdir(dir.c_str(), 0755) == 0) return fsyncPath(dir.has_parent_path() ? dir.parent_path() : ".", true);
+  if (::mkdir(dir.c_str(), 0700) == 0) return fsyncPath(dir.has_parent_path() ? dir.parent_path() : ".", true);
   if (errno == EEXIST) return core::Ok{};
   return ioError("cannot create directory", dir, errno);
 }
@@ -258,7 +258,7 @@ core::Result<std::string> BlobStore::put(std::span<const std::uint8_t> bytes) {
   const fs::path tmp_dir = root_ / "tmp";
   if (auto st = ensureDurableDirs(tmp_dir); !st) return st.error();
   const fs::path tmp = tmp_dir / (randomHex(16) + ".part");
-  Fd fd(openRetrying(tmp, O_WRONLY | O_CREAT | O_EXCL, 0644));
+  Fd fd(openRetrying(tmp, O_WRONLY | O_CREAT | O_EXCL, 0600));
   if (!fd.valid()) return ioError("cannot create", tmp, errno);
   auto fail = [&](Error e) -> core::Result<std::string> {
     fd.reset();

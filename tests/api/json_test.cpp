@@ -62,6 +62,7 @@ api::JobInfo sampleJob(api::JobStatus status) {
   j.started_at = "2026-11-21T16:00:01Z";
   j.finished_at = api::isFinal(status) ? "2026-11-21T16:00:09Z" : "";
   j.timings_ms = {{"warp", 12.5}, {"weights", 40.0}};
+  j.files = {{"target", "actor_07.glb"}, {"target_landmarks", "actor_07.landmarks.json"}};
   if (status == api::JobStatus::kFailed) j.error = sampleProblem();
   return j;
 }
@@ -87,6 +88,7 @@ void expectSameJob(const api::JobInfo& a, const api::JobInfo& b) {
   EXPECT_EQ(a.started_at, b.started_at);
   EXPECT_EQ(a.finished_at, b.finished_at);
   EXPECT_EQ(a.timings_ms, b.timings_ms);
+  EXPECT_EQ(a.files, b.files);
   ASSERT_EQ(a.error.has_value(), b.error.has_value());
   if (a.error) expectSameProblem(*a.error, *b.error);
 }
@@ -325,7 +327,7 @@ TEST(ApiErrorCodes, TableMapsEveryCodeToItsContractStatus) {
       {W::kQueueFull, 429},        {W::kJobCancelled, 409},    {W::kJobTimeout, 504},
       {W::kInternal, 500},         {W::kNotReady, 503},
       {W::kStorageUnavailable, 503}, {W::kRequestTimeout, 408}, {W::kLengthRequired, 411},
-      {W::kTooManyUploads, 429},     {W::kHeadersTooLarge, 431}};
+      {W::kTooManyUploads, 429},     {W::kAuthThrottled, 429},     {W::kHeadersTooLarge, 431}};
   std::set<std::string> slugs;
   for (const auto& [error, status] : expected) {
     SCOPED_TRACE(api::wireErrorSlug(error));

@@ -166,6 +166,11 @@ TEST(HostileClients, RequestsTheGateJudgesAreAnsweredWithoutAThread) {
   EXPECT_EQ(statusOf(smuggled), 400) << smuggled;
   const std::string huge_head = ask("GET /healthz HTTP/1.1\r\nHost: r\r\nX-Big: " + std::string(20000, 'x') + "\r\n\r\n");
   EXPECT_EQ(statusOf(huge_head), 431) << huge_head;
+  const std::string nul = ask(std::string("GET /healthz HTTP/1.1\r\nHost: r\r\nX-A: a\0b\r\n\r\n", 44));
+  EXPECT_EQ(statusOf(nul), 400) << nul;
+  EXPECT_NE(nul.find("NUL"), std::string::npos) << nul;
+  const std::string bare_cr = ask("GET /healthz HTTP/1.1\r\nHost: r\rX-A: b\r\n\r\n");
+  EXPECT_EQ(statusOf(bare_cr), 400) << bare_cr;
   const std::string not_http = ask("HELLO\r\n\r\n");
   EXPECT_EQ(statusOf(not_http), 400) << not_http;
   const std::string slow_head = ask("GET /healthz HTTP/1.1\r\nHost: r\r\n");  // and then nothing

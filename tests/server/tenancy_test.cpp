@@ -49,7 +49,7 @@ TEST(Tenancy, RequestsWithoutAKnownKeyGet401) {
   ASSERT_EQ(spec.status, 200);
   EXPECT_EQ(spec.body.value("openapi", "").substr(0, 2), "3.");
   EXPECT_TRUE(spec.body["paths"].contains("/v1/jobs/{id}/result"));
-  Reply metrics = get(*anonymous, "/metrics");
+  Reply metrics = get(*service.client("key-alice"), "/metrics");  // with keys on, metrics need one
   ASSERT_EQ(metrics.status, 200);
   EXPECT_NE(metrics.raw.find("rigport_http_requests_total{method=\"GET\",route=\"/v1/rigs\",status=\"401\"} 1"),
             std::string::npos) << metrics.raw;
@@ -155,6 +155,77 @@ TEST(Tenancy, IdempotencyKeyReturnsTheSameJob) {
   EXPECT_EQ(other_bytes.status, 409) << other_bytes.raw;
   EXPECT_EQ(blobFiles(), before);
   EXPECT_EQ(get(*alice, "/v1/jobs").body["items"].size(), 2u);
+}
+
+
+// Failed authentications are counted per client address: past the limit the
+// address is refused (429 with Retry-After) for a minute, a good key included.
+TEST(Tenancy, RepeatedFailedAuthenticationsAreThrottled) {
+  const auto dir = makeTempDir("auth_throttle");
+  server::ServerConfig config = testConfig(dir / "data");
+  config.max_auth_failures_per_minute = 5;
+  InProcessService service(config, twoTenants());
+  auto alice = service.client("key-alice");
+  EXPECT_EQ(get(*alice, "/v1/rigs").status, 200);
+  auto guesser = service.client("key-guess");
+  for (int i = 0; i < 5; ++i) EXPECT_EQ(get(*guesser, "/v1/rigs").status, 401) << "failure " << i + 1;
+  const Reply sixth = get(*guesser, "/v1/rigs");  // over the limit: starts the block
+  EXPECT_EQ(sixth.status, 401) << sixth.raw;
+  const Reply blocked = get(*guesser, "/v1/jobs");
+  EXPECT_EQ(blocked.status, 429) << blocked.raw;
+  EXPECT_EQ(blocked.body["type"], "urn:rigport:problem:auth-throttled");
+  const int retry_after = std::stoi(blocked.retry_after);
+  EXPECT_GT(retry_after, 0);
+  EXPECT_LE(retry_after, 60);
+  EXPECT_EQ(get(*alice, "/v1/rigs").status, 429) << "the address is refused, whatever key it sends";
+  EXPECT_EQ(get(*alice, "/healthz").status, 200) << "probes need no key and are never refused";
+}
+
+// With keys on, /metrics needs one (any tenant's) unless made public.
+TEST(Tenancy, MetricsNeedAKeyUnlessPublic) {
+  const auto dir = makeTempDir("metrics_key");
+  {
+    InProcessService service(testConfig(dir / "data"), twoTenants());
+    EXPECT_EQ(get(*service.client(), "/metrics").status, 401);
+    const Reply with_key = get(*service.client("key-bob"), "/metrics");
+    EXPECT_EQ(with_key.status, 200);
+    EXPECT_NE(with_key.raw.find("rigport_queue_depth"), std::string::npos) << with_key.raw.substr(0, 300);
+  }
+  server::ServerConfig config = testConfig(dir / "data");
+  config.public_metrics = true;
+  InProcessService service(config, twoTenants());
+  EXPECT_EQ(get(*service.client(), "/metrics").status, 200);
+}
+
+// The data directory and everything the service writes in it are its user's
+// alone (studio assets on a shared machine); every response names its
+// request for the access log.
+TEST(Tenancy, StoredFilesArePrivateAndResponsesCarryARequestId) {
+  const auto dir = makeTempDir("file_modes");
+  const TransferFiles files = writeTransferFiles(dir);
+  InProcessService service(testConfig(dir / "data"), twoTenants());
+  auto alice = service.client("key-alice");
+  const Reply rig = uploadRig(*alice, files);
+  ASSERT_EQ(rig.status, 201) << rig.raw;
+  const Reply job = submitTransfer(*alice, rig.body["id"], files);
+  ASSERT_EQ(job.status, 202) << job.raw;
+  EXPECT_EQ(waitForJob(*alice, job.body["id"])["status"], "succeeded");
+  int checked = 0;
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(dir / "data")) {
+    const auto perms = entry.status().permissions();
+    const auto others = std::filesystem::perms::group_all | std::filesystem::perms::others_all;
+    EXPECT_EQ(perms & others, std::filesystem::perms::none) << entry.path() << " is open to other users";
+    ++checked;
+  }
+  EXPECT_GT(checked, 5);
+  EXPECT_EQ((std::filesystem::status(dir / "data").permissions() & std::filesystem::perms::others_all),
+            std::filesystem::perms::none);
+
+  const auto first = alice->Get("/healthz"), second = alice->Get("/v1/rigs");
+  ASSERT_TRUE(first && second);
+  const std::string id1 = first->get_header_value("X-Request-Id"), id2 = second->get_header_value("X-Request-Id");
+  EXPECT_EQ(id1.size(), 16u);
+  EXPECT_NE(id1, id2);
 }
 
 }  // namespace

@@ -38,6 +38,9 @@ TEST(TransferJobs, UploadSubmitPollFetchGivesTheCliBytes) {
   EXPECT_EQ(done["attempts"], 1);
   EXPECT_FALSE(done["cache_hit"].get<bool>());
   EXPECT_GT(done["timings_ms"]["total"].get<double>(), 0.0);
+  // The record keeps the names the files were sent under.
+  EXPECT_EQ(done["files"]["target"], files.target.filename().string()) << done.dump();
+  EXPECT_EQ(done["files"]["target_landmarks"], files.target_landmarks.filename().string()) << done.dump();
 
   Reply result = get(*client, "/v1/jobs/" + id + "/result");
   ASSERT_EQ(result.status, 200);
