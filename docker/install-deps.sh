@@ -38,4 +38,10 @@ if [ ! -f "$VALIDATOR_DIR/node_modules/gltf-validator/package.json" ]; then
   mkdir -p "$VALIDATOR_DIR"
   npm install --silent --no-audit --no-fund --prefix "$VALIDATOR_DIR" gltf-validator@2.0.0-dev.3.10
 fi
+# OpenAPI 3 schema validator, used by the tests on api/openapi.json.
+if [ ! -f "$VALIDATOR_DIR/node_modules/@seriousme/openapi-schema-validator/package.json" ]; then
+  echo "install-deps: installing @seriousme/openapi-schema-validator into $VALIDATOR_DIR"
+  mkdir -p "$VALIDATOR_DIR"
+  npm install --silent --no-audit --no-fund --prefix "$VALIDATOR_DIR" @seriousme/openapi-schema-validator@2.11.0
+fi
 echo "install-deps: ok"

@@ -244,7 +244,7 @@ std::variant<JobOutput, core::Error> runRetargetJob(const JobFiles& in, Distance
       std::to_string(d.geodesic.time_factor) + "|" + std::to_string(d.geodesic.average_boundary_conditions) + "|" +
       std::to_string(d.geodesic.clamp_heat_weights) + "|" + std::to_string(d.hybrid.region_factor) + "|" +
       std::to_string(d.hybrid.blend_gamma) + "|" + std::to_string(d.hybrid.regions.size()));
-  auto distances = cache.get(key, [&] { return core::computeMarkerDistances(mesh->mesh, *markers, in.name("mesh"), d); });
+  auto distances = cache.get(tenantCacheKey(in.job.tenant, key), [&] { return core::computeMarkerDistances(mesh->mesh, *markers, in.name("mesh"), d); });
   if (!distances) return distances.error();
 
   if (!on_stage("retarget", 0.3)) return stoppedBefore(in.job, "retarget");
@@ -287,11 +287,11 @@ std::variant<JobOutput, core::Error> runTransferJob(const JobFiles& in, const Ri
   if (!target_landmarks) return target_landmarks.error();
   const double read_ms = msSince(t0);
 
-  // --- prepare (cached per rig content id; a hit skips all source-only work)
+  // --- prepare (cached per tenant and rig content id; a hit skips all source-only work)
   if (!on_stage("prepare", 0.05)) return stoppedBefore(job, "prepare");
   t0 = Clock::now();
   core::MeshReadReport source_read;
-  auto prepared = cache.get(rig_record.info.id, [&]() -> core::Result<core::PreparedRig> {
+  auto prepared = cache.get(tenantCacheKey(rig_record.tenant, rig_record.info.id), [&]() -> core::Result<core::PreparedRig> {
     auto rig_bytes = blobs.read(rig_record.rig_blob);
     if (!rig_bytes) return rig_bytes.error();
     auto rig = readRigBytes(*rig_bytes, rig_record.info.name);

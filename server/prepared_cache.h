@@ -1,6 +1,9 @@
-// Immutable products of source-only work, keyed by content: prepared rigs
-// (parsed rig, TPS factorisations, surface index, dense centres) by rig id,
-// and marker distance fields by (mesh, markers, method). Bounded by bytes,
+// Immutable products of source-only work, keyed by tenant and content:
+// prepared rigs (parsed rig, TPS factorisations, surface index, dense
+// centres) by rig id, and marker distance fields by (mesh, markers, method).
+// The tenant is part of every key (tenantCacheKey), so a job's cache_hit
+// never tells one tenant that another used the same bytes, and one tenant's
+// delete never evicts another's entry. Bounded by bytes,
 // least recently used first out. Concurrent jobs on one key prepare it once:
 // the first caller runs the preparation, the others wait for its result (no
 // thundering herd). Entries are shared; eviction only drops the cache's
@@ -22,6 +25,11 @@
 #include "server/metrics.h"
 
 namespace server {
+
+// The cache key of `content_key` for `tenant`.
+inline std::string tenantCacheKey(const std::string& tenant, const std::string& content_key) {
+  return std::to_string(tenant.size()) + ":" + tenant + "/" + content_key;  // length-prefixed: no tenant name collides
+}
 
 // T: an immutable value with `std::size_t memoryBytes() const`.
 template <typename T>

@@ -247,7 +247,7 @@ void deleteRig(const Request& req, Response& res, RouteContext& ctx) {
   for (const std::string& hash : {rig->rig_blob, rig->landmarks_blob, rig->components_blob}) {
     if (!hash.empty() && !ctx.store.blobReferenced(hash)) ctx.blobs.remove(hash);
   }
-  ctx.caches.rigs.erase(id);  // a later job (any tenant) prepares it again
+  ctx.caches.rigs.erase(tenantCacheKey(*tenant, id));  // this tenant's next job prepares it again; others keep theirs
   ctx.log.info("rig_deleted", {{"tenant", *tenant}, {"rig", id}});
   res.status = 204;
 }

@@ -36,11 +36,9 @@ std::filesystem::path makeTempDir(const std::string& name) {
   return dir;
 }
 
-ValidatorResult validateGltf(const std::filesystem::path& file) {
-  ValidatorResult result;
-  const std::string script = std::string(RIGPORT_SOURCE_DIR) + "/tests/tools/validate_gltf.mjs";
-  const std::string cmd = "node '" + script + "' '" + file.string() + "' 2>&1";
-  FILE* pipe = popen(cmd.c_str(), "r");
+CommandResult runCommand(const std::string& command) {
+  CommandResult result;
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
   if (!pipe) {
     result.output = "popen failed";
     return result;
@@ -48,8 +46,16 @@ ValidatorResult validateGltf(const std::filesystem::path& file) {
   std::array<char, 4096> buf{};
   while (fgets(buf.data(), buf.size(), pipe)) result.output += buf.data();
   const int status = pclose(pipe);
-  const int code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  if (code != 0 && code != 1) return result;
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+ValidatorResult validateGltf(const std::filesystem::path& file) {
+  ValidatorResult result;
+  const std::string script = std::string(RIGPORT_SOURCE_DIR) + "/tests/tools/validate_gltf.mjs";
+  const CommandResult run = runCommand("node '" + script + "' '" + file.string() + "'");
+  result.output = run.output;
+  if (run.exit_code != 0 && run.exit_code != 1) return result;
   const auto pos = result.output.find("\"errors\":");
   const auto wpos = result.output.find("\"warnings\":");
   if (pos == std::string::npos || wpos == std::string::npos) return result;

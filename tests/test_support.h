@@ -27,6 +27,13 @@ std::optional<std::filesystem::path> sharedDataDir();
 // A fresh empty directory under the build tree's temp area, unique per test.
 std::filesystem::path makeTempDir(const std::string& name);
 
+// A shell command's exit code (-1 when it did not exit) and its stdout+stderr.
+struct CommandResult {
+  int exit_code = -1;
+  std::string output;
+};
+CommandResult runCommand(const std::string& command);
+
 struct ValidatorResult {
   bool ran = false;      // false: node or gltf-validator missing (message in `output`)
   int errors = -1;

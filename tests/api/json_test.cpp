@@ -13,6 +13,8 @@
 #include "api/error_codes.h"
 #include "api/json.h"
 
+#include "tests/test_support.h"
+
 namespace {
 
 using nlohmann::json;
@@ -391,6 +393,18 @@ json loadOpenApi() {
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   auto parsed = api::parseJsonText(text, "api/openapi.json");
   return valueOf(parsed);
+}
+
+// The contract is checked against the OpenAPI 3 schema itself, so a client
+// generator or a gateway that reads it does not stop at a keyword used the
+// way another version spells it.
+TEST(ApiOpenApi, DocumentPassesTheOpenApiSchemaValidator) {
+  const std::string script = std::string(RIGPORT_SOURCE_DIR) + "/tests/tools/validate_openapi.mjs";
+  const rigport_test::CommandResult run =
+      rigport_test::runCommand("node '" + script + "' '" + std::string(RIGPORT_SOURCE_DIR) + "/api/openapi.json'");
+  ASSERT_NE(run.exit_code, 2) << "the OpenAPI validator did not run (docker/install-deps.sh installs it): " << run.output;
+  EXPECT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("\"valid\":true"), std::string::npos) << run.output;
 }
 
 TEST(ApiOpenApi, DocumentIsValidJsonOfOpenApi3) {

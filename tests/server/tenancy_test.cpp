@@ -228,5 +228,31 @@ TEST(Tenancy, StoredFilesArePrivateAndResponsesCarryARequestId) {
   EXPECT_NE(id1, id2);
 }
 
+
+// The prepared-rig cache is per tenant: the same rig bytes uploaded by two
+// tenants are prepared for each (a cache hit never reveals another tenant's
+// upload), and one tenant deleting its copy leaves the other's prepared rig.
+TEST(Tenancy, CacheHitsAreReportedPerTenantAndADeleteEvictsOnlyItsOwn) {
+  const auto dir = makeTempDir("tenant_cache");
+  const TransferFiles files = writeTransferFiles(dir);
+  InProcessService service(testConfig(dir / "data"), twoTenants());
+  auto alice = service.client("key-alice");
+  auto bob = service.client("key-bob");
+  const auto runJob = [&](httplib::Client& client, const std::string& rig) {
+    const Reply job = submitTransfer(client, rig, files);
+    EXPECT_EQ(job.status, 202) << job.raw;
+    const nlohmann::json done = waitForJob(client, job.body["id"]);
+    EXPECT_EQ(done["status"], "succeeded") << done.dump();
+    return done["cache_hit"].get<bool>();
+  };
+  const std::string rig = uploadRig(*alice, files).body["id"];
+  ASSERT_EQ(uploadRig(*bob, files).body["id"], rig) << "the same bytes, the same rig id";
+  EXPECT_FALSE(runJob(*alice, rig));
+  EXPECT_FALSE(runJob(*bob, rig)) << "bob's first job must not learn that alice used these bytes";
+  EXPECT_TRUE(runJob(*alice, rig));
+  EXPECT_EQ(del(*bob, "/v1/rigs/" + rig).status, 204);
+  EXPECT_TRUE(runJob(*alice, rig)) << "bob's delete must not evict alice's prepared rig";
+}
+
 }  // namespace
 }  // namespace rigport_test
