@@ -180,7 +180,8 @@ void warnUnknownNames(const std::map<std::string, double>& gains, const std::vec
     std::transform(text.begin(), text.end(), text.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
     return text;
   };
-  for (const auto& [name, gain] : gains) {
+  for (const auto& entry : gains) {
+    const std::string& name = entry.first;  // a plain reference: clang 14 cannot capture structured bindings
     if (std::find(names.begin(), names.end(), name) != names.end()) continue;
     std::string message = option + " names '" + name + "', but the rig has no " + what + " of that name; ignored";
     const auto same = std::find_if(names.begin(), names.end(), [&](const std::string& n) { return lower(n) == lower(name); });

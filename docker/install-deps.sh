@@ -12,6 +12,7 @@ PACKAGES=(
   libeigen3-dev libnanoflann-dev libcpp-httplib-dev nlohmann-json3-dev
   libtinygltf-dev libspdlog-dev libfmt-dev libcli11-dev libsqlite3-dev libssl-dev
   libtinyobjloader-dev libgtest-dev libgmock-dev libbenchmark-dev
+  clang libclang-rt-14-dev   # libFuzzer (scripts/fuzz.sh)
 )
 # Node.js and npm run the glTF validator; any install that provides the commands
 # will do (some images ship a nodejs build that bundles npm and conflicts with
