@@ -9,23 +9,10 @@ set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 JOBS="${1:-1000}"; CONCURRENCY="${2:-16}"; WORKERS="${3:-0}"; CACHE_MB="${4:-256}"
-BIN="${RIGPORT_BUILD:-build/release}"
 OUT="$(mktemp -d /tmp/rigport-bench.XXXXXX)"
-DATA="$ROOT/../shared/data/ict"
-if [ -f "$DATA/source_face_skinned.glb" ]; then
-  INPUTS=(--source "$DATA/source_face_skinned.glb" --source-landmarks "$DATA/source_face.landmarks.json"
-          --target "$DATA/targets/id_s02_remesh.glb" --target-landmarks "$DATA/targets/id_s02_remesh.landmarks.json")
-else
-  "$BIN/client/rigport" -q demo --out "$OUT/demo" --inputs-only
-  INPUTS=(--source "$OUT/demo/source_rig.glb" --source-landmarks "$OUT/demo/source_rig.landmarks.json"
-          --target "$OUT/demo/target_head.glb" --target-landmarks "$OUT/demo/target_head.landmarks.json")
-fi
-"$BIN/server/rigport-server" --listen 127.0.0.1:0 --data-dir "$OUT/store" --no-auth --workers "$WORKERS" \
-  --cache-mb "$CACHE_MB" > "$OUT/server.out" 2> "$OUT/server.log" &
-PID=$!
-trap 'kill -TERM $PID 2>/dev/null || true' EXIT
-for _ in $(seq 1 100); do grep -q "listening on" "$OUT/server.out" && break; sleep 0.1; done
-URL="$(sed -n 's/^listening on //p' "$OUT/server.out")"
+source "$ROOT/scripts/service_bench_lib.sh"
+rigport_bench_inputs "$OUT"
+rigport_start_server "$OUT" "$WORKERS" "$CACHE_MB"
 ( while kill -0 $PID 2>/dev/null; do
     echo "$(date +%s) $(awk '/VmRSS/ {print $2}' /proc/$PID/status 2>/dev/null)" >> "$OUT/rss.txt"; sleep 5
   done ) &
