@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <charconv>
+#include <cctype>
 #include <cmath>
 #include <cstdlib>
 #include <chrono>
@@ -549,8 +550,15 @@ void registerRoutes(httplib::Server& http, RouteContext& ctx) {
     ctx.log.error("unhandled_exception", {{"path", req.path}, {"detail", what}});
     sendProblem(res, api::makeProblem(api::WireError::kInternal, "internal error while serving " + req.path, req.path), ctx);
   });
-  http.set_pre_routing_handler([](const Request&, Response& res) {
-    t_request = {std::chrono::steady_clock::now(), secureRandomHex(8).value_or(""), ""};
+  http.set_pre_routing_handler([](const Request& req, Response& res) {
+    // A proxy's request id is kept (so its log and ours match) when it is a
+    // plain token; otherwise the service makes one.
+    std::string id = req.get_header_value("X-Request-Id");
+    const bool plain = !id.empty() && id.size() <= 64 && std::all_of(id.begin(), id.end(), [](unsigned char c) {
+      return std::isalnum(c) || c == '-' || c == '_' || c == '.';
+    });
+    if (!plain) id = secureRandomHex(8).value_or("");
+    t_request = {std::chrono::steady_clock::now(), std::move(id), ""};
     res.set_header("X-Request-Id", t_request.request_id);
     return httplib::Server::HandlerResponse::Unhandled;
   });

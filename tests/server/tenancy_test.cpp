@@ -226,6 +226,13 @@ TEST(Tenancy, StoredFilesArePrivateAndResponsesCarryARequestId) {
   const std::string id1 = first->get_header_value("X-Request-Id"), id2 = second->get_header_value("X-Request-Id");
   EXPECT_EQ(id1.size(), 16u);
   EXPECT_NE(id1, id2);
+  // A proxy's plain id is kept; anything else is replaced.
+  const auto proxied = alice->Get("/healthz", {{"X-Request-Id", "edge-42.a_b"}});
+  ASSERT_TRUE(proxied);
+  EXPECT_EQ(proxied->get_header_value("X-Request-Id"), "edge-42.a_b");
+  const auto odd = alice->Get("/healthz", {{"X-Request-Id", "a b;c"}});
+  ASSERT_TRUE(odd);
+  EXPECT_EQ(odd->get_header_value("X-Request-Id").size(), 16u);
 }
 
 
