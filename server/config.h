@@ -38,6 +38,7 @@ struct ServerConfig {
 
   // Limits
   std::size_t max_body_bytes = 256ull << 20;   // one request body
+  std::uint64_t max_document_part_bytes = 16ull << 20;  // one JSON part (spec, landmarks, markers, options, components)
   std::int64_t max_vertices = 2'000'000;       // per mesh
   int max_landmarks = 10'000;
   int max_concurrent_uploads = 12;             // multipart bodies being received (and checked) at once

@@ -121,8 +121,17 @@ struct LoadedParts {
   std::map<std::string, std::vector<std::uint8_t>> bytes;
 };
 
+// Parts holding a mesh, rig or clip may use the whole body limit; the JSON
+// documents (spec, landmarks, markers, options, components) are read into
+// memory and parsed whole, so they have a limit of their own, checked on the
+// spooled size before any byte is read.
+bool isBulkPart(const std::string& field) {
+  return field == "rig" || field == "target" || field == "mesh" || field == "mocap";
+}
+
 std::variant<LoadedParts, api::Problem> loadParts(const SpooledUpload& upload, const std::set<std::string>& required,
-                                                  const std::set<std::string>& optional, const std::string& path) {
+                                                  const std::set<std::string>& optional, const std::string& path,
+                                                  std::uint64_t max_document_bytes) {
   for (const auto& name : required) {
     if (!upload.parts.count(name)) {
       return api::makeProblem(api::WireError::kMalformedRequest, "multipart field '" + name + "' is required", path);
@@ -135,6 +144,12 @@ std::variant<LoadedParts, api::Problem> loadParts(const SpooledUpload& upload, c
       known.insert(known.end(), optional.begin(), optional.end());
       return api::makeProblem(api::WireError::kMalformedRequest, "multipart field '" + field +
                               "' is not known here (expected " + core::joinNames(known) + ")", path);
+    }
+    if (!isBulkPart(field) && part.size > max_document_bytes) {
+      return api::makeProblem(api::WireError::kPayloadTooLarge,
+                              "multipart field '" + field + "' is " + std::to_string(part.size) +
+                                  " bytes; a JSON part may have at most " + std::to_string(max_document_bytes),
+                              path);
     }
     auto bytes = core::readFileBytes(part.path);
     if (!bytes) return api::makeProblem(api::WireError::kInternal, "reading the spooled upload failed", path);
@@ -183,7 +198,7 @@ void postRig(const Request& req, Response& res, const httplib::ContentReader& re
   if (!received) return;
   const std::string* tenant = &received->tenant;
   const SpooledUpload& upload = received->upload;
-  auto loaded = loadParts(upload, {"rig", "landmarks"}, {"components"}, req.path);
+  auto loaded = loadParts(upload, {"rig", "landmarks"}, {"components"}, req.path, ctx.config.max_document_part_bytes);
   if (auto* p = std::get_if<api::Problem>(&loaded)) return sendProblem(res, *p, ctx);
   const auto& bytes = std::get<LoadedParts>(loaded).bytes;
   const bool has_components = bytes.count("components") > 0;
@@ -303,7 +318,8 @@ void postJob(const Request& req, Response& res, const httplib::ContentReader& re
   }
   std::set<std::string> required(kind->required_files.begin(), kind->required_files.end());
   required.insert("spec");
-  auto loaded = loadParts(upload, required, {kind->optional_files.begin(), kind->optional_files.end()}, req.path);
+  auto loaded = loadParts(upload, required, {kind->optional_files.begin(), kind->optional_files.end()}, req.path,
+                          ctx.config.max_document_part_bytes);
   if (auto* p = std::get_if<api::Problem>(&loaded)) return sendProblem(res, *p, ctx);
   const auto& bytes = std::get<LoadedParts>(loaded).bytes;
   std::map<std::string, std::pair<std::string, Bytes>> files;

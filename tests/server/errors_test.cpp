@@ -258,5 +258,30 @@ TEST(ServiceLimits, BodiesOverTheLimitAre413) {
   EXPECT_EQ(get(*client, "/healthz").status, 200);
 }
 
+
+// A JSON part has its own limit, below the body's: it is read and parsed
+// whole. Checked on the spooled size, naming the field; a mesh part may use
+// the whole body limit.
+TEST(ServiceLimits, JsonPartsOverTheirLimitAre413NamingTheField) {
+  const auto dir = makeTempDir("part_limit");
+  const TransferFiles files = writeTransferFiles(dir);
+  server::ServerConfig config = testConfig(dir / "data");
+  config.max_document_part_bytes = 12000;  // the generated landmarks are ~10 KB, the rig ~220 KB
+  InProcessService service(config);
+  auto client = service.client();
+  const std::string landmarks = fileText(files.landmarks);
+  ASSERT_LT(landmarks.size(), 12000u);
+  const std::string padded = landmarks + std::string(5000, ' ');  // still valid JSON, over the part limit
+  const httplib::MultipartFormDataItems items = {
+      {"rig", fileText(files.rig), "rig.glb", "model/gltf-binary"},
+      {"landmarks", padded, "rig.landmarks.json", "application/json"},
+  };
+  const Reply r = postParts(*client, "/v1/rigs", items);
+  EXPECT_EQ(r.status, 413) << r.raw;
+  EXPECT_NE(r.body.value("detail", "").find("'landmarks'"), std::string::npos) << r.raw;
+  const Reply fits = uploadRig(*client, files);  // the rig GLB is far over 12000 bytes: bulk parts are not limited
+  EXPECT_EQ(fits.status, 201) << fits.raw;
+}
+
 }  // namespace
 }  // namespace rigport_test
