@@ -42,8 +42,8 @@ struct ServerConfig {
   std::int64_t max_vertices = 2'000'000;       // per mesh
   int max_landmarks = 10'000;
   int max_concurrent_uploads = 12;             // multipart bodies being received (and checked) at once
-  int max_uploads_per_tenant = 4;              // ... of one tenant
-  int max_uploads_per_client = 8;              // ... from one client address
+  int max_uploads_per_tenant = 8;              // ... of one tenant (a busy pipeline overlaps its uploads)
+  int max_uploads_per_client = 10;             // ... from one client address
   int max_auth_failures_per_minute = 120;      // per client address, then 429 for a minute (0 = no limit)
   int max_concurrent_waits = 8;                // long-polls (GET /v1/jobs/{id}?wait_ms) waiting at once
   int queue_capacity = 256;                    // queued jobs; beyond -> 429

@@ -209,6 +209,7 @@ TEST(HostileClients, TricklingUploadsBlockOnlyTheirOwnTenantAndTimeOut) {
   const TransferFiles files = writeTransferFiles(dir);
   server::ServerConfig config = testConfig(dir / "data");
   config.upload_time_limit_s = 3.0;
+  config.max_uploads_per_tenant = 4;  // below the per-address 10: another tenant on the same host still gets a slot
   auto keys = server::ApiKeys::load({}, "key-alice:alice,key-bob:bob");
   ASSERT_TRUE(keys);
   InProcessService service(config, std::move(*keys));
