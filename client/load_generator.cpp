@@ -87,6 +87,7 @@ void runWorker(SharedRun& run, WorkerTally& tally) {
   RemoteOptions options;
   options.server_url = run.args->server;
   options.api_key = run.args->api_key;
+  options.ca_certificate_file = run.args->ca_certificate;
   options.max_queue_retries = 1'000'000;  // bounded by retry_deadline instead
   options.retry_deadline = run.deadline;
   options.on_response = [&tally](int status) {
@@ -160,6 +161,7 @@ int runBench(const BenchArgs& args) {
   RemoteOptions upload_options;
   upload_options.server_url = args.server;
   upload_options.api_key = args.api_key;
+  upload_options.ca_certificate_file = args.ca_certificate;
   RemoteClient uploader(upload_options);
   auto rig = uploader.uploadRig({args.source, args.source_landmarks, {}});
   if (!rig) {

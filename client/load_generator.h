@@ -20,6 +20,7 @@ namespace client {
 struct BenchArgs {
   std::string server;                 // http://host:port
   std::string api_key;                // empty = none
+  std::string ca_certificate;         // https: CA of the service's certificate; empty = system CAs
   int concurrency = 4;                // client threads
   int jobs = 20;                      // jobs in total
   std::filesystem::path source, source_landmarks, target, target_landmarks;

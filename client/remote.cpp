@@ -137,6 +137,10 @@ struct RemoteClient::Http {
       case httplib::Error::ConnectionTimeout: what += " (connect timed out)"; break;
       case httplib::Error::Read: what += " (reading the response failed or timed out)"; break;
       case httplib::Error::Write: what += " (sending the request failed or timed out)"; break;
+      case httplib::Error::SSLConnection: what += " (TLS handshake failed: is the service serving https?)"; break;
+      case httplib::Error::SSLServerVerification:
+        what += " (the service's certificate is not trusted: give its CA with --ca-cert)";
+        break;
       default: break;
     }
     return localProblem(kTransportProblem, "No response from the service", method + " " + base_url + path + ": " + what);
@@ -214,6 +218,7 @@ RemoteClient::RemoteClient(RemoteOptions options) : options_(std::move(options))
   c.set_keep_alive(true);
   c.set_follow_location(false);
   if (!options_.api_key.empty()) c.set_bearer_token_auth(options_.api_key);
+  if (!options_.ca_certificate_file.empty()) c.set_ca_cert_path(options_.ca_certificate_file.string());
   // No default Accept: /result answers model/gltf-binary, the rest JSON.
   c.set_default_headers({{"User-Agent", "rigport-cli/0.1"}});
 }

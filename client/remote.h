@@ -64,6 +64,9 @@ struct Done {};  // the value of calls that return nothing (DELETE)
 struct RemoteOptions {
   std::string server_url;                              // "http://host:port" (https:// works too)
   std::string api_key;                                 // sent as "Authorization: Bearer <key>"; empty = none
+  // https://: the CA (PEM) that signed the service's certificate; empty =
+  // the system's trusted CAs. The certificate is always verified.
+  std::filesystem::path ca_certificate_file;
   std::chrono::milliseconds connect_timeout{5'000};    // TCP connect
   std::chrono::milliseconds read_timeout{120'000};     // waiting for each response (uploads are processed before the answer)
   std::chrono::milliseconds write_timeout{120'000};    // sending a request body

@@ -32,6 +32,7 @@ using nlohmann::json;
 struct Connection {
   std::string server;
   std::string api_key;
+  std::string ca_certificate;
 };
 
 void addConnectionOptions(CLI::App* cmd, Connection& c, bool server_required) {
@@ -40,12 +41,16 @@ void addConnectionOptions(CLI::App* cmd, Connection& c, bool server_required) {
   if (server_required) server->required();
   cmd->add_option("--api-key", c.api_key, "API key, sent as a Bearer token")
       ->envname("RIGPORT_API_KEY");
+  cmd->add_option("--ca-cert", c.ca_certificate, "https:// service: the CA (PEM) its certificate is signed by")
+      ->envname("RIGPORT_CA_CERT")
+      ->check(CLI::ExistingFile);
 }
 
 RemoteOptions remoteOptions(const Connection& c) {
   RemoteOptions options;
   options.server_url = c.server;
   options.api_key = c.api_key;
+  options.ca_certificate_file = c.ca_certificate;
   return options;
 }
 
@@ -338,6 +343,7 @@ std::optional<int> RemoteCommands::run(const TransferArgs& transfer) const {
     BenchArgs args = s.bench_args;
     args.server = s.connection.server;
     args.api_key = s.connection.api_key;
+    args.ca_certificate = s.connection.ca_certificate;
     return runBench(args);
   }
   return std::nullopt;

@@ -11,6 +11,7 @@ PACKAGES=(
   build-essential cmake ninja-build pkg-config git ca-certificates
   libeigen3-dev libnanoflann-dev libcpp-httplib-dev nlohmann-json3-dev
   libtinygltf-dev libspdlog-dev libfmt-dev libcli11-dev libsqlite3-dev libssl-dev
+  openssl   # self-signed certificates for the TLS tests and RIGPORT_BENCH_TLS
   libtinyobjloader-dev libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev   # libFuzzer (scripts/fuzz.sh)
 )

@@ -3,6 +3,7 @@
 # on loopback with a fresh store, runs `rigport bench` against it and samples
 # the server's resident memory every 5 s.
 #   bash scripts/bench_service.sh [JOBS] [CONCURRENCY] [WORKERS] [CACHE_MB]
+#   RIGPORT_BENCH_TLS=1 bash scripts/bench_service.sh ...   the same over HTTPS
 # Uses the ICT rig onto id_s02_remesh (5.9k vertices) when ../shared/data is
 # present, else the demo's generated rig and head. Needs build/release.
 set -euo pipefail
@@ -16,7 +17,7 @@ rigport_start_server "$OUT" "$WORKERS" "$CACHE_MB"
 ( while kill -0 $PID 2>/dev/null; do
     echo "$(date +%s) $(awk '/VmRSS/ {print $2}' /proc/$PID/status 2>/dev/null)" >> "$OUT/rss.txt"; sleep 5
   done ) &
-"$BIN/client/rigport" bench --server "$URL" --concurrency "$CONCURRENCY" --jobs "$JOBS" --timeout 900 "${INPUTS[@]}" \
+"$BIN/client/rigport" bench --server "$URL" --concurrency "$CONCURRENCY" --jobs "$JOBS" --timeout 900 "${INPUTS[@]}" "${CLIENT_TLS[@]}" \
   2> "$OUT/bench.log" | tail -1 | tee "$OUT/bench.json"
 # Server CPU per job: steadier than jobs/s on a noisy machine.
 read -r UTIME STIME < <(awk '{print $14, $15}' /proc/$PID/stat)

@@ -19,7 +19,7 @@ END=$((START + MINUTES * 60))
 printf 't_s\tjobs_per_s\tp99_ms\terrors\trss_mib\n' > "$OUT/samples.tsv"
 while [ "$(date +%s)" -lt "$END" ]; do
   "$BIN/client/rigport" bench --server "$URL" --concurrency "$CONCURRENCY" --jobs "$SEGMENT_JOBS" --timeout 900 \
-    "${INPUTS[@]}" 2>> "$OUT/bench.log" | tail -1 > "$OUT/segment.json"
+    "${INPUTS[@]}" "${CLIENT_TLS[@]}" 2>> "$OUT/bench.log" | tail -1 > "$OUT/segment.json"
   RSS_KB="$(awk '/VmRSS/ {print $2}' "/proc/$PID/status")"
   python3 - "$OUT/segment.json" "$(( $(date +%s) - START ))" "$RSS_KB" >> "$OUT/samples.tsv" <<'PY'
 import json, sys

@@ -19,6 +19,10 @@ struct ServerConfig {
   std::filesystem::path api_keys_file;   // "key tenant" per line; empty + no env = auth off
   bool auth = true;                      // false: every request is tenant "" (local use, demo)
   bool public_metrics = false;           // /metrics without a key (with auth on, it needs one)
+  // HTTPS: both PEM files given (certificate chain, then its private key),
+  // or neither (plain HTTP, for loopback or behind a TLS proxy).
+  std::filesystem::path tls_certificate_file;
+  std::filesystem::path tls_private_key_file;
 
   // HTTP (server/http_server.h, server/connection_gate.h): a connection
   // takes a thread only once its request head is in; a request's time on a
@@ -33,6 +37,7 @@ struct ServerConfig {
   double head_timeout_s = 10.0;          // a request head must arrive whole within this (else 408)
   double request_time_limit_s = 120.0;   // a request on a thread: body, handler and response
   double upload_time_limit_s = 600.0;    // the same for uploads (POST /v1/rigs, /v1/jobs)
+  int listen_backlog = 1024;             // new connections the kernel holds until accepted
   int max_waiting_connections = 4096;    // connections waiting for their request head
   int max_waiting_per_client = 64;       // ... from one client address (its oldest is closed beyond)
 

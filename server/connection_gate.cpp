@@ -128,9 +128,7 @@ std::pair<std::string, int> addressText(const sockaddr_storage& address) {
 }
 
 ConnectionGate::ConnectionGate(GateLimits limits, Dispatch dispatch, Event on_event)
-    : limits_(limits), dispatch_(std::move(dispatch)), on_event_(std::move(on_event)) {
-  peek_.resize(limits_.max_head_bytes + limits_.max_small_body_bytes + 1);
-}
+    : limits_(limits), dispatch_(std::move(dispatch)), on_event_(std::move(on_event)) {}
 
 ConnectionGate::~ConnectionGate() { stop(); }
 
@@ -157,25 +155,24 @@ void ConnectionGate::stop() {
     thread_.join();
   }
   std::lock_guard lock(mutex_);
-  for (const auto& [fd, served] : incoming_) ::close(fd);
+  for (auto& in : incoming_) in.connection->close();
   incoming_.clear();
   if (epoll_fd_ >= 0) ::close(epoll_fd_);
   if (wake_fd_ >= 0) ::close(wake_fd_);
   epoll_fd_ = wake_fd_ = -1;
 }
 
-void ConnectionGate::admit(int fd, int served) {
+void ConnectionGate::admit(std::shared_ptr<Connection> connection, int served, std::string received) {
   {
     std::lock_guard lock(mutex_);
     if (!stopping_ && thread_.joinable()) {
-      incoming_.emplace_back(fd, served);
+      incoming_.push_back({std::move(connection), served, std::move(received)});
       const std::uint64_t one = 1;
       [[maybe_unused]] const auto n = ::write(wake_fd_, &one, sizeof one);
       return;
     }
   }
-  ::shutdown(fd, SHUT_RDWR);
-  ::close(fd);
+  connection->close();
 }
 
 int ConnectionGate::waiting() const {
@@ -188,7 +185,7 @@ void ConnectionGate::run() {
   for (;;) {
     // Deadlines are checked at least every 100 ms.
     const int n = epoll_wait(epoll_fd_, events.data(), static_cast<int>(events.size()), 100);
-    std::vector<std::pair<int, int>> incoming;
+    std::vector<Incoming> incoming;
     {
       std::lock_guard lock(mutex_);
       if (stopping_) break;
@@ -203,43 +200,44 @@ void ConnectionGate::run() {
         inspect(fd);
       }
     }
-    for (const auto& [fd, served] : incoming) take(fd, served);
+    for (auto& in : incoming) take(std::move(in));
     expire();
     std::lock_guard lock(mutex_);
     waiting_count_ = static_cast<int>(waiting_.size());
   }
-  for (const auto& [fd, w] : waiting_) {
-    ::shutdown(fd, SHUT_RDWR);
-    ::close(fd);
-  }
+  for (auto& [fd, w] : waiting_) w.connection->close();
   waiting_.clear();
   per_client_.clear();
 }
 
-void ConnectionGate::take(int fd, int served) {
+void ConnectionGate::take(Incoming incoming) {
+  const int fd = incoming.connection->fd();
   Waiting w;
   sockaddr_storage peer{};
   socklen_t length = sizeof peer;
   if (getpeername(fd, reinterpret_cast<sockaddr*>(&peer), &length) == 0) {
     std::tie(w.client, w.client_port) = addressText(peer);
   }
-  if (served == 0) {
+  if (incoming.served == 0) {
     // httplib writes a response's head and body separately; with Nagle's
     // algorithm the body then waits for the client's delayed ACK (40 ms per
     // request on a kept-alive connection).
     const int on = 1;
     setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &on, sizeof on);
   }
-  w.served = served;
+  w.connection = std::move(incoming.connection);
+  w.received = std::move(incoming.received);
+  w.served = incoming.served;
   w.order = next_order_++;
-  w.deadline = after(served == 0 ? limits_.head_timeout_s : limits_.keep_alive_idle_s);
-  // Edge-triggered: peeked bytes stay in the buffer, so level-triggered
-  // readiness would fire for them forever; each new segment fires once.
+  w.deadline = after(incoming.served == 0 ? limits_.head_timeout_s : limits_.keep_alive_idle_s);
+  // Edge-triggered: each new segment fires once, and every read goes on
+  // until the socket has no more (or the connection is decided).
+  w.watched = EPOLLIN | EPOLLRDHUP | EPOLLET;
   epoll_event ev{};
-  ev.events = EPOLLIN | EPOLLRDHUP | EPOLLET;
+  ev.events = w.watched;
   ev.data.fd = fd;
   if (epoll_ctl(epoll_fd_, EPOLL_CTL_ADD, fd, &ev) != 0) {
-    ::close(fd);
+    w.connection->close();
     return;
   }
   const std::string client = w.client;
@@ -249,31 +247,67 @@ void ConnectionGate::take(int fd, int served) {
   if (waiting_.count(fd)) inspect(fd);  // bytes that came before it was watched raise no edge
 }
 
+void ConnectionGate::watch(int fd, Waiting& w, IoResult::Kind waiting_for) {
+  const std::uint32_t wanted =
+      EPOLLIN | EPOLLRDHUP | EPOLLET | (waiting_for == IoResult::Kind::kWantWrite ? EPOLLOUT : 0u);
+  if (wanted == w.watched) return;
+  w.watched = wanted;
+  epoll_event ev{};
+  ev.events = wanted;
+  ev.data.fd = fd;
+  epoll_ctl(epoll_fd_, EPOLL_CTL_MOD, fd, &ev);
+}
+
+bool ConnectionGate::readAvailable(Waiting& w) {
+  // Enough for the largest head and small body, and one byte to tell a head
+  // that is too long.
+  const std::size_t cap = limits_.max_head_bytes + limits_.max_small_body_bytes + 1;
+  char chunk[16384];
+  while (w.received.size() < cap) {
+    const IoResult r = w.connection->receive(chunk, std::min(sizeof chunk, cap - w.received.size()));
+    switch (r.kind) {
+      case IoResult::Kind::kBytes: w.received.append(chunk, r.bytes); break;
+      case IoResult::Kind::kClosed: w.peer_closed = true; return true;
+      case IoResult::Kind::kWantRead:
+      case IoResult::Kind::kWantWrite: watch(w.connection->fd(), w, r.kind); return true;
+      case IoResult::Kind::kFailed: return false;
+    }
+  }
+  return true;
+}
+
 void ConnectionGate::inspect(int fd) {
   Waiting& w = waiting_.at(fd);
-  const ssize_t got = ::recv(fd, peek_.data(), peek_.size(), MSG_PEEK | MSG_DONTWAIT);
-  if (got == 0 || (got < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) {
-    return close(fd, "");  // the client went away
+  if (!w.connection->established()) {
+    const IoResult r = w.connection->handshake();
+    if (r.kind == IoResult::Kind::kWantRead || r.kind == IoResult::Kind::kWantWrite) return watch(fd, w, r.kind);
+    if (r.kind == IoResult::Kind::kFailed) return close(fd, "tls_handshake_failed", r.error);
+    if (r.kind == IoResult::Kind::kClosed) return close(fd, "");
   }
-  if (got < 0) return;
+  if (!readAvailable(w)) return close(fd, "");
+  if (w.received.empty()) {
+    if (w.peer_closed) close(fd, "");  // the client went away
+    return;
+  }
   if (!w.started) {  // the head's time runs from its first byte (an idle keep-alive had its own)
     w.started = true;
     w.deadline = after(limits_.head_timeout_s);
   }
-  const std::string_view bytes(peek_.data(), static_cast<std::size_t>(got));
+  const std::string_view bytes(w.received);
   const std::size_t end = bytes.find("\r\n\r\n");
   if (end == std::string_view::npos || end + 4 > limits_.max_head_bytes) {
     if (bytes.size() >= limits_.max_head_bytes) {
-      answer(fd, api::makeProblem(api::WireError::kHeadersTooLarge,
-                                  "the request head is over " + std::to_string(limits_.max_head_bytes) + " bytes", "/"));
+      return answer(fd, api::makeProblem(api::WireError::kHeadersTooLarge,
+                                         "the request head is over " + std::to_string(limits_.max_head_bytes) + " bytes",
+                                         "/"));
     }
-    return;  // not complete yet: wait for more
+    if (w.peer_closed) close(fd, "");  // it will never be complete
+    return;                            // not complete yet: wait for more
   }
   auto parsed = parseHead(bytes.substr(0, end + 4));
   if (auto* problem = std::get_if<api::Problem>(&parsed)) return answer(fd, *problem);
   const Head& head = std::get<Head>(parsed);
   ReadyConnection ready;
-  ready.fd = fd;
   ready.client = w.client;
   ready.client_port = w.client_port;
   ready.served = w.served;
@@ -295,7 +329,10 @@ void ConnectionGate::inspect(int fd) {
     }
     // The whole small body must be here too (unless the client waits for
     // 100 Continue before sending it), so no thread waits on it.
-    if (!head.expects_continue && bytes.size() < ready.head_bytes + body) return;
+    if (!head.expects_continue && bytes.size() < ready.head_bytes + body) {
+      if (w.peer_closed) close(fd, "");
+      return;
+    }
   }
   // No length and not chunked: the body is empty (RFC 9112 6.3), whatever
   // the method; the stream ends there for httplib, which would otherwise
@@ -303,33 +340,35 @@ void ConnectionGate::inspect(int fd) {
   if (!head.chunked) ready.request_bytes = ready.head_bytes + head.content_length.value_or(0);
   epoll_ctl(epoll_fd_, EPOLL_CTL_DEL, fd, nullptr);
   if (--per_client_[w.client] <= 0) per_client_.erase(w.client);
+  ready.connection = std::move(w.connection);
+  ready.received = std::move(w.received);
   waiting_.erase(fd);
   dispatch_(std::move(ready));
 }
 
-void ConnectionGate::close(int fd, const std::string& event) {
+void ConnectionGate::close(int fd, const std::string& event, const std::string& detail) {
   auto it = waiting_.find(fd);
   if (it == waiting_.end()) return;
-  if (!event.empty() && on_event_) on_event_(event, it->second.client, "");
+  if (!event.empty() && on_event_) on_event_(event, it->second.client, detail);
   if (--per_client_[it->second.client] <= 0) per_client_.erase(it->second.client);
   epoll_ctl(epoll_fd_, EPOLL_CTL_DEL, fd, nullptr);
+  it->second.connection->close();
   waiting_.erase(it);
-  ::shutdown(fd, SHUT_RDWR);
-  ::close(fd);
 }
 
 void ConnectionGate::answer(int fd, const api::Problem& problem) {
+  Connection& connection = *waiting_.at(fd).connection;
   const std::string body = api::dumpJson(api::toJson(problem));
   const std::string response = "HTTP/1.1 " + std::to_string(problem.status) + " " + reasonPhrase(problem.status) +
                                "\r\nContent-Type: application/problem+json\r\nContent-Length: " +
                                std::to_string(body.size()) + "\r\nConnection: close\r\n\r\n" + body;
   // Best effort: a client that does not read its answer just loses it.
-  [[maybe_unused]] const ssize_t n = ::send(fd, response.data(), response.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+  connection.send(response.data(), response.size());
   // What the client sent and we did not read would make close() reset the
   // connection, and a reset can discard the answer before the client reads
   // it: what is already here is read and dropped.
   char sink[16384];
-  for (int i = 0; i < 64 && ::recv(fd, sink, sizeof sink, MSG_DONTWAIT) > 0; ++i) {
+  for (int i = 0; i < 64 && connection.receive(sink, sizeof sink).kind == IoResult::Kind::kBytes; ++i) {
   }
   if (on_event_) on_event_("request_refused_at_gate", waiting_.at(fd).client, problem.detail);
   close(fd, "");
@@ -342,7 +381,8 @@ void ConnectionGate::expire() {
     if (w.deadline <= now) late.push_back(fd);
   }
   for (int fd : late) {
-    if (waiting_.at(fd).started) {
+    const Waiting& w = waiting_.at(fd);
+    if (w.started && w.connection->established()) {
       answer(fd, api::makeProblem(api::WireError::kRequestTimeout,
                                   "the request head did not arrive within " +
                                       std::to_string(static_cast<int>(limits_.head_timeout_s)) + " s",

@@ -5,12 +5,13 @@
 // holds a thread indefinitely; a few dozen of them leave none for anybody.
 //
 // Here a connection takes no thread until its whole request head (and, for
-// a route that takes no upload, its whole small body) is in the kernel's
-// receive buffer: one thread watches every waiting socket (epoll) and peeks
-// (MSG_PEEK) without consuming, so httplib later reads the request as if it
-// had just arrived. A head not complete within head_timeout is answered 408
-// and closed; an idle keep-alive connection is closed after its idle
-// timeout; a client address holding more than max_waiting_per_client
+// a route that takes no upload, its whole small body) has arrived: one
+// thread watches every waiting socket (epoll), drives TLS handshakes and
+// reads what comes into the connection's own buffer, which travels with it
+// to the HTTP thread (server/http_server.h) and back for a kept-alive
+// connection's next request. A head not complete within head_timeout is
+// answered 408 and closed (a TLS handshake not done by then, closed); an
+// idle keep-alive connection is closed after its idle timeout; a client address holding more than max_waiting_per_client
 // waiting connections loses its oldest, so one address cannot fill the door
 // while a well-behaved request from anywhere still gets through at once.
 // Requests the door can judge alone are answered here without a thread: 431
@@ -26,6 +27,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -34,6 +36,7 @@
 #include <vector>
 
 #include "api/types.h"
+#include "server/connection.h"
 
 namespace server {
 
@@ -48,7 +51,10 @@ struct GateLimits {
 
 // A connection whose next request is ready to be served.
 struct ReadyConnection {
-  int fd = -1;
+  std::shared_ptr<Connection> connection;
+  // Bytes read from it already: the whole head, then as much of the body
+  // (and possibly of a next, pipelined request) as had arrived.
+  std::string received;
   std::string client;       // peer address (IP text)
   int client_port = 0;
   int served = 0;           // requests already served on it
@@ -75,24 +81,36 @@ class ConnectionGate {
   void start();
   // Closes every waiting connection; admit() then closes what it is given.
   void stop();
-  // Takes ownership of `fd`: a new connection (served = 0) or a kept-alive
-  // one coming back after `served` requests. Any thread.
-  void admit(int fd, int served);
+  // A new connection (served = 0) or a kept-alive one coming back after
+  // `served` requests with `received`, bytes read past its last request.
+  // Any thread.
+  void admit(std::shared_ptr<Connection> connection, int served, std::string received = {});
   int waiting() const;
 
  private:
+  struct Incoming {
+    std::shared_ptr<Connection> connection;
+    int served = 0;
+    std::string received;
+  };
   struct Waiting {
+    std::shared_ptr<Connection> connection;
+    std::string received;                       // read so far: this request's head and small body
     std::string client;
     int client_port = 0;
     int served = 0;
     std::uint64_t order = 0;                    // admission order: the oldest is evicted first
     std::chrono::steady_clock::time_point deadline;
-    bool started = false;                       // a byte of the next head has arrived
+    bool started = false;                       // a byte of the next head (or of the TLS handshake) has arrived
+    bool peer_closed = false;                   // the client sent its last byte (maybe a whole request)
+    std::uint32_t watched = 0;                  // epoll events asked for
   };
   void run();
-  void take(int fd, int served);                // on the gate thread
-  void inspect(int fd);                          // peek: dispatch, answer, keep waiting or close
-  void close(int fd, const std::string& event);  // silently
+  void take(Incoming incoming);                  // on the gate thread
+  void inspect(int fd);                          // read: dispatch, answer, keep waiting or close
+  bool readAvailable(Waiting& w);                // false: the connection failed (closed)
+  void watch(int fd, Waiting& w, IoResult::Kind waiting_for);
+  void close(int fd, const std::string& event, const std::string& detail = "");  // event "": silently
   void answer(int fd, const api::Problem& problem);  // then closes
   void expire();
   void evictOldest(const std::string* client, const std::string& event);
@@ -104,14 +122,13 @@ class ConnectionGate {
   int wake_fd_ = -1;
   std::thread thread_;
   mutable std::mutex mutex_;                    // incoming_, stopping_, waiting_count_
-  std::vector<std::pair<int, int>> incoming_;   // (fd, served) admitted, not yet taken
+  std::vector<Incoming> incoming_;              // admitted, not yet taken
   bool stopping_ = false;
   int waiting_count_ = 0;
   // Gate thread only.
   std::unordered_map<int, Waiting> waiting_;
   std::map<std::string, int> per_client_;
   std::uint64_t next_order_ = 0;
-  std::vector<char> peek_;
 };
 
 }  // namespace server

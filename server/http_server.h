@@ -5,6 +5,8 @@
 // time on a thread is bounded as a whole, not per read: reading its body
 // and writing its response stop at request_time_s (upload_time_s for the
 // uploads), so a client trickling a byte at a time cannot hold a thread.
+// With a TlsContext the same is served over TLS: the gate drives the
+// handshakes, so a client that stalls one holds no thread either.
 #pragma once
 
 #include <atomic>
@@ -28,8 +30,12 @@ struct HttpLimits {
 class GatedHttpServer : public httplib::Server {
  public:
   using GateEvent = ConnectionGate::Event;
-  GatedHttpServer(HttpLimits limits, GateEvent on_event);
+  // `tls`: serve HTTPS with it; null: plain HTTP.
+  GatedHttpServer(HttpLimits limits, std::shared_ptr<const TlsContext> tls, GateEvent on_event);
   ~GatedHttpServer() override;
+  // Binds host:port (port 0: any free port) with a listen backlog of
+  // `backlog` pending connections; the bound port, or -1.
+  int bindListener(const std::string& host, int port, int backlog);
   // After httplib's stop(): closes the waiting connections and lets the
   // requests in service finish (each within its time bound).
   void drain();
@@ -39,12 +45,14 @@ class GatedHttpServer : public httplib::Server {
   // Called by httplib for each accepted socket (on its accept thread, the
   // task queue being inline): hands it to the gate.
   bool process_and_close_socket(socket_t sock) override;
-  void serve(const ReadyConnection& connection);
+  void serve(ReadyConnection connection);
 
   const HttpLimits limits_;
+  const std::shared_ptr<const TlsContext> tls_;
   ConnectionGate gate_;
   std::unique_ptr<httplib::ThreadPool> pool_;
   std::atomic<bool> draining_{false};
+  int listen_fd_ = -1;  // the listening socket, as httplib created it
 };
 
 }  // namespace server

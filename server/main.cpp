@@ -27,6 +27,9 @@ int main(int argc, char** argv) {
   bool no_auth = false;
   app.add_option("--listen", listen, "host:port to listen on (port 0 = any free port)")->capture_default_str();
   app.add_option("--data-dir", config.data_dir, "Store directory (SQLite + blobs)")->required();
+  app.add_option("--tls-cert", config.tls_certificate_file, "Serve HTTPS: certificate chain (PEM), with --tls-key")
+      ->check(CLI::ExistingFile);
+  app.add_option("--tls-key", config.tls_private_key_file, "Private key (PEM) of --tls-cert")->check(CLI::ExistingFile);
   app.add_flag("--public-metrics", config.public_metrics, "Serve /metrics without an API key");
   app.add_option("--max-auth-failures-per-minute", config.max_auth_failures_per_minute,
                  "Failed authentications a client address may make per minute before it is refused for a minute (0 = no limit)")
@@ -42,6 +45,9 @@ int main(int argc, char** argv) {
   app.add_flag("--no-auth", no_auth, "No API keys: every request is one local tenant");
   app.add_option("--queue-capacity", config.queue_capacity, "Queued jobs before 429")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--job-time-limit", config.job_time_limit_s, "Seconds a job may run")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--listen-backlog", config.listen_backlog, "New connections the kernel queues until accepted")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   app.add_option("--http-threads", config.http_threads, "HTTP connection threads")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--max-body-mb", max_body_mb, "Largest request body, MiB")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--max-vertices", config.max_vertices, "Largest mesh, vertices")->check(CLI::PositiveNumber)->capture_default_str();
@@ -91,7 +97,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   // The first stdout line tells scripts and tests the bound port.
-  std::printf("listening on http://%s:%d\n", config.host.c_str(), *port);
+  std::printf("listening on %s://%s:%d\n", config.tls_certificate_file.empty() ? "http" : "https", config.host.c_str(),
+              *port);
   std::fflush(stdout);
 
   std::signal(SIGTERM, onSignal);

@@ -2,6 +2,7 @@
 
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <chrono>
 #include <system_error>
 #include <thread>
@@ -32,9 +33,20 @@ core::Result<std::unique_ptr<Service>> Service::create(const ServerConfig& confi
                                ") must leave " + std::to_string(kReservedHttpThreads) + " of the " +
                                std::to_string(config.http_threads) + " HTTP threads free");
   }
+  std::shared_ptr<const TlsContext> tls;
+  if (config.tls_certificate_file.empty() != config.tls_private_key_file.empty()) {
+    return core::makeError(core::ErrorCode::kInvalidArgument,
+                           "TLS needs both a certificate (--tls-cert) and its private key (--tls-key)");
+  }
+  if (!config.tls_certificate_file.empty()) {
+    auto loaded = TlsContext::load(config.tls_certificate_file, config.tls_private_key_file);
+    if (auto* error = std::get_if<std::string>(&loaded)) return core::makeError(core::ErrorCode::kInvalidArgument, *error);
+    tls = std::get<std::shared_ptr<TlsContext>>(std::move(loaded));
+  }
   auto store = MetadataStore::open(config.data_dir / "rigport.sqlite");
   if (!store) return store.error();
-  return std::unique_ptr<Service>(new Service(config, std::move(keys), std::move(*store), JsonLog(std::move(logger))));
+  return std::unique_ptr<Service>(
+      new Service(config, std::move(keys), std::move(*store), std::move(tls), JsonLog(std::move(logger))));
 }
 
 namespace {
@@ -56,7 +68,8 @@ HttpLimits httpLimits(const ServerConfig& config) {
 
 }  // namespace
 
-Service::Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<MetadataStore> store, JsonLog log)
+Service::Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<MetadataStore> store,
+                 std::shared_ptr<const TlsContext> tls, JsonLog log)
     : config_(config),
       keys_(std::move(keys)),
       log_(std::move(log)),
@@ -69,7 +82,7 @@ Service::Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<Metad
       auth_failures_(config.max_auth_failures_per_minute),
       uploads_(config.max_concurrent_uploads, config.max_uploads_per_tenant, config.max_uploads_per_client),
       routes_{config_, keys_, *store_, blobs_, caches_, jobs_, metrics_, log_, ready_, auth_failures_, uploads_, blob_collection_, storage_},
-      http_(httpLimits(config),
+      http_(httpLimits(config), std::move(tls),
             [this](const std::string& event, const std::string& client, const std::string& detail) {
               log_.info(event, {{"client", client}, {"detail", detail}});
             }) {
@@ -84,19 +97,15 @@ Service::~Service() { stop(0.0); }
 core::Result<int> Service::start() {
   storage_.probe();  // a read-only or full data dir is red from the start: no job runs
   jobs_.start();
-  if (config_.port == 0) {
-    port_ = http_.bind_to_any_port(config_.host);
-    if (port_ < 0) port_ = 0;
-  } else if (http_.bind_to_port(config_.host, config_.port)) {
-    port_ = config_.port;
-  }
+  port_ = std::max(0, http_.bindListener(config_.host, config_.port, config_.listen_backlog));
   if (port_ <= 0) {
     return core::makeError(core::ErrorCode::kIo, "cannot listen on " + config_.host + ":" + std::to_string(config_.port));
   }
   ready_ = true;
   storage_.start();
   retention_.start();
-  log_.info("listening", {{"host", config_.host}, {"port", port_}, {"auth", keys_.enabled()},
+  log_.info("listening", {{"host", config_.host}, {"port", port_}, {"tls", !config_.tls_certificate_file.empty()},
+                          {"auth", keys_.enabled()},
                           {"data_dir", config_.data_dir.string()}, {"keep_jobs_days", config_.keep_jobs_days}});
   return port_;
 }

@@ -43,7 +43,8 @@ class Service {
   int port() const { return port_; }
 
  private:
-  Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<MetadataStore> store, JsonLog log);
+  Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<MetadataStore> store,
+          std::shared_ptr<const TlsContext> tls, JsonLog log);
 
   ServerConfig config_;
   ApiKeys keys_;

@@ -11,6 +11,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <thread>
 
@@ -45,16 +46,20 @@ class RawConnection {
   bool send(const std::string& bytes) const {
     return ::send(fd_, bytes.data(), bytes.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(bytes.size());
   }
-  // Everything until the peer closes (or 10 s without a byte).
-  std::string readUntilClosed() const {
+  // Everything until the peer closes (or 10 s without a byte: closedByPeer() false).
+  std::string readUntilClosed() {
     std::string out;
     char buf[4096];
     for (;;) {
       const ssize_t n = ::recv(fd_, buf, sizeof buf, 0);
-      if (n <= 0) return out;
+      if (n <= 0) {
+        closed_by_peer_ = n == 0 || errno == ECONNRESET;
+        return out;
+      }
       out.append(buf, static_cast<std::size_t>(n));
     }
   }
+  bool closedByPeer() const { return closed_by_peer_; }
   // One response whose body is `Content-Length` long (keep-alive).
   std::string readResponse() const {
     std::string out;
@@ -75,6 +80,7 @@ class RawConnection {
  private:
   int fd_ = -1;
   bool connected_ = false;
+  bool closed_by_peer_ = false;
 };
 
 int statusOf(const std::string& response) {
@@ -190,6 +196,71 @@ TEST(HostileClients, RequestsTheGateJudgesAreAnsweredWithoutAThread) {
   const std::string both = pipelined.readUntilClosed();
   EXPECT_EQ(statusOf(both), 200) << both;
   EXPECT_NE(both.find("HTTP/1.1 404"), std::string::npos) << both;
+}
+
+TEST(HostileClients, StalledTlsHandshakesHoldNoThreadAndAreClosed) {
+  const auto dir = makeTempDir("tls_stall");
+  const TransferFiles files = writeTransferFiles(dir);
+  const TlsFiles tls = writeSelfSignedCertificate(dir / "tls");
+  server::ServerConfig config = testConfig(dir / "data");
+  config.tls_certificate_file = tls.certificate;
+  config.tls_private_key_file = tls.private_key;
+  config.head_timeout_s = 1.5;
+  config.http_threads = 16;  // fewer threads than stalled connections
+  config.max_concurrent_uploads = 6;
+  config.max_concurrent_waits = 6;
+  InProcessService service(config);
+
+  // 40 connections that send nothing, 40 that stop inside their ClientHello
+  // (a TLS record header promising 512 bytes, then 6 of them), 20 that
+  // speak plain HTTP to the HTTPS port.
+  std::vector<std::unique_ptr<RawConnection>> stalled, plain;
+  for (int i = 0; i < 80; ++i) {
+    stalled.push_back(std::make_unique<RawConnection>(service.port()));
+    ASSERT_TRUE(stalled.back()->connected());
+    if (i % 2) {
+      ASSERT_TRUE(stalled.back()->send(std::string("\x16\x03\x01\x02\x00\x01\x00\x01\xfc\x03\x03", 11)));
+    }
+  }
+  for (int i = 0; i < 20; ++i) {
+    plain.push_back(std::make_unique<RawConnection>(service.port()));
+    ASSERT_TRUE(plain.back()->send("GET /healthz HTTP/1.1\r\nHost: rigport\r\n\r\n"));
+  }
+
+  auto client = service.client();
+  EXPECT_EQ(get(*client, "/healthz").status, 200);
+  const Reply rig = uploadRig(*client, files);
+  ASSERT_EQ(rig.status, 201) << rig.raw;
+  const Reply job = submitTransfer(*client, rig.body["id"], files);
+  ASSERT_EQ(job.status, 202) << job.raw;
+  EXPECT_EQ(waitForJob(*client, job.body["id"])["status"], "succeeded");
+
+  // Plain HTTP gets no HTTP answer (at most a TLS alert) and is closed.
+  for (const auto& c : plain) {
+    const std::string response = c->readUntilClosed();
+    EXPECT_TRUE(c->closedByPeer());
+    EXPECT_NE(response.rfind("HTTP/", 0), 0u) << response;
+  }
+  // The stalled handshakes are closed when the head's time is up.
+  for (const auto& c : stalled) {
+    const std::string response = c->readUntilClosed();
+    EXPECT_TRUE(c->closedByPeer()) << "a stalled handshake was left open";
+    EXPECT_NE(response.rfind("HTTP/", 0), 0u) << response;
+  }
+  EXPECT_EQ(get(*client, "/healthz").status, 200);
+}
+
+TEST(HostileClients, ASecondServiceCannotShareTheListeningPort) {
+  const auto dir = makeTempDir("port_taken");
+  InProcessService first(testConfig(dir / "first"));
+  server::ServerConfig config = testConfig(dir / "second");
+  config.port = first.port();
+  auto second = server::Service::create(config, server::ApiKeys::disabled(), nullptr);
+  ASSERT_TRUE(second) << second.error().message;
+  const auto started = (*second)->start();
+  ASSERT_FALSE(started) << "a second service listens on port " << first.port() << " too";
+  EXPECT_NE(started.error().message.find(std::to_string(first.port())), std::string::npos) << started.error().message;
+  EXPECT_EQ(get(*first.client(), "/healthz").status, 200);
 }
 
 // A multipart upload whose head promises `length` bytes, then sends only the

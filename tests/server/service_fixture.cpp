@@ -98,7 +98,19 @@ server::ServerConfig testConfig(const std::filesystem::path& dir) {
   return config;
 }
 
-InProcessService::InProcessService(server::ServerConfig config, server::ApiKeys keys) {
+TlsFiles writeSelfSignedCertificate(const std::filesystem::path& dir) {
+  std::filesystem::create_directories(dir);
+  const TlsFiles files{dir / "service.crt", dir / "service.key"};
+  const CommandResult made = runCommand(
+      "openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes -days 2 -subj /CN=localhost "
+      "-addext subjectAltName=DNS:localhost,IP:127.0.0.1 -keyout '" +
+      files.private_key.string() + "' -out '" + files.certificate.string() + "'");
+  EXPECT_EQ(made.exit_code, 0) << "openssl req: " << made.output;
+  return files;
+}
+
+InProcessService::InProcessService(server::ServerConfig config, server::ApiKeys keys)
+    : tls_certificate_(config.tls_certificate_file) {
   auto service = server::Service::create(config, std::move(keys), nullptr);
   if (!service) {
     ADD_FAILURE() << service.error().message;
@@ -122,7 +134,10 @@ void InProcessService::stop(double grace_s) {
 }
 
 std::unique_ptr<httplib::Client> InProcessService::client(const std::string& api_key) const {
-  auto client = std::make_unique<httplib::Client>("127.0.0.1", port_);
+  auto client = tls_certificate_.empty()
+                    ? std::make_unique<httplib::Client>("127.0.0.1", port_)
+                    : std::make_unique<httplib::Client>("https://127.0.0.1:" + std::to_string(port_));
+  if (!tls_certificate_.empty()) client->set_ca_cert_path(tls_certificate_.string());
   client->set_connection_timeout(5, 0);
   client->set_read_timeout(60, 0);
   client->set_write_timeout(60, 0);

@@ -38,7 +38,15 @@ CliRun runRigportCli(const std::string& arguments);
 // The rigport CLI's in-process transfer of `files` (the reference bytes).
 std::vector<std::uint8_t> runCliTransfer(const TransferFiles& files, const std::filesystem::path& out_dir);
 
-// The service in this process on 127.0.0.1:<any free port>.
+// A self-signed certificate for 127.0.0.1 and localhost, and its private
+// key (PEM, written with the openssl command; the test fails without it).
+struct TlsFiles {
+  std::filesystem::path certificate, private_key;
+};
+TlsFiles writeSelfSignedCertificate(const std::filesystem::path& dir);
+
+// The service in this process on 127.0.0.1:<any free port> (HTTPS when the
+// config names a certificate: client() then trusts it).
 class InProcessService {
  public:
   explicit InProcessService(server::ServerConfig config, server::ApiKeys keys = server::ApiKeys::disabled());
@@ -51,6 +59,7 @@ class InProcessService {
   std::unique_ptr<server::Service> service_;
   std::thread thread_;
   int port_ = 0;
+  std::filesystem::path tls_certificate_;
 };
 
 // A config for tests: data in `dir`, 2 workers, ephemeral port.
