@@ -307,6 +307,108 @@ TEST(IctOtherIdentities, ShapesBeatThePlainMethod) {
   EXPECT_LT(worst_sum, plain_worst_sum);
 }
 
+// Stylised faces the data does not hold, made from the identities it does:
+// a cartoon-like stylisation D (a nose inflated and pushed forward about its
+// tip, the face below the mouth-corner line widened and dropped, a forehead
+// bulge, non-uniform scale), smooth and one-to-one, applied to id_s01-03.
+// Same topology, so the landmarks are the source's vertices, and the truth
+// is each expression carried through the stylisation: D(X + delta) - D(X).
+// The requirement: the default must not lose to the papers' plain
+// method on any kind of face (docs/ACCURACY.md, "Stylised faces").
+struct Stylisation {
+  double nose_inflate, nose_push, jaw_widen, jaw_drop, forehead, scale_x, scale_y, scale_z;
+};
+
+TEST(IctMadeCartoons, TheDefaultDoesNotLoseToThePlainMethod) {
+  RIGPORT_REQUIRE_SHARED_DATA(data);
+  const core::PreparedRig* source = ictRig(data);
+  ASSERT_NE(source, nullptr) << "ICT rig failed to load";
+  const core::LandmarkSet& landmarks = source->surface.landmarks;
+  const Stylisation styles[] = {{0.35, 0.25, 0.15, 0.10, 0.20, 1.10, 0.95, 1.00},
+                                {0.50, 0.10, 0.25, 0.05, 0.10, 0.95, 1.05, 1.10},
+                                {0.20, 0.35, 0.10, 0.20, 0.30, 1.00, 1.10, 0.90},
+                                {0.45, 0.30, 0.30, 0.15, 0.00, 1.15, 1.00, 1.05},
+                                {0.25, 0.20, 0.05, 0.25, 0.25, 0.90, 0.90, 1.00}};
+  const core::TransferOptions plain_options = plainMethod();
+  double median_sum = 0.0, plain_median_sum = 0.0;
+  int wins = 0, cases = 0;
+  for (int k = 1; k <= 3; ++k) {
+    const std::string id = "id_s0" + std::to_string(k);
+    auto identity = core::readMesh(data / "ict" / "targets" / (id + ".glb"));
+    ASSERT_TRUE(identity) << identity.error().message;
+    const Eigen::MatrixX3d x = identity->mesh.positions;
+    auto at = core::resolveLandmarks(landmarks, identity->mesh, id);
+    ASSERT_TRUE(at) << at.error().message;
+    const auto point = [&](const std::string& name) -> Eigen::RowVector3d {
+      for (std::size_t i = 0; i < landmarks.landmarks.size(); ++i) {
+        if (landmarks.landmarks[i].name == name) return at->row(static_cast<Eigen::Index>(i));
+      }
+      ADD_FAILURE() << "no landmark " << name;
+      return Eigen::RowVector3d::Zero();
+    };
+    // The face's frame from its landmarks: forward from the jaw line to the
+    // nose tip, up from the chin to the brows.
+    const Eigen::RowVector3d tip = point("nose_bridge_3"), chin = point("jaw_08");
+    const Eigen::RowVector3d brows = 0.5 * (point("brow_right_2") + point("brow_left_2"));
+    const Eigen::RowVector3d mouth = 0.5 * (point("mouth_outer_0") + point("mouth_outer_6"));
+    const double size = (point("eye_right_0") - point("eye_left_3")).norm();
+    Eigen::RowVector3d jaw_mid = Eigen::RowVector3d::Zero();
+    for (int j = 0; j <= 16; ++j) jaw_mid += point((j < 10 ? "jaw_0" : "jaw_") + std::to_string(j)) / 17.0;
+    Eigen::RowVector3d up = (brows - chin).normalized();
+    Eigen::RowVector3d forward = tip - jaw_mid;
+    forward = (forward - forward.dot(up) * up).normalized();
+    const Eigen::RowVector3d side = up.cross(forward);
+    const Eigen::RowVector3d forehead = brows + 0.45 * size * up;
+    for (std::size_t s = 0; s < std::size(styles); ++s) {
+      const Stylisation& st = styles[s];
+      const auto stylise = [&](const Eigen::RowVector3d& p) -> Eigen::RowVector3d {
+        const double sn = 0.35 * size;
+        const double nose = std::exp(-(p - tip).squaredNorm() / (2 * sn * sn));
+        Eigen::RowVector3d q = p + nose * (st.nose_inflate * (p - tip) + st.nose_push * sn * forward);
+        const double below = std::clamp(-(p - mouth).dot(up) / (0.6 * size), 0.0, 1.0);
+        const double smooth = below * below * (3 - 2 * below);
+        q += smooth * (st.jaw_widen * (p - mouth).dot(side) * side - st.jaw_drop * 0.3 * size * up);
+        const double sf = 0.5 * size;
+        q += st.forehead * sf * std::exp(-(p - forehead).squaredNorm() / (2 * sf * sf)) * forward;
+        const Eigen::RowVector3d r = q - jaw_mid;
+        return jaw_mid + st.scale_x * r.dot(side) * side + st.scale_y * r.dot(up) * up + st.scale_z * r.dot(forward) * forward;
+      };
+      core::Mesh mesh = identity->mesh;
+      mesh.normals.resize(0, 3);
+      for (Eigen::Index v = 0; v < x.rows(); ++v) mesh.positions.row(v) = stylise(x.row(v));
+      core::Rig truth;
+      truth.morph_targets = source->rig.morph_targets;  // ICT deltas are identity independent
+      for (auto& shape : truth.morph_targets) {
+        for (Eigen::Index v = 0; v < x.rows(); ++v) {
+          shape.position_deltas.row(v) = stylise(x.row(v) + shape.position_deltas.row(v)) - mesh.positions.row(v);
+        }
+      }
+      const std::string name = id + "_cartoon" + std::to_string(s);
+      auto ours = core::transferRig(*source, mesh, landmarks, name);
+      auto plain = core::transferRig(*source, mesh, landmarks, name, plain_options);
+      ASSERT_TRUE(ours && plain) << name;
+      const Errors e = shapeErrors(ours->rig, truth), p = shapeErrors(plain->rig, truth);
+      const Spikes spikes = shapeSpikes(ours->rig, truth), plain_spikes = shapeSpikes(plain->rig, truth);
+      std::printf("[ %-18s ] E median %.4f worst %.4f | plain %.4f / %.4f | spike %.2f torn %d (plain %.2f, %d) | %s\n",
+                  name.c_str(), e.median(), e.worst(), p.median(), p.worst(), spikes.worst(),
+                  spikes.torn, plain_spikes.worst(), plain_spikes.torn, ours->report.adaptation.c_str());
+      // Not meaningfully worse than the plain method on any of them (the
+      // margin as for the ICT targets; measured: every median better by
+      // 0.006-0.021, two worsts above by 0.0006 and 0.0008), and better in
+      // sum. No vertex left behind (the plain method leaves 53-217).
+      EXPECT_LE(e.median(), p.median() + 0.005) << name;
+      EXPECT_LE(e.worst(), p.worst() + 0.005) << name;
+      EXPECT_EQ(spikes.torn, 0) << name << " " << spikes.torn_shapes;
+      median_sum += e.median();
+      plain_median_sum += p.median();
+      wins += e.median() < p.median();
+      ++cases;
+    }
+  }
+  std::printf("default median below the plain method's on %d of %d made cartoons\n", wins, cases);
+  EXPECT_LT(median_sum, plain_median_sum);
+}
+
 // What limits E (printed; summarised in docs/ACCURACY.md). On the
 // same-topology targets the true correspondence is known (target vertex i is
 // source vertex i), so the error can be split: the true correspondence with
