@@ -239,7 +239,7 @@ Parsed<json> parseJsonText(const std::string& text, const std::string& label) {
   // Nesting capped while parsing (nlohmann's parser is iterative; copies and
   // dumps of what it builds recurse once per level: 100,000 levels of
   // spec.options overflowed a server thread's stack). The rule of core's
-  // readers (core/json_text.h), which api does not include.
+  // readers (core/io/json_text.h), which api does not include.
   struct TooDeep {};
   try {
     return json::parse(text, [](int depth, json::parse_event_t event, json&) {

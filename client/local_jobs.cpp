@@ -7,17 +7,17 @@
 
 #include <spdlog/spdlog.h>
 
-#include "core/diagnostics_json.h"
-#include "core/landmarks.h"
-#include "core/retarget_options.h"
-#include "core/transfer_options.h"
-#include "core/mesh_io.h"
-#include "core/rig_io.h"
-#include "core/synthetic_head.h"
-#include "core/synthetic_rig.h"
-#include "core/retarget.h"
-#include "core/trc_io.h"
-#include "core/warp_job.h"
+#include "core/jobs/diagnostics_json.h"
+#include "core/io/landmarks.h"
+#include "core/jobs/retarget_options.h"
+#include "core/jobs/transfer_options.h"
+#include "core/io/mesh_io.h"
+#include "core/io/rig_io.h"
+#include "core/synthetic/synthetic_head.h"
+#include "core/synthetic/synthetic_rig.h"
+#include "core/retarget/retarget.h"
+#include "core/io/trc_io.h"
+#include "core/correspond/warp_job.h"
 
 namespace client {
 

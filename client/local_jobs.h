@@ -56,7 +56,7 @@ struct RetargetArgs {
   // client library includes it and links api only).
   std::string method = "hybrid";       // euclidean | geodesic | hybrid
   std::string kernel = "gaussian";     // gaussian | multiquadric | thin-plate | linear
-  double gamma = 0.0;                  // model units; 0 = default (core/retarget.h)
+  double gamma = 0.0;                  // model units; 0 = default (core/retarget/retarget.h)
   int rest_frame = 0;
   double tolerance = 0.05;             // relative Frobenius error of the bake
   bool exact = false;                  // one morph target per frame (short clips)

@@ -63,7 +63,7 @@ int main(int argc, char** argv) {
   transfer_cmd->add_option("--target-landmarks", transfer.target_landmarks, "Target landmarks JSON")->required()->check(CLI::ExistingFile);
   transfer_cmd->add_option("-o,--output", transfer.output, "Rigged target GLB")->required()->check(client::kGlbPath);
   transfer_cmd->add_option("--diagnostics", transfer.diagnostics, "Diagnostics JSON");
-  transfer_cmd->add_option("--options", transfer.options, "Transfer options JSON (see core/transfer_options.h)")->check(CLI::ExistingFile);
+  transfer_cmd->add_option("--options", transfer.options, "Transfer options JSON (see core/jobs/transfer_options.h)")->check(CLI::ExistingFile);
   transfer_cmd->add_option("--threads", transfer.threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
   transfer_cmd->add_flag("--print-diagnostics", transfer.print_diagnostics, "Also print the diagnostics JSON on stdout");
   transfer_cmd->add_flag("--strict", transfer.strict,

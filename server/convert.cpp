@@ -5,15 +5,15 @@
 
 #include "api/content_id.h"
 #include "api/json.h"
-#include "core/diagnostics_json.h"
-#include "core/landmarks.h"
-#include "core/mesh_io.h"
-#include "core/retarget_options.h"
-#include "core/rig_io.h"
-#include "core/trc_io.h"
-#include "core/tps.h"
-#include "core/transfer.h"
-#include "core/transfer_options.h"
+#include "core/jobs/diagnostics_json.h"
+#include "core/io/landmarks.h"
+#include "core/io/mesh_io.h"
+#include "core/jobs/retarget_options.h"
+#include "core/io/rig_io.h"
+#include "core/io/trc_io.h"
+#include "core/solve/tps.h"
+#include "core/transfer/transfer.h"
+#include "core/jobs/transfer_options.h"
 
 namespace server {
 

@@ -15,8 +15,8 @@
 
 #include "api/error_codes.h"
 #include "api/types.h"
-#include "core/error.h"
-#include "core/landmarks.h"
+#include "core/base/error.h"
+#include "core/io/landmarks.h"
 #include "server/config.h"
 #include "server/prepared_cache.h"
 #include "server/store.h"

@@ -19,9 +19,9 @@
 #include <mutex>
 #include <string>
 
-#include "core/error.h"
-#include "core/retarget.h"
-#include "core/transfer.h"
+#include "core/base/error.h"
+#include "core/retarget/retarget.h"
+#include "core/transfer/transfer.h"
 #include "server/metrics.h"
 
 namespace server {

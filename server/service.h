@@ -9,7 +9,7 @@
 
 #include "api/http.h"
 
-#include "core/error.h"
+#include "core/base/error.h"
 #include "server/auth.h"
 #include "server/config.h"
 #include "server/http_server.h"

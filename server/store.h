@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "api/types.h"
-#include "core/error.h"
+#include "core/base/error.h"
 
 namespace server {
 

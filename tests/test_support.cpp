@@ -12,7 +12,7 @@
 #include <utility>
 #include <vector>
 
-#include "core/skinning.h"
+#include "core/rig/skinning.h"
 
 namespace rigport_test {
 

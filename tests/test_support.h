@@ -9,9 +9,9 @@
 #include <Eigen/Core>
 #include <gtest/gtest.h>
 
-#include "core/rig.h"
-#include "core/synthetic_rig.h"
-#include "core/transfer.h"
+#include "core/rig/rig.h"
+#include "core/synthetic/synthetic_rig.h"
+#include "core/transfer/transfer.h"
 
 namespace rigport_test {
 

@@ -19,9 +19,9 @@
 
 #include <benchmark/benchmark.h>
 
-#include "core/closest_point.h"
-#include "core/mesh.h"
-#include "core/moving_mesh_index.h"
+#include "core/geometry/closest_point.h"
+#include "core/geometry/mesh.h"
+#include "core/geometry/moving_mesh_index.h"
 
 namespace {
 

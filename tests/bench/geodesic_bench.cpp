@@ -1,4 +1,4 @@
-// Heat-method geodesics (core/geodesic.cpp), single-threaded: factorisation,
+// Heat-method geodesics (core/solve/geodesic.cpp), single-threaded: factorisation,
 // 41 distance fields (one per AnimFace mocap marker), and both together, on
 // the ICT face (../shared/data/ict/source_face.glb, 11248 vertices, markers
 // from ../shared/data/mocap/ict_markers.json) and on a generated head of
@@ -10,10 +10,10 @@
 
 #include <benchmark/benchmark.h>
 
-#include "core/geodesic.h"
-#include "core/landmarks.h"
-#include "core/mesh_io.h"
-#include "core/synthetic_head.h"
+#include "core/solve/geodesic.h"
+#include "core/io/landmarks.h"
+#include "core/io/mesh_io.h"
+#include "core/synthetic/synthetic_head.h"
 #include "tests/test_support.h"
 
 namespace {

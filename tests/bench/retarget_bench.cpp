@@ -12,10 +12,10 @@
 
 #include <benchmark/benchmark.h>
 
-#include "core/mesh_io.h"
-#include "core/retarget.h"
-#include "core/rig_io.h"
-#include "core/trc_io.h"
+#include "core/io/mesh_io.h"
+#include "core/retarget/retarget.h"
+#include "core/io/rig_io.h"
+#include "core/io/trc_io.h"
 #include "tests/test_support.h"
 
 namespace {

@@ -4,7 +4,7 @@
 
 #include <benchmark/benchmark.h>
 
-#include "core/tps.h"
+#include "core/solve/tps.h"
 
 namespace {
 

@@ -10,12 +10,12 @@
 
 #include <benchmark/benchmark.h>
 
-#include "core/landmarks.h"
-#include "core/mesh.h"
-#include "core/mesh_io.h"
-#include "core/rig_io.h"
-#include "core/synthetic_rig.h"
-#include "core/transfer.h"
+#include "core/io/landmarks.h"
+#include "core/geometry/mesh.h"
+#include "core/io/mesh_io.h"
+#include "core/io/rig_io.h"
+#include "core/synthetic/synthetic_rig.h"
+#include "core/transfer/transfer.h"
 #include "tests/test_support.h"
 
 namespace {

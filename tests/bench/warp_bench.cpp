@@ -6,9 +6,9 @@
 
 #include <benchmark/benchmark.h>
 
-#include "core/mesh_io.h"
-#include "core/synthetic_head.h"
-#include "core/warp_job.h"
+#include "core/io/mesh_io.h"
+#include "core/synthetic/synthetic_head.h"
+#include "core/correspond/warp_job.h"
 #include "tests/test_support.h"
 
 namespace {

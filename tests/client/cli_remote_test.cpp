@@ -9,7 +9,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "core/mesh_io.h"
+#include "core/io/mesh_io.h"
 #include "tests/server/service_fixture.h"
 #include "tests/test_support.h"
 

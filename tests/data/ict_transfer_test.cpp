@@ -12,13 +12,13 @@
 
 #include <gtest/gtest.h>
 
-#include "core/blendshapes.h"
-#include "core/mesh.h"
-#include "core/mesh_io.h"
-#include "core/rig_io.h"
-#include "core/skinning.h"
-#include "core/tps.h"
-#include "core/transfer.h"
+#include "core/transfer/blendshapes.h"
+#include "core/geometry/mesh.h"
+#include "core/io/mesh_io.h"
+#include "core/io/rig_io.h"
+#include "core/rig/skinning.h"
+#include "core/solve/tps.h"
+#include "core/transfer/transfer.h"
 #include "tests/test_support.h"
 
 namespace {

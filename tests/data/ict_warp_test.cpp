@@ -8,8 +8,8 @@
 
 #include <gtest/gtest.h>
 
-#include "core/mesh_io.h"
-#include "core/warp_job.h"
+#include "core/io/mesh_io.h"
+#include "core/correspond/warp_job.h"
 #include "tests/test_support.h"
 
 namespace {

@@ -7,10 +7,10 @@
 
 #include <gtest/gtest.h>
 
-#include "core/mesh_io.h"
-#include "core/retarget.h"
-#include "core/rig_io.h"
-#include "core/trc_io.h"
+#include "core/io/mesh_io.h"
+#include "core/retarget/retarget.h"
+#include "core/io/rig_io.h"
+#include "core/io/trc_io.h"
 #include "tests/test_support.h"
 
 namespace {

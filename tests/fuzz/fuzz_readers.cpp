@@ -11,12 +11,12 @@
 #include <string_view>
 
 #include "api/json.h"
-#include "core/landmarks.h"
-#include "core/mesh_io.h"
-#include "core/retarget_options.h"
-#include "core/rig_io.h"
-#include "core/transfer_options.h"
-#include "core/trc_io.h"
+#include "core/io/landmarks.h"
+#include "core/io/mesh_io.h"
+#include "core/jobs/retarget_options.h"
+#include "core/io/rig_io.h"
+#include "core/jobs/transfer_options.h"
+#include "core/io/trc_io.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::span<const std::uint8_t> bytes(data, size);

@@ -10,10 +10,10 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "core/landmarks.h"
-#include "core/mesh_io.h"
-#include "core/rig_io.h"
-#include "core/synthetic_rig.h"
+#include "core/io/landmarks.h"
+#include "core/io/mesh_io.h"
+#include "core/io/rig_io.h"
+#include "core/synthetic/synthetic_rig.h"
 #include "tests/server/service_fixture.h"
 #include "tests/test_support.h"
 

@@ -7,9 +7,9 @@
 #include <functional>
 #include <sstream>
 
-#include "core/landmarks.h"
-#include "core/mesh_io.h"
-#include "core/synthetic_head.h"
+#include "core/io/landmarks.h"
+#include "core/io/mesh_io.h"
+#include "core/synthetic/synthetic_head.h"
 #include "tests/server/service_fixture.h"
 #include "tests/test_support.h"
 

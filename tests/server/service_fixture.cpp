@@ -5,11 +5,11 @@
 #include <chrono>
 #include <cstdlib>
 
-#include "core/landmarks.h"
-#include "core/mesh_io.h"
-#include "core/rig_io.h"
-#include "core/synthetic_head.h"
-#include "core/synthetic_rig.h"
+#include "core/io/landmarks.h"
+#include "core/io/mesh_io.h"
+#include "core/io/rig_io.h"
+#include "core/synthetic/synthetic_head.h"
+#include "core/synthetic/synthetic_rig.h"
 #include "tests/test_support.h"
 
 namespace rigport_test {

@@ -6,7 +6,7 @@
 #include <atomic>
 #include <thread>
 
-#include "core/mesh_io.h"
+#include "core/io/mesh_io.h"
 #include "tests/server/service_fixture.h"
 #include "tests/test_support.h"
 

@@ -1,0 +1,161 @@
+#include "core/jobs/diagnostics_json.h"
+
+#include <nlohmann/json.hpp>
+
+namespace core {
+
+namespace {
+
+using Json = nlohmann::ordered_json;
+
+// Names from files (meshes, joints, shapes, markers) are bytes: invalid UTF-8
+// is replaced (U+FFFD) rather than failing the whole document.
+std::string dumpDocument(const Json& doc) { return doc.dump(2, ' ', false, Json::error_handler_t::replace) + "\n"; }
+
+const char* formatName(MeshFormat f) {
+  switch (f) {
+    case MeshFormat::kGlb: return "glb";
+    case MeshFormat::kGltf: return "gltf";
+    case MeshFormat::kObj: return "obj";
+    case MeshFormat::kPly: return "ply";
+  }
+  return "unknown";
+}
+
+Json readReportJson(const MeshReadReport& r) {
+  Json j;
+  j["format"] = formatName(r.format);
+  j["chosen_mesh"] = r.chosen_mesh;
+  j["meshes_in_file"] = r.meshes_in_file;
+  j["polygons_triangulated"] = r.polygons_triangulated;
+  j["degenerate_triangles"] = r.degenerate_triangles;
+  j["normals_computed"] = r.normals_computed;
+  j["warnings"] = r.warnings;
+  return j;
+}
+
+Json warpJson(const WarpReport& r, const DiagnosticsContext& context) {
+  Json doc;
+  Json& lm = doc["landmarks"];
+  lm["count"] = r.landmark_count;
+  lm["rms_residual"] = r.landmark_rms_residual;
+  lm["max_residual"] = r.landmark_max_residual;
+  lm["suspicious"] = r.suspicious_landmarks;
+  lm["bending_energy"] = r.bending_energy;
+  lm["misfit_deg"] = r.landmark_misfit_deg;
+  lm["misfit"] = r.landmarks_misfit;
+  lm["residuals"] = Json::array();
+  for (const auto& res : r.landmark_residuals) {
+    lm["residuals"].push_back({{"name", res.name}, {"fit", res.fit}, {"leave_one_out", res.leave_one_out}});
+  }
+
+  Json& c = doc["correspondence"];
+  c["mean_distance"] = r.mean_distance;
+  c["p95_distance"] = r.p95_distance;
+  c["max_distance"] = r.max_distance;
+  c["flipped_triangles"] = r.flipped_triangles;
+  c["collapsed_triangles"] = r.collapsed_triangles;
+  c["unmatched_source_vertices"] = r.unmatched_source_vertices;
+  c["projected_source_vertices"] = r.projected_source_vertices;
+  c["low_confidence_vertices"] = r.low_confidence_vertices;
+  c["detached_pieces"] = r.detached_pieces;
+  c["detached_vertices"] = r.detached_vertices;
+  c["refine_iterations"] = r.refine_iterations;
+  c["target_pulls"] = r.target_pulls;
+  c["rim_located_vertices"] = r.rim_located_vertices;
+  c["slid_centres"] = r.slid_centres;
+  c["mean_slide"] = r.mean_slide;
+  c["region_matching"] = r.region_matching;
+  c["sided_openings"] = r.sided_openings;
+  c["sided_target_vertices"] = r.sided_target_vertices;
+  c["matched_rims"] = r.matched_rims;
+  c["rims_in_warp"] = r.rims_in_warp;
+  c["orientation_agreement"] = r.orientation_agreement;
+  c["target_turned"] = r.target_turned;
+  c["source_normals_against_winding"] = r.source_normals_against_winding;
+  c["target_normals_against_winding"] = r.target_normals_against_winding;
+  c["warnings"] = r.warnings;
+
+  Json& m = doc["mesh"];
+  m["bbox_diagonal"] = r.target_diagonal;
+  m["source_vertices"] = r.source_vertices;
+  m["source_triangles"] = r.source_triangles;
+  m["target_vertices"] = r.target_vertices;
+  m["target_triangles"] = r.target_triangles;
+  if (context.source_read) m["source_file"] = readReportJson(*context.source_read);
+  if (context.target_read) m["target_file"] = readReportJson(*context.target_read);
+
+  doc["cache"] = {{"hit", context.cache_hit}};
+  return doc;
+}
+
+}  // namespace
+
+std::string formatWarpDiagnostics(const WarpReport& r, const DiagnosticsContext& context) {
+  Json doc = warpJson(r, context);
+  Json& t = doc["timings_ms"];
+  t["prepare"] = r.prepare_ms;
+  t["warp"] = r.warp_ms;
+  t["correspond"] = r.correspond_ms;
+  for (const auto& [name, ms] : context.extra_timings_ms) t[name] = ms;
+  t["total"] = context.total_ms >= 0.0 ? context.total_ms : r.total_ms;
+  return dumpDocument(doc);
+}
+
+std::string formatTransferDiagnostics(const TransferReport& r, const DiagnosticsContext& context) {
+  Json doc = warpJson(r.warp, context);
+  doc["weights"] = {{"inpainted_vertices", r.inpainted_vertices},
+                    {"pruned_vertices", r.pruned_vertices},
+                    {"max_influences", r.max_influences}};
+  doc["shapes"] = {{"count", r.shapes}};
+  doc["joints"] = {{"count", r.joints}};
+  doc["animations"] = {{"count", r.animations}};
+  doc["transfer"] = {{"unlocated_vertices", r.unlocated_vertices},
+                     {"uv_seam_vertices", r.uv_seam_vertices},
+                     {"uv_extended_vertices", r.uv_extended_vertices},
+                     {"adaptation", r.adaptation},
+                     {"adaptation_reason", r.adaptation_reason},
+                     {"global_scale", r.global_scale},
+                     {"global_rotation_deg", r.global_rotation_deg},
+                     {"rotation_threshold_deg", r.rotation_threshold_deg},
+                     {"rotation_applied", r.rotation_applied},
+                     {"scale_applied", r.scale_applied},
+                     {"delta_scale", r.delta_scale},
+                     {"stretch_ratio", r.stretch_ratio},
+                     {"stretch_threshold", r.stretch_threshold},
+                     {"stretch_applied", r.stretch_applied},
+                     {"warnings", r.warnings}};
+  Json& q = doc["quality"];
+  q["clean"] = r.quality.clean();
+  q["shape_outliers"] = r.quality.shape_outliers;
+  q["shapes"] = Json::array();
+  for (const ShapeOutliers& s : r.quality.shapes) {
+    q["shapes"].push_back({{"shape", s.shape}, {"vertices", s.vertices}, {"worst", s.worst}});
+  }
+  q["crossed_vertices"] = r.quality.crossed_vertices;
+  q["crossed_shapes"] = Json::array();
+  for (const ShapeOutliers& s : r.quality.crossed_shapes) {
+    q["crossed_shapes"].push_back({{"shape", s.shape}, {"vertices", s.vertices}, {"worst", s.worst}});
+  }
+  q["repaired_vertices"] = r.quality.repaired_vertices;
+  q["worst"] = Json::array();
+  for (const QualityVertex& w : r.quality.worst) {
+    q["worst"].push_back({{"vertex", w.vertex}, {"shape", w.shape}, {"score", w.score}});
+  }
+  Json& t = doc["timings_ms"];
+  t["prepare"] = r.prepare_ms;
+  t["warp"] = r.warp.warp_ms;
+  t["correspond"] = r.warp.correspond_ms;
+  t["dense_map"] = r.dense_map_ms;
+  t["weights"] = r.weights_ms;
+  t["joints"] = r.joints_ms;
+  t["shapes"] = r.shapes_ms;
+  t["animations"] = r.animations_ms;
+  t["attributes"] = r.attributes_ms;
+  t["quality"] = r.quality_ms;
+  for (const auto& [name, ms] : context.extra_timings_ms) t[name] = ms;
+  t["total"] = context.total_ms >= 0.0 ? context.total_ms : r.total_ms;
+  return dumpDocument(doc);
+}
+
+}  // namespace core

@@ -1,0 +1,33 @@
+// Transfer options JSON (the `--options opts.json` file of `rigport transfer`,
+// and the "options" of a transfer job spec on the service):
+//   {"components": {"weights": true, "joints": true, "shapes": true,
+//                   "animations": true, "attributes": true},
+//    "uvs": false, "max_influences": 4, "weight_encoding": "float",
+//    "low_confidence_distance": 0.05, "low_confidence_angle_deg": 30,
+//    "adaptation": "rotation", "exaggeration": 1.0,
+//    "shape_exaggeration": {"jawOpen": 1.5}, "joint_exaggeration": {"jaw": 1.2},
+//    "diagnostic_attributes": false, "refine_iterations": 2,
+//    "region_matching": true, "rim_matching": true, "slide_centres": true,
+//    "target_pulls": true, "smooth_guide": true, "side_matching": true,
+//    "strict": false, "repair_unsure": true}
+// Unknown keys are errors (a typo must not be silently ignored). nlohmann is
+// used privately in the .cpp, as in core/jobs/diagnostics_json.cpp.
+#pragma once
+
+#include <string>
+
+#include "core/base/error.h"
+#include "core/io/rig_io.h"
+#include "core/transfer/transfer.h"
+
+namespace core {
+
+struct TransferSettings {
+  TransferOptions transfer;
+  RigWriteOptions write;
+};
+
+// `label` names the source (file name, or "spec.options") in every message.
+Result<TransferSettings> parseTransferOptions(const std::string& json_text, const std::string& label);
+
+}  // namespace core

@@ -1,0 +1,527 @@
+#include <Eigen/LU>
+#include <Eigen/SVD>
+
+#include "core/transfer/transfer.h"
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <numbers>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/solve/inpainting.h"
+#include "core/geometry/similarity.h"
+
+namespace core {
+
+namespace {
+
+// The power of ten (metres, centimetres, millimetres...) within 10% of
+// `scale`, else 0. Inches and feet are left out on purpose: their ratios
+// (2.54, 0.254, 0.3048) sit next to scales a copy is plausibly made with.
+double unitRatioNear(double scale) {
+  if (!(scale > 0.0)) return 0.0;
+  const double unit = std::pow(10.0, std::round(std::log10(scale)));
+  return std::abs(std::log(scale / unit)) <= std::log(1.1) ? unit : 0.0;
+}
+
+// The one matrix the default (kRotation) and kSimilarity adaptations map
+// every delta and animated joint translation by, and the rotation the
+// joints' frames turn by, decided from the landmarks alone (source
+// landmarks and their images under the landmark warp). Fills the report's
+// global_*, rotation_*, scale_*, delta_scale and stretch_* fields and
+// warnings.
+struct GlobalAdaptation {
+  Eigen::Matrix3d deltas = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+};
+
+// TEXCOORD_0 (when the mesh has it) and the extra UV sets, in that order.
+std::vector<Eigen::MatrixX2d> sourceUvSets(const Rig& rig) {
+  std::vector<Eigen::MatrixX2d> sets;
+  if (rig.mesh.uvs.rows() > 0) sets.push_back(rig.mesh.uvs);
+  sets.insert(sets.end(), rig.attributes.extra_uv_sets.begin(), rig.attributes.extra_uv_sets.end());
+  return sets;
+}
+
+GlobalAdaptation globalAdaptation(const Eigen::MatrixX3d& src_landmarks, const Eigen::MatrixX3d& tgt_landmarks,
+                                  const TransferOptions& options, const std::string& target_label,
+                                  TransferReport& report) {
+  constexpr double kDegrees = 180.0 / std::numbers::pi;
+  auto angleOf = [&](const Eigen::Matrix3d& r) {
+    return std::acos(std::clamp((r.trace() - 1.0) / 2.0, -1.0, 1.0)) * kDegrees;
+  };
+  const Similarity similarity = fitSimilarity(src_landmarks, tgt_landmarks);
+  report.global_scale = similarity.scale;
+  report.global_rotation_deg = angleOf(similarity.rotation);
+  // Residual angle: atan of the landmarks' rms misfit after the similarity
+  // (in source units) over their rms spread about their centroid.
+  const Eigen::MatrixX3d centred = src_landmarks.rowwise() - src_landmarks.colwise().mean();
+  const auto n = static_cast<double>(src_landmarks.rows());
+  const double spread = std::sqrt(centred.rowwise().squaredNorm().mean());
+  const double residual_deg =
+      spread > 0.0 && similarity.scale > 0.0 ? std::atan(similarity.rms_residual / (similarity.scale * spread)) * kDegrees
+                                             : 0.0;
+  // The floors (min_rotation_deg, min_scale_ratio, min_stretch_ratio) are
+  // for faces shaped otherwise than the source, whose identity tilts, sizes
+  // and stretches them; a copy of the source's shape has none, so they
+  // shrink with its residual below shape_residual_deg: a copy is turned,
+  // scaled (and stretched) by any map, however slight. Rounding-level
+  // rotations and scales (an untransformed copy) stay unapplied.
+  auto floorShare = [&](double angle_deg) {
+    return options.shape_residual_deg > 0.0 ? std::min(1.0, angle_deg / options.shape_residual_deg) : 1.0;
+  };
+  constexpr double kRoundingDeg = 1e-4, kRoundingLogScale = 1e-9;
+  auto rotationThreshold = [&](double angle_deg) {
+    return std::max({floorShare(angle_deg) * options.min_rotation_deg, options.shape_rotation_factor * angle_deg,
+                     kRoundingDeg});
+  };
+
+  // A face stretched as a whole (an affine map of the source's shape: twice
+  // as wide) takes its deltas stretched the same way, the landmarks' affine
+  // map being the local deformation everywhere. An identity is no such map:
+  // its landmarks miss the best affine fit, and the anisotropy its shape
+  // feigns stays within about that misfit. The misfit is taken relative to
+  // the landmarks' thinnest principal spread (where the fit is least sure of
+  // the stretch) and per degree of freedom the fit leaves (n - 4 of n per
+  // coordinate): ICT identities, also exaggerated 3x, the cartoon and random
+  // draws of 8-20 landmarks have log anisotropy at most 1.7x that misfit; an
+  // identity stretched 1.6x sideways 4.0x, a stretched copy of the source
+  // without bound. Under kMinStretchLandmarks the fit has too few spare
+  // equations to tell (draws of 4-6 ICT landmarks on identities "fit"
+  // stretches up to 2.1x). The map splits into a rotation and a stretch
+  // (polar decomposition): the rotation turns the joints' frames and the
+  // deltas when it is a pose, by the rule below with the affine map's
+  // misfit for the residual; the stretch always applies.
+  constexpr Eigen::Index kMinStretchLandmarks = 8;
+  std::optional<AffineMap> affine;
+  if (options.adaptation == ShapeAdaptation::kRotation && options.min_stretch_ratio > 0.0 &&
+      src_landmarks.rows() >= kMinStretchLandmarks && spread > 0.0) {
+    affine = fitAffine(src_landmarks, tgt_landmarks);
+  }
+  if (affine && affine->linear.determinant() > 0.0) {
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(affine->linear, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    const Eigen::Vector3d sv = svd.singularValues();
+    const double size = std::cbrt(affine->linear.determinant());
+    const double thinnest =
+        std::sqrt(Eigen::JacobiSVD<Eigen::Matrix3d>(centred.transpose() * centred / n).singularValues()(2));
+    if (sv(2) > 0.0 && thinnest > 0.0) {
+      report.stretch_ratio = sv(0) / sv(2);
+      const double misfit = affine->rms_residual * std::sqrt(n / (n - 4.0)) / (size * thinnest);
+      const double threshold =
+          std::max({options.min_stretch_ratio > 1.0
+                        ? floorShare(std::atan(misfit) * kDegrees) * std::log(options.min_stretch_ratio)
+                        : 0.0,
+                    options.shape_stretch_factor * misfit, kRoundingLogScale});
+      report.stretch_threshold = std::exp(threshold);
+      report.stretch_applied = std::log(report.stretch_ratio) >= threshold;
+    }
+    if (report.stretch_applied) {
+      const Eigen::Matrix3d rotation = svd.matrixU() * svd.matrixV().transpose();  // det +1: det(linear) > 0
+      const Eigen::Matrix3d stretch = rotation.transpose() * affine->linear;      // symmetric positive
+      const double affine_residual_deg = std::atan(affine->rms_residual / (size * spread)) * kDegrees;
+      report.global_rotation_deg = angleOf(rotation);
+      report.rotation_threshold_deg = rotationThreshold(affine_residual_deg);
+      report.rotation_applied = report.global_rotation_deg >= report.rotation_threshold_deg;
+      char ratio[32];
+      std::snprintf(ratio, sizeof ratio, "%.3g", report.stretch_ratio);
+      if (!report.warp.landmarks_misfit) report.warnings.push_back(target_label + " is the source's shape stretched (" + ratio +
+                                "x more along one axis than another): its deltas and animated joint translations "
+                                "were mapped by the landmarks' affine map");
+      GlobalAdaptation out;
+      if (report.rotation_applied) out.rotation = rotation;
+      out.deltas = out.rotation * stretch;
+      return out;
+    }
+  }
+
+  GlobalAdaptation out;
+  report.rotation_threshold_deg = rotationThreshold(residual_deg);
+  report.rotation_applied = report.global_rotation_deg >= report.rotation_threshold_deg;
+  if (report.rotation_applied) out.rotation = similarity.rotation;
+  const double log_scale = similarity.scale > 0.0 ? std::abs(std::log(similarity.scale)) : 0.0;
+  const double scale_threshold = std::max(
+      options.min_scale_ratio > 1.0 ? floorShare(residual_deg) * std::log(options.min_scale_ratio) : 0.0,
+      kRoundingLogScale);
+  report.scale_applied =
+      options.adaptation == ShapeAdaptation::kSimilarity ||
+      (options.adaptation == ShapeAdaptation::kRotation && options.min_scale_ratio > 0.0 && similarity.scale > 0.0 &&
+       log_scale >= scale_threshold);
+  double delta_scale = report.scale_applied ? similarity.scale : 1.0;
+  if (report.scale_applied && options.adaptation == ShapeAdaptation::kRotation) {
+    // A scale within 10% of a power of ten is that change of units when the
+    // rest could be face size, which the deltas do not follow.
+    const double unit = unitRatioNear(similarity.scale);
+    const bool units = unit > 0.0 && std::abs(std::log(similarity.scale / unit)) < scale_threshold;
+    if (units) delta_scale = unit;
+    char measured[32], applied[32];
+    std::snprintf(measured, sizeof measured, "%.4g", similarity.scale);
+    std::snprintf(applied, sizeof applied, "%.4g", delta_scale);
+    if (!report.warp.landmarks_misfit) report.warnings.push_back(target_label + " is " + measured + " times the size of the source (" +
+                              (units ? "other units" : "a scaled copy") +
+                              "): its deltas and animated joint translations were scaled by " + applied);
+  }
+  report.delta_scale = delta_scale;
+  out.deltas = delta_scale * out.rotation;
+  return out;
+}
+
+// Names `option` gives gains for that the rig has no `what` of: a typo
+// ("JawOpen") or an options file shared across rigs. A warning each, with the
+// rig's name that differs only in case when there is one.
+void warnUnknownNames(const std::map<std::string, double>& gains, const std::vector<std::string>& names,
+                      const std::string& option, const std::string& what, std::vector<std::string>& warnings) {
+  auto lower = [](std::string text) {
+    std::transform(text.begin(), text.end(), text.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return text;
+  };
+  for (const auto& entry : gains) {
+    const std::string& name = entry.first;  // a plain reference: clang 14 cannot capture structured bindings
+    if (std::find(names.begin(), names.end(), name) != names.end()) continue;
+    std::string message = option + " names '" + name + "', but the rig has no " + what + " of that name; ignored";
+    const auto same = std::find_if(names.begin(), names.end(), [&](const std::string& n) { return lower(n) == lower(name); });
+    if (same != names.end()) message += " (did you mean '" + *same + "'?)";
+    warnings.push_back(std::move(message));
+  }
+}
+
+using Clock = std::chrono::steady_clock;
+double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+}  // namespace
+
+const char* shapeAdaptationName(ShapeAdaptation adaptation) {
+  switch (adaptation) {
+    case ShapeAdaptation::kNone: return "none";
+    case ShapeAdaptation::kRotation: return "rotation";
+    case ShapeAdaptation::kSimilarity: return "similarity";
+    case ShapeAdaptation::kLocal: return "local";
+  }
+  return "rotation";
+}
+
+std::size_t PreparedRig::memoryBytes() const {
+  std::size_t bytes = surface.memoryBytes() + (uv_layout ? uv_layout->memoryBytes() : 0);
+  for (const auto& t : rig.morph_targets) bytes += static_cast<std::size_t>(t.position_deltas.size() + t.normal_deltas.size()) * sizeof(double);
+  bytes += static_cast<std::size_t>(rig.weights.nonZeros()) * (sizeof(double) + sizeof(int));
+  for (const auto& a : rig.animations) for (const auto& c : a.channels) bytes += static_cast<std::size_t>(c.values.size() + c.times.size()) * sizeof(double);
+  return bytes;
+}
+
+Result<PreparedRig> prepareRig(Rig rig, LandmarkSet landmarks, const std::string& label, const PrepareOptions& options) {
+  if (rig.skin && rig.weights.rows() != rig.mesh.vertexCount()) {
+    return makeError(ErrorCode::kInvalidMesh, label + ": skin weights cover " + std::to_string(rig.weights.rows()) +
+                                                  " vertices but the mesh has " + std::to_string(rig.mesh.vertexCount()));
+  }
+  for (const auto& t : rig.morph_targets) {
+    if (t.position_deltas.rows() != rig.mesh.vertexCount()) {
+      return makeError(ErrorCode::kInvalidMesh, label + ": morph target '" + t.name + "' has the wrong vertex count");
+    }
+  }
+  for (const auto& a : rig.animations) {
+    for (std::size_t c = 0; c < a.channels.size(); ++c) {
+      if (!a.channels[c].values.allFinite() || !a.channels[c].times.allFinite()) {
+        return makeError(ErrorCode::kInvalidMesh, label + ": animation '" + a.name + "' channel " + std::to_string(c) +
+                                                      " has non-finite keys");
+      }
+    }
+  }
+  // A rig's region labels are its REGION label attribute (the glTF reader
+  // reads _REGION into both); without a usable one (0..kMaxRegionLabel, one
+  // per vertex) the rig has none.
+  const auto regions = rig.attributes.labels.find(kRegionAttribute);
+  const bool usable_regions = regions != rig.attributes.labels.end() &&
+                              regions->second.size() == rig.mesh.vertexCount() &&
+                              firstInvalidRegionLabel(regions->second) < 0;
+  rig.mesh.regions = usable_regions ? regions->second : Eigen::VectorXi();
+  auto surface = prepareSource(rig.mesh, std::move(landmarks), label, options);
+  if (!surface) return surface.error();
+  PreparedRig prepared;
+  prepared.rig = std::move(rig);
+  prepared.rig.mesh.normals = surface->mesh.normals;
+  prepared.surface = std::move(*surface);
+  const std::vector<Eigen::MatrixX2d> uv_sets = sourceUvSets(prepared.rig);
+  if (!uv_sets.empty()) {
+    auto uv_layout = prepareUvLayout(prepared.surface.mesh, uv_sets, label);
+    if (!uv_layout) return uv_layout.error();
+    prepared.uv_layout = std::move(*uv_layout);
+  }
+  return prepared;
+}
+
+Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target, const LandmarkSet& target_landmarks,
+                                   const std::string& target_label, const TransferOptions& options) {
+  const auto t_start = Clock::now();
+  const Rig& src = source.rig;
+  if ((options.weights || options.joints) && !src.skin) {
+    return makeError(ErrorCode::kInvalidMesh, source.surface.label + ": the rig has no skin (nothing to transfer "
+                                                                     "weights or joints from); turn weights/joints off");
+  }
+
+  // Stage boundaries: where a caller may stop the job (cancellation, time limit).
+  auto stopBefore = [&](std::string_view stage, double fraction) {
+    return options.on_stage && !options.on_stage(stage, fraction);
+  };
+  auto stopped = [&](std::string_view stage) {
+    return makeError(ErrorCode::kCancelled, target_label + ": transfer stopped before stage '" + std::string(stage) + "'");
+  };
+
+  // --- warp + correspond (+ the dense map)
+  if (stopBefore("warp", 0.0)) return stopped("warp");
+  WarpOptions warp_options = options.warp;
+  warp_options.threads = options.threads;
+  // The output is the target rigged, not the guide: project only what the
+  // transfer reads from it.
+  warp_options.full_guide = false;
+  auto warp = runWarp(source.surface, target, target_landmarks, target_label, warp_options);
+  if (!warp) return warp.error();
+  TransferResult result;
+  TransferReport& report = result.report;
+  report.warp = warp->report;
+  if (options.shapes) {
+    std::vector<std::string> shape_names;
+    for (const auto& t : src.morph_targets) shape_names.push_back(t.name);
+    warnUnknownNames(options.shape_exaggeration, shape_names, "shape_exaggeration", "morph target", report.warnings);
+  }
+  if (options.animations) {
+    std::vector<std::string> node_names;
+    for (const auto& n : src.nodes) node_names.push_back(n.name);
+    warnUnknownNames(options.joint_exaggeration, node_names, "joint_exaggeration", "joint", report.warnings);
+  }
+  report.prepare_ms = source.surface.prepare_ms;
+  const TargetLocations& locations = warp->locations;
+  for (const auto& sp : locations.on_source) report.unlocated_vertices += sp.found() ? 0 : 1;
+  const Mesh& src_mesh = source.surface.mesh;
+
+  // --- dense map products: global similarity and per-vertex adaptation
+  if (stopBefore("dense_map", 0.5)) return stopped("dense_map");
+  auto t0 = Clock::now();
+  Eigen::MatrixX3d src_landmarks(static_cast<Eigen::Index>(warp->report.landmark_residuals.size()), 3);
+  Eigen::MatrixX3d tgt_landmarks(src_landmarks.rows(), 3);
+  for (Eigen::Index i = 0; i < src_landmarks.rows(); ++i) {
+    const std::string& name = warp->report.landmark_residuals[static_cast<std::size_t>(i)].name;
+    src_landmarks.row(i) = source.surface.landmark_positions.row(source.surface.landmarks.indexOf(name));
+    tgt_landmarks.row(i) = warp->landmark_warp.apply(Eigen::Vector3d(src_landmarks.row(i).transpose())).transpose();
+  }
+  const GlobalAdaptation global = globalAdaptation(src_landmarks, tgt_landmarks, options, target_label, report);
+  report.adaptation = shapeAdaptationName(options.adaptation);
+  report.adaptation_reason =
+      options.adaptation == ShapeAdaptation::kRotation
+          ? "the default: deltas as the rig's, turned, scaled or stretched only for a pose, other units or a face "
+            "stretched as a whole; a stylised face whose shapes should follow its stylisation takes \"local\""
+          : "set in the options";
+  const TpsWarp& dense_map = warp->dense_map ? *warp->dense_map : warp->landmark_warp;
+  std::optional<TpsWarp> smooth_map;
+  if (options.adaptation == ShapeAdaptation::kLocal) {
+    TpsOptions smooth;
+    smooth.regularization = options.local_smoothing * source.surface.diagonal;
+    smooth.leave_one_out = false;
+    smooth.threads = options.threads;
+    auto fitted = fitTps(source.surface.dense_centres, dense_map.apply(source.surface.dense_centres), smooth);
+    if (!fitted) return fitted.error();
+    smooth_map = std::move(*fitted);
+  }
+  auto adaptationAt = [&](const Eigen::Vector3d& p) -> Eigen::Matrix3d {
+    switch (options.adaptation) {
+      case ShapeAdaptation::kNone: return Eigen::Matrix3d::Identity();
+      case ShapeAdaptation::kRotation:
+      case ShapeAdaptation::kSimilarity: return global.deltas;
+      case ShapeAdaptation::kLocal: return smooth_map->jacobian(p);
+    }
+    return Eigen::Matrix3d::Identity();
+  };
+  // Animated joint translations keep the source's proportions adjusted to the
+  // target's (papers 000 sec. 4.7.2: a jaw thrust on a face a third larger
+  // moves a third farther): by default the stretch of the dense map's local
+  // Jacobian at the joint (its polar factor), turned by the global rotation
+  // when that is a pose, so that keys and joint frames turn alike.
+  auto jointAdaptationAt = [&](const Eigen::Vector3d& p) -> Eigen::Matrix3d {
+    if (options.adaptation != ShapeAdaptation::kRotation) return adaptationAt(p);
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(dense_map.jacobian(p), Eigen::ComputeFullV);
+    return global.rotation * svd.matrixV() * svd.singularValues().asDiagonal() * svd.matrixV().transpose();
+  };
+  std::vector<Eigen::Matrix3d> vertex_adaptation;
+  if (options.adaptation == ShapeAdaptation::kLocal) {
+    Eigen::MatrixX3d at(target.vertexCount(), 3);
+    for (Eigen::Index v = 0; v < target.vertexCount(); ++v) {
+      const SurfacePoint& sp = locations.on_source[static_cast<std::size_t>(v)];
+      at.row(v) = sp.found() ? interpolateOnFace(src_mesh.positions, src_mesh.triangles, sp.face, sp.barycentric)
+                             : Eigen::RowVector3d::Zero();
+    }
+    vertex_adaptation = smooth_map->jacobians(at);
+  } else {
+    vertex_adaptation = {adaptationAt(Eigen::Vector3d::Zero())};
+  }
+  report.dense_map_ms = msSince(t0);
+
+  // --- assemble the target rig as we go: the target keeps its topology
+  Rig& out = result.rig;
+  out.mesh = target;  // its own normals too: authored hard edges and seams stay as they came
+  if (out.mesh.normals.rows() != target.vertexCount()) {
+    out.mesh.normals = computeSeamlessVertexNormals(target.positions, target.triangles);
+  }
+  out.mesh_name = src.mesh_name;
+  out.nodes = src.nodes;
+  out.mesh_node = src.mesh_node;
+
+  // One graph Laplacian of the target for every stage that inpaints
+  // untrusted vertices (mismatched vertices are also low-confidence), and one
+  // factorisation of the mismatched split for shapes and attributes. Cut
+  // across the openings' sides: a lip takes values from its own side only.
+  Eigen::SparseMatrix<double> target_laplacian;
+  if (locations.low_confidence > 0) {
+    target_laplacian = uniformLaplacian(target.positions, target.triangles);
+    if (options.warp.side_matching && !warp->target_sides.empty()) {
+      cutAcrossSides(target_laplacian, warp->target_sides);
+    }
+  }
+  const bool attributes_inpainted =
+      options.attributes && (src.attributes.colors.rows() > 0 || !src.attributes.fields.empty());
+  std::optional<HarmonicInpainting> mismatched;
+  if (locations.mismatched.any() && ((options.shapes && !src.morph_targets.empty()) || attributes_inpainted)) {
+    std::vector<char> known(static_cast<std::size_t>(target.vertexCount()));
+    for (Eigen::Index v = 0; v < target.vertexCount(); ++v) known[static_cast<std::size_t>(v)] = locations.mismatched(v) == 0;
+    auto created = HarmonicInpainting::create(target_laplacian, known);
+    if (!created) return Error{created.error().code, target_label + ": inpainting mismatched vertices: " + created.error().message};
+    mismatched = std::move(*created);
+  }
+  const HarmonicInpainting* mismatched_inpainting = mismatched ? &*mismatched : nullptr;
+
+  // --- weights
+  if (stopBefore("weights", 0.6)) return stopped("weights");
+  t0 = Clock::now();
+  TransferredWeights weights;
+  if (options.weights) {
+    auto w = transferSkinWeights(src.weights, src_mesh.triangles, locations, target.vertexCount(), target_laplacian,
+                                 options.weight_options);
+    if (!w) return w.error();
+    weights = std::move(*w);
+    out.weights = weights.weights;
+    report.inpainted_vertices = weights.inpainted_vertices;
+    report.pruned_vertices = weights.pruned_vertices;
+    report.max_influences = weights.max_influences;
+  }
+  report.weights_ms = msSince(t0);
+
+  // --- joints
+  if (stopBefore("joints", 0.7)) return stopped("joints");
+  t0 = Clock::now();
+  const bool joints_moved = options.joints && src.skin;
+  if (joints_moved) {
+    TransferredSkeleton skeleton = transferSkeleton(src, dense_map, global.rotation);
+    out.nodes = std::move(skeleton.nodes);
+    out.skin = std::move(skeleton.skin);
+    report.joints = static_cast<int>(out.skin->joints.size());
+  }
+  report.joints_ms = msSince(t0);
+
+  // --- animations: on the moved joints, translation keys in their new frames
+  if (stopBefore("animations", 0.72)) return stopped("animations");
+  t0 = Clock::now();
+  if (options.animations) {
+    const AnimationTransferOptions animation_options{{options.exaggeration, options.joint_exaggeration}};
+    const auto unchanged = [](const Eigen::Vector3d&) -> Eigen::Matrix3d { return Eigen::Matrix3d::Identity(); };
+    out.animations = joints_moved
+                         ? transferAnimations(src, out.nodes, global.rotation, jointAdaptationAt, animation_options)
+                         : transferAnimations(src, src.nodes, Eigen::Matrix3d::Identity(), unchanged, animation_options);
+  }
+  report.animations_ms = msSince(t0);
+
+  // --- shapes
+  if (stopBefore("shapes", 0.75)) return stopped("shapes");
+  t0 = Clock::now();
+  if (options.shapes) {
+    const ShapeTransferOptions shape_options{{options.exaggeration, options.shape_exaggeration}, options.threads};
+    out.morph_targets = transferMorphTargets(src.morph_targets, src_mesh.triangles, locations, vertex_adaptation,
+                                             out.mesh, mismatched_inpainting, shape_options);
+    out.morph_default_weights = src.morph_default_weights;
+    report.shapes = static_cast<int>(out.morph_targets.size());
+  } else {
+    // Morph-weight channels would point at targets that no longer exist.
+    for (auto& a : out.animations) {
+      std::erase_if(a.channels, [](const AnimationChannel& c) { return c.path == AnimationPath::kWeights; });
+    }
+    std::erase_if(out.animations, [](const Animation& a) { return a.channels.empty(); });
+  }
+  report.shapes_ms = msSince(t0);
+  report.animations = static_cast<int>(out.animations.size());
+
+  // --- check: the output's worst vertices, before any UV copies. A vertex
+  // of low confidence moving as none of its ring does took its location's
+  // values from the wrong place (the other lip, the other side of the
+  // columella): its deltas are inpainted from its neighbours, as a
+  // mismatched vertex's are, and the output checked again.
+  t0 = Clock::now();
+  QualityOptions quality_options = options.quality;
+  quality_options.threads = options.threads;
+  const QualitySource quality_source{src_mesh.triangles, source.surface.adjacency, source.surface.vertex_sides,
+                                     src.morph_targets};
+  report.quality = checkTransferQuality(target, warp->target_adjacency, out.morph_targets, locations,
+                                        warp->target_sides, quality_source, quality_options);
+  if (options.repair_unsure && !report.quality.clean() && !out.morph_targets.empty() && target_laplacian.rows() > 0) {
+    std::vector<char> known(static_cast<std::size_t>(target.vertexCount()), 1);
+    int repaired = 0;
+    for (Eigen::Index v = 0; v < target.vertexCount(); ++v) {
+      const bool unsure = report.quality.per_vertex(v) > 0.0 && locations.confidence(v) == 0.0;
+      known[static_cast<std::size_t>(v)] = locations.mismatched(v) == 0 && !unsure;
+      repaired += unsure && locations.mismatched(v) == 0 ? 1 : 0;
+    }
+    if (repaired > 0) {
+      auto repair = HarmonicInpainting::create(target_laplacian, known);
+      if (!repair) return Error{repair.error().code, target_label + ": inpainting unsure vertices: " + repair.error().message};
+      inpaintShapeDeltas(*repair, out.morph_targets);
+      updateNormalDeltas(out.mesh, out.morph_targets, options.threads);
+      report.quality = checkTransferQuality(target, warp->target_adjacency, out.morph_targets, locations,
+                                            warp->target_sides, quality_source, quality_options);
+      report.quality.repaired_vertices = repaired;
+    }
+  }
+  report.quality_ms = msSince(t0);
+  if (!report.quality.clean()) {
+    if (options.strict) {
+      return makeError(ErrorCode::kQualityGate, target_label + ": the transfer failed its quality check (strict): " +
+                                                    report.quality.summary());
+    }
+    report.warnings.push_back(target_label + ": unsure vertices, check them before use: " + report.quality.summary());
+  }
+
+  // --- attributes (+ diagnostics as data)
+  if (stopBefore("attributes", 0.9)) return stopped("attributes");
+  t0 = Clock::now();
+  if (options.attributes) {
+    out.attributes = transferAttributes(src_mesh, src.attributes, locations, target_laplacian, mismatched_inpainting);
+  }
+  if (options.diagnostic_attributes) {
+    out.attributes.fields["CONFIDENCE"] = locations.confidence;
+    out.attributes.fields["INPAINTED"] =
+        weights.inpainted.size() == target.vertexCount() ? weights.inpainted.cast<double>().eval()
+                                                          : Eigen::VectorXd::Zero(target.vertexCount()).eval();
+    out.attributes.fields["QUALITY"] = report.quality.per_vertex;
+  }
+  // Last: carrying the source's UV seams over splits target vertices, and
+  // every per-vertex value above goes with its copies.
+  if (options.uvs && !source.uv_layout) {
+    report.warnings.push_back("uvs: " + source.surface.label + " has no UV set to transfer; " + target_label +
+                              " keeps its own UVs");
+  } else if (options.uvs) {
+    auto layout = transferUvLayout(src_mesh, *source.uv_layout, target, locations);
+    if (!layout) return Error{layout.error().code, target_label + ": " + layout.error().message};
+    appendVertexCopies(out, layout->copy_of);
+    out.mesh.triangles = layout->triangles;
+    std::size_t next = 0;
+    if (src_mesh.uvs.rows() > 0) out.mesh.uvs = layout->sets[next++];
+    out.attributes.extra_uv_sets.assign(layout->sets.begin() + static_cast<std::ptrdiff_t>(next), layout->sets.end());
+    report.uv_seam_vertices = static_cast<int>(layout->copy_of.size());
+    report.uv_extended_vertices = layout->extended_vertices;
+  }
+  report.attributes_ms = msSince(t0);
+  report.total_ms = msSince(t_start);
+  return result;
+}
+
+}  // namespace core
