@@ -20,7 +20,7 @@
 
 namespace core {
 
-// Defined in core/io/gltf_io.cpp (the only TU that sees tinygltf). Like readGltf,
+// Defined in core/io/gltf_mesh_read.cpp (tinygltf stays in core/io/gltf_*.cpp). Like readGltf,
 // but a .gltf may refer to external buffer files inside `base_dir`; it is not
 // in mesh_io.h because only a path-based read has a directory to offer.
 Result<LoadedMesh> readGltfWithBaseDir(std::span<const std::uint8_t> bytes, const std::string& label, bool binary,

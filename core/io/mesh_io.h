@@ -1,4 +1,4 @@
-// Reading and writing meshes: glTF/GLB (core/io/gltf_io.cpp), OBJ (core/io/obj_io.cpp),
+// Reading and writing meshes: glTF/GLB (core/io/gltf_*.cpp), OBJ (core/io/obj_io.cpp),
 // PLY (core/io/ply_io.cpp). Every reader returns a validated core::Mesh or an Error
 // whose message starts with the file label and names the defect.
 #pragma once

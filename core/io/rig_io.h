@@ -1,5 +1,5 @@
 // Reading and writing rigs (core::Rig) as glTF 2.0 / GLB. Implemented in
-// core/io/gltf_io.cpp, the only TU that includes tiny_gltf.h.
+// core/io/gltf_*.cpp, the only files that include tiny_gltf.h.
 #pragma once
 
 #include <cstdint>

@@ -1,5 +1,5 @@
 // core::Rig: a skinned, morphed, animated mesh with per-vertex attributes, as
-// read from and written to glTF (core/io/gltf_io.cpp). Plain data; every stage of
+// read from and written to glTF (core/io/gltf_*.cpp). Plain data; every stage of
 // the transfer reads one and returns another.
 #pragma once
 

@@ -1,4 +1,4 @@
-// Tests core/io/mesh_io.cpp, core/io/gltf_io.cpp, core/io/obj_io.cpp and core/io/ply_io.cpp:
+// Tests core/io/mesh_io.cpp, core/io/gltf_*.cpp, core/io/obj_io.cpp and core/io/ply_io.cpp:
 // round trips, the Khronos validator, hand-built glTF features (node
 // transforms, sparse accessors, strides, modes), robustness against
 // truncated and corrupt input (also run under ASan/UBSan), OBJ/PLY specifics

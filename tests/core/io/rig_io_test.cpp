@@ -1,4 +1,4 @@
-// Tests the rig reader and writer of core/io/gltf_io.cpp (core/io/rig_io.h): round
+// Tests the rig reader and writer of core/io/gltf_*.cpp (core/io/rig_io.h): round
 // trips of the Khronos samples and the ICT rig files in ../shared/data (every
 // written GLB through the Khronos validator), the writer's skin rules on a
 // hand-built rig (influence limits, weight encodings, labels and fields,
