@@ -306,7 +306,18 @@ int addAccessor(tinygltf::Model& model, int buffer_view, int component_type, int
                 std::vector<double> min = {}, std::vector<double> max = {});
 
 // Per-component min and max of `values` (count * components floats).
-std::pair<std::vector<double>, std::vector<double>> floatBounds(const std::vector<float>& values, int components);
+inline std::pair<std::vector<double>, std::vector<double>> floatBounds(const std::vector<float>& values, int components) {
+  const auto n = static_cast<std::size_t>(components);
+  std::vector<double> min(n, std::numeric_limits<double>::infinity());
+  std::vector<double> max(n, -std::numeric_limits<double>::infinity());
+  for (std::size_t row = 0; row + n <= values.size(); row += n) {
+    for (std::size_t c = 0; c < n; ++c) {
+      min[c] = std::min(min[c], static_cast<double>(values[row + c]));
+      max[c] = std::max(max[c], static_cast<double>(values[row + c]));
+    }
+  }
+  return {min, max};
+}
 
 // Float accessor from `values` (count * components floats, row-major). With
 // `bounds`, min/max are set from the float values themselves, as the spec
@@ -327,7 +338,11 @@ std::vector<float> toFloats(const Eigen::MatrixBase<Derived>& m) {
 
 // Index of the first value that is not finite (a finite double can still
 // overflow float32), or nullopt.
-std::optional<std::size_t> firstNonFinite(const std::vector<float>& values);
+inline std::optional<std::size_t> firstNonFinite(const std::vector<float>& values) {
+  const auto bad = std::find_if(values.begin(), values.end(), [](float x) { return !std::isfinite(x); });
+  if (bad == values.end()) return std::nullopt;
+  return static_cast<std::size_t>(bad - values.begin());
+}
 
 // POSITION (with min/max), unit NORMAL, TEXCOORD_0 and uint32 indices of a
 // validated `mesh` as one primitive, mode TRIANGLES (POINTS for a point cloud).

@@ -43,19 +43,6 @@ int addAccessor(tinygltf::Model& model, int buffer_view, int component_type, int
   return static_cast<int>(model.accessors.size()) - 1;
 }
 
-std::pair<std::vector<double>, std::vector<double>> floatBounds(const std::vector<float>& values, int components) {
-  const auto n = static_cast<std::size_t>(components);
-  std::vector<double> min(n, std::numeric_limits<double>::infinity());
-  std::vector<double> max(n, -std::numeric_limits<double>::infinity());
-  for (std::size_t row = 0; row + n <= values.size(); row += n) {
-    for (std::size_t c = 0; c < n; ++c) {
-      min[c] = std::min(min[c], static_cast<double>(values[row + c]));
-      max[c] = std::max(max[c], static_cast<double>(values[row + c]));
-    }
-  }
-  return {min, max};
-}
-
 int addFloatAccessor(tinygltf::Model& model, const std::vector<float>& values, int type, int target, bool bounds) {
   const int components = typeComponents(type);
   const std::size_t count = values.size() / static_cast<std::size_t>(components);
@@ -64,12 +51,6 @@ int addFloatAccessor(tinygltf::Model& model, const std::vector<float>& values, i
   if (bounds && count > 0) std::tie(min, max) = floatBounds(values, components);
   const int view = addBufferView(model, asBytes(values), target);
   return addAccessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, type, count, std::move(min), std::move(max));
-}
-
-std::optional<std::size_t> firstNonFinite(const std::vector<float>& values) {
-  const auto bad = std::find_if(values.begin(), values.end(), [](float x) { return !std::isfinite(x); });
-  if (bad == values.end()) return std::nullopt;
-  return static_cast<std::size_t>(bad - values.begin());
 }
 
 namespace {
