@@ -89,4 +89,17 @@ Result<std::map<std::string, double>> parseStiffness(const std::string& text, co
   return out;
 }
 
+std::string retargetOptionsJson(const RetargetSettings& settings) {
+  const nlohmann::json doc = {{"method", distanceMethodName(settings.distances.method)},
+                              {"kernel", rbfKernelName(settings.retarget.kernel)},
+                              {"gamma", settings.retarget.gamma},
+                              {"rest_frame", settings.retarget.rest_frame},
+                              {"tolerance", settings.retarget.bake.tolerance},
+                              {"exact", settings.retarget.bake.exact},
+                              {"keep_head_motion", !settings.retarget.remove_head_motion},
+                              {"max_gap_frames", settings.clip.max_gap_frames},
+                              {"fill_long_gaps", settings.clip.fill_long_gaps}};
+  return doc.dump();
+}
+
 }  // namespace core

@@ -28,6 +28,8 @@ std::optional<RbfKernel> parseRbfKernel(std::string_view name);           // gau
 
 // `label` names the source ("spec.options") in every message.
 Result<RetargetSettings> parseRetargetOptions(const std::string& json_text, const std::string& label);
+// Every option with its value, as parseRetargetOptions reads them back.
+std::string retargetOptionsJson(const RetargetSettings& settings);
 Result<std::map<std::string, double>> parseStiffness(const std::string& json_text, const std::string& label);
 
 }  // namespace core

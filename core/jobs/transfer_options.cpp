@@ -36,6 +36,19 @@ Status gains(const nlohmann::json& v, const std::string& where, std::map<std::st
   return Ok{};
 }
 
+// The warp's on/off switches, by their JSON key.
+const std::map<std::string, bool WarpOptions::*> kWarpSwitches = {
+    {"region_matching", &WarpOptions::region_matching}, {"rim_matching", &WarpOptions::rim_matching},
+    {"slide_centres", &WarpOptions::slide_centres},     {"target_pulls", &WarpOptions::target_pulls},
+    {"smooth_guide", &WarpOptions::smooth_guide},       {"rim_location", &WarpOptions::rim_location},
+    {"side_matching", &WarpOptions::side_matching}};
+// The transfer's own on/off switches.
+const std::map<std::string, bool TransferOptions::*> kTransferSwitches = {
+    {"uvs", &TransferOptions::uvs},
+    {"diagnostic_attributes", &TransferOptions::diagnostic_attributes},
+    {"strict", &TransferOptions::strict},
+    {"repair_unsure", &TransferOptions::repair_unsure}};
+
 }  // namespace
 
 Result<TransferSettings> parseTransferOptions(const std::string& text, const std::string& label) {
@@ -43,18 +56,6 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
   if (!parsed) return parsed.error();
   const nlohmann::json& doc = *parsed;
   if (!doc.is_object()) return makeError(ErrorCode::kInvalidArgument, label + ": expected a JSON object");
-  // The warp's on/off switches, by their JSON key.
-  static const std::map<std::string, bool WarpOptions::*> kWarpSwitches = {
-      {"region_matching", &WarpOptions::region_matching}, {"rim_matching", &WarpOptions::rim_matching},
-      {"slide_centres", &WarpOptions::slide_centres},     {"target_pulls", &WarpOptions::target_pulls},
-      {"smooth_guide", &WarpOptions::smooth_guide},       {"rim_location", &WarpOptions::rim_location},
-      {"side_matching", &WarpOptions::side_matching}};
-  // The transfer's own on/off switches.
-  static const std::map<std::string, bool TransferOptions::*> kTransferSwitches = {
-      {"uvs", &TransferOptions::uvs},
-      {"diagnostic_attributes", &TransferOptions::diagnostic_attributes},
-      {"strict", &TransferOptions::strict},
-      {"repair_unsure", &TransferOptions::repair_unsure}};
   TransferSettings s;
   TransferOptions& t = s.transfer;
   for (const auto& [key, value] : doc.items()) {
@@ -130,6 +131,27 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
     if (!ok) return ok.error();
   }
   return s;
+}
+
+std::string transferOptionsJson(const TransferSettings& settings) {
+  const TransferOptions& t = settings.transfer;
+  nlohmann::json doc;
+  doc["components"] = {{"weights", t.weights}, {"joints", t.joints}, {"shapes", t.shapes},
+                       {"animations", t.animations}, {"attributes", t.attributes}};
+  for (const auto& [name, member] : kTransferSwitches) doc[name] = t.*member;
+  for (const auto& [name, member] : kWarpSwitches) doc[name] = t.warp.*member;
+  doc["max_influences"] = settings.write.max_influences;
+  doc["weight_encoding"] = settings.write.weight_encoding == WeightEncoding::kUnorm16  ? "unorm16"
+                           : settings.write.weight_encoding == WeightEncoding::kUnorm8 ? "unorm8"
+                                                                                       : "float";
+  doc["low_confidence_distance"] = t.warp.locate.low_confidence_distance;
+  doc["low_confidence_angle_deg"] = t.warp.locate.low_confidence_angle_deg;
+  doc["adaptation"] = shapeAdaptationName(t.adaptation);
+  doc["exaggeration"] = t.exaggeration;
+  doc["shape_exaggeration"] = t.shape_exaggeration;
+  doc["joint_exaggeration"] = t.joint_exaggeration;
+  doc["refine_iterations"] = t.warp.refine_iterations;
+  return doc.dump();
 }
 
 }  // namespace core

@@ -29,5 +29,8 @@ struct TransferSettings {
 
 // `label` names the source (file name, or "spec.options") in every message.
 Result<TransferSettings> parseTransferOptions(const std::string& json_text, const std::string& label);
+// Every option with its value, as parseTransferOptions reads them back: the
+// settings normalised (the defaults: transferOptionsJson of "{}" parsed).
+std::string transferOptionsJson(const TransferSettings& settings);
 
 }  // namespace core
