@@ -1,4 +1,4 @@
-// Tests server/store.cpp: content-addressed blobs (round trip, idempotence,
+// Tests server/blob_store.cpp and server/metadata_store.cpp: content-addressed blobs (round trip, idempotence,
 // hash verification, adopt, temp cleanup), the SQLite metadata store (rigs and
 // jobs per tenant, idempotency keys, paging, transitions, persistence across
 // reopen, blob references) and durability under SIGKILL of a writer process.
