@@ -90,7 +90,8 @@ FoldReport countFolds(const Eigen::MatrixX3d& warped_positions, const Eigen::Mat
 TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_positions,
                               const MovingMeshIndex& guide_faces, const LocateOptions& options,
                               const std::vector<std::uint64_t>& source_face_labels,
-                              const std::vector<std::uint64_t>& target_masks, const std::vector<int>& target_sides) {
+                              const std::vector<std::uint64_t>& target_masks, const std::vector<int>& target_sides,
+                              const std::vector<int>* target_representative) {
   const bool labelled = !source_face_labels.empty() && !target_masks.empty();
   const Eigen::MatrixX3i& source_triangles = guide_faces.triangles();
   const MovingMeshIndex::Fitted guide_index =
@@ -102,7 +103,8 @@ TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_
   // same location, confidence and flags. Otherwise a copy judged apart (its
   // side's edges only, its side's normal) could be inpainted while its twin
   // keeps its value, and the seam would part when the mesh moves.
-  const std::vector<int> representative = coincidentVertexRepresentatives(target.positions);
+  const std::vector<int> representative =
+      target_representative ? *target_representative : coincidentVertexRepresentatives(target.positions);
   auto pointOf = [&](Eigen::Index v) -> Eigen::Index {
     return representative.empty() ? v : representative[static_cast<std::size_t>(v)];
   };

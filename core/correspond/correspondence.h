@@ -134,12 +134,15 @@ struct TargetLocations {
 // target vertex is located only on guide faces sharing a bit with it.
 // target_sides: empty, or openingSides of the target (vertices near an
 // opening take a location whose normal agrees, see
-// LocateOptions::opening_normal_angle_deg).
+// LocateOptions::opening_normal_angle_deg). target_representative: the
+// target's coincidentVertexRepresentatives when the caller has them (null:
+// computed here).
 TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_positions,
                               const MovingMeshIndex& guide_faces, const LocateOptions& options,
                               const std::vector<std::uint64_t>& source_face_labels = {},
                               const std::vector<std::uint64_t>& target_masks = {},
-                              const std::vector<int>& target_sides = {});
+                              const std::vector<int>& target_sides = {},
+                              const std::vector<int>* target_representative = nullptr);
 
 // Farthest-point sample of `count` vertices (deterministic, starting from the
 // vertex nearest the centroid). Used for the dense-map centres.

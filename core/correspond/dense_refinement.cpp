@@ -495,7 +495,8 @@ LocatedTarget locateTarget(const PreparedSource& source, const Mesh& target, con
   LocateOptions locate = options.locate;
   locate.threads = options.threads;
   out.locations = locateOnGuide(matched, located_on, *source.guide_index, locate, openings.source_face_labels, openings.target_masks,
-                                   openings.sides_filter ? openings.target_sides : std::vector<int>());
+                                   openings.sides_filter ? openings.target_sides : std::vector<int>(),
+                                   &prepared.representative);
   if (options.rim_location && !openings.target_rims.empty()) {
     report.rim_located_vertices = locateRimVertices(
         out.locations, matched, openings.target_rims, prepared.representative, source, located_on, openings.source_face_labels,

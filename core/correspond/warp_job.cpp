@@ -187,11 +187,13 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   summariseGuide(source, projected, surface, located, report);
 
   result.landmark_warp = std::move(fit->warp);
+  result.landmark_pairs = std::move(fit->pairs);
   result.warped_positions = std::move(surface.positions);
   result.guide = std::move(projected.guide);
   result.locations = std::move(located.locations);
   result.target_sides = std::move(openings.target_sides);
   result.target_adjacency = std::move(prepared->adjacency);
+  result.target_representative = std::move(prepared->representative);
   report.total_ms = msSince(t_start);
   return result;
 }

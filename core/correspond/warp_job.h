@@ -255,6 +255,7 @@ struct WarpResult {
   // TPS from the source landmarks to the target's, with the paired points of
   // rims no landmark pins (WarpOptions::rim_warp_points) when there are any.
   TpsWarp landmark_warp;
+  LandmarkPairs landmark_pairs;        // the landmarks the warp was fitted to (shared names)
   Eigen::MatrixX3d warped_positions;   // #Vs by 3 source after the (last) warp
   GuideModel guide;
   // The dense map: TPS from the dense source centres to their final guide
@@ -268,6 +269,8 @@ struct WarpResult {
   // matched with its sides, or neither sides nor rims were matched.
   std::vector<int> target_sides;
   VertexAdjacency target_adjacency;  // of the target's vertices (vertexAdjacency; split points apart)
+  // coincidentVertexRepresentatives of the target (split points' copies; empty: none).
+  std::vector<int> target_representative;
   WarpReport report;
 };
 

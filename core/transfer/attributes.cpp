@@ -204,7 +204,7 @@ Result<SourceUvLayout> prepareUvLayout(const Mesh& source_mesh, const std::vecto
 }
 
 Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const SourceUvLayout& layout, const Mesh& target,
-                                             const TargetLocations& locations) {
+                                             const TargetLocations& locations, const std::vector<int>& target_point) {
   const Eigen::Index nt = target.vertexCount(), nf = target.triangleCount();
   const Eigen::Index nsf = source_mesh.triangleCount();
   const Eigen::MatrixX3i& src_tris = source_mesh.triangles;
@@ -247,7 +247,6 @@ Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const Sour
   // A target vertex split at a point (its own UV seam) is located at the
   // point, which may lie on the source's seam; its triangle's other corners
   // tell the side.
-  const std::vector<int> target_point = coincidentVertexRepresentatives(target.positions);
   std::vector<char> split_point(static_cast<std::size_t>(nt), 0);
   for (std::size_t v = 0; v < target_point.size(); ++v) {
     if (target_point[v] != static_cast<int>(v)) split_point[v] = split_point[static_cast<std::size_t>(target_point[v])] = 1;

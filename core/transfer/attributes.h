@@ -62,7 +62,8 @@ struct TransferredUvLayout {
   std::vector<Eigen::MatrixX2d> sets;  // per source set: #Vt + copy_of.size() rows
   int extended_vertices = 0;           // vertices whose UVs extend a side past its seam
 };
+// target_point: the target's coincidentVertexRepresentatives (from the warp).
 Result<TransferredUvLayout> transferUvLayout(const Mesh& source_mesh, const SourceUvLayout& layout, const Mesh& target,
-                                             const TargetLocations& locations);
+                                             const TargetLocations& locations, const std::vector<int>& target_point);
 
 }  // namespace core

@@ -301,11 +301,9 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   // --- dense map products: global similarity and per-vertex adaptation
   if (stopBefore("dense_map", 0.5)) return stopped("dense_map");
   auto t0 = Clock::now();
-  Eigen::MatrixX3d src_landmarks(static_cast<Eigen::Index>(warp->report.landmark_residuals.size()), 3);
+  const Eigen::MatrixX3d& src_landmarks = warp->landmark_pairs.source;
   Eigen::MatrixX3d tgt_landmarks(src_landmarks.rows(), 3);
   for (Eigen::Index i = 0; i < src_landmarks.rows(); ++i) {
-    const std::string& name = warp->report.landmark_residuals[static_cast<std::size_t>(i)].name;
-    src_landmarks.row(i) = source.surface.landmark_positions.row(source.surface.landmarks.indexOf(name));
     tgt_landmarks.row(i) = warp->landmark_warp.apply(Eigen::Vector3d(src_landmarks.row(i).transpose())).transpose();
   }
   const GlobalAdaptation global = globalAdaptation(src_landmarks, tgt_landmarks, options, target_label, report);
@@ -375,7 +373,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   // across the openings' sides: a lip takes values from its own side only.
   Eigen::SparseMatrix<double> target_laplacian;
   if (locations.low_confidence > 0) {
-    target_laplacian = uniformLaplacian(target.positions, target.triangles);
+    target_laplacian = uniformLaplacian(target.triangles, target.vertexCount(), warp->target_representative);
     if (options.warp.side_matching && !warp->target_sides.empty()) {
       cutAcrossSides(target_laplacian, warp->target_sides);
     }
@@ -509,7 +507,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
     report.warnings.push_back("uvs: " + source.surface.label + " has no UV set to transfer; " + target_label +
                               " keeps its own UVs");
   } else if (options.uvs) {
-    auto layout = transferUvLayout(src_mesh, *source.uv_layout, target, locations);
+    auto layout = transferUvLayout(src_mesh, *source.uv_layout, target, locations, warp->target_representative);
     if (!layout) return Error{layout.error().code, target_label + ": " + layout.error().message};
     appendVertexCopies(out, layout->copy_of);
     out.mesh.triangles = layout->triangles;
