@@ -1,5 +1,7 @@
 #include "client/local_jobs.h"
 
+#include "core/base/timing.h"
+
 #include <chrono>
 #include <cstdio>
 #include <string>
@@ -23,11 +25,8 @@ namespace client {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
+using core::Clock;
+using core::msSince;
 
 int fail(const core::Error& error) {
   spdlog::error("{} ({})", error.message, core::errorCodeName(error.code));

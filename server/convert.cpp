@@ -1,5 +1,7 @@
 #include "server/convert.h"
 
+#include "core/base/timing.h"
+
 #include <algorithm>
 #include <chrono>
 
@@ -19,8 +21,8 @@ namespace server {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+using core::Clock;
+using core::msSince;
 
 std::string_view asText(Bytes bytes) { return {reinterpret_cast<const char*>(bytes.data()), bytes.size()}; }
 

@@ -1,5 +1,7 @@
 #include "core/correspond/warp_job.h"
 
+#include "core/base/timing.h"
+
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -15,16 +17,6 @@
 #include "core/geometry/similarity.h"
 
 namespace core {
-
-namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-
-}  // namespace
 
 WarpOptions plainWarpOptions() {
   WarpOptions options;

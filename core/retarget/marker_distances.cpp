@@ -11,16 +11,13 @@
 #include <numeric>
 
 #include "core/base/parallel.h"
+#include "core/base/timing.h"
 #include "core/retarget/retarget.h"
 #include "core/solve/geodesic.h"
 
 namespace core {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 constexpr double kHybridWeightCutoff = 1e-3;  // below: pure Euclidean (paper: "when the weight is 0")
 

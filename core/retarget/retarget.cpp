@@ -12,6 +12,8 @@
 // on the vertices with one (#V by #markers) x (#markers by 3 rank) product.
 #include "core/retarget/retarget.h"
 
+#include "core/base/timing.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -31,10 +33,6 @@
 namespace core {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 // Calibration: per-marker linear maps of mocap displacements into mesh space.
 struct Calibration {

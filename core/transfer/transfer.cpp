@@ -3,6 +3,8 @@
 
 #include "core/transfer/transfer.h"
 
+#include "core/base/timing.h"
+
 #include <algorithm>
 #include <cctype>
 #include <chrono>
@@ -189,9 +191,6 @@ void warnUnknownNames(const std::map<std::string, double>& gains, const std::vec
     warnings.push_back(std::move(message));
   }
 }
-
-using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 }  // namespace
 
