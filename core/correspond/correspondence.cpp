@@ -103,8 +103,9 @@ TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_
   // same location, confidence and flags. Otherwise a copy judged apart (its
   // side's edges only, its side's normal) could be inpainted while its twin
   // keeps its value, and the seam would part when the mesh moves.
-  const std::vector<int> representative =
-      target_representative ? *target_representative : coincidentVertexRepresentatives(target.positions);
+  std::vector<int> computed;
+  if (!target_representative) computed = coincidentVertexRepresentatives(target.positions);
+  const std::vector<int>& representative = target_representative ? *target_representative : computed;
   auto pointOf = [&](Eigen::Index v) -> Eigen::Index {
     return representative.empty() ? v : representative[static_cast<std::size_t>(v)];
   };

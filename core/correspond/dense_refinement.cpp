@@ -321,6 +321,14 @@ int locateRimVertices(TargetLocations& locations, const Mesh& target, const std:
   return moved;
 }
 
+// Projections farther than this from where they started are not trusted.
+double trustedDistance(const WarpOptions& options, const WarpReport& report) {
+  return options.refine_max_distance * report.target_diagonal;
+}
+
+// The target is located on the smoothed guide, not the guide itself.
+bool locatesOnSmoothedGuide(const WarpOptions& options) { return options.smooth_guide && options.local_rounds > 0; }
+
 }  // namespace
 
 SurfaceWarp warpSurface(const PreparedSource& source, const LandmarkFit& fit, const OpeningMatch& openings,
@@ -352,7 +360,7 @@ SurfaceWarp warpSurface(const PreparedSource& source, const LandmarkFit& fit, co
     // centres (and their normals, by the map's Jacobian) and repeat. The full
     // surface is warped once at the end. The job's landmarks stay pinned.
     const Eigen::Index nl = source.landmark_positions.rows();
-    const double trust = options.refine_max_distance * report.target_diagonal;
+    const double trust = trustedDistance(options, report);
     std::vector<int> rows, vertices;  // per free centre: its row of the centres, its (nearest) source vertex
     for (Eigen::Index l = 0; l < nl; ++l) {
       if (landmark_used[static_cast<std::size_t>(l)]) continue;
@@ -413,7 +421,7 @@ void runLocalRounds(const PreparedSource& source, const OpeningMatch& openings, 
   // projection, the guide, covers every vertex. Target vertices pull too
   // (WarpOptions::target_pulls), matched once to the surface as the dense
   // map left it.
-  const double trust = options.refine_max_distance * report.target_diagonal;
+  const double trust = trustedDistance(options, report);
   TargetPulls target_pulls;
   if (options.local_rounds > 0 && options.target_pulls) {
     target_pulls = matchTargetPulls(source, surface.positions, matched, prepared.adjacency,
@@ -441,7 +449,7 @@ ProjectedGuide projectGuide(const PreparedSource& source, const SurfaceWarp& sur
   // centres' vertices (the dense map), so unless the job returns the guide
   // (WarpOptions::full_guide) or locates the target on it, only those are
   // projected: ~30% of the vertices.
-  const bool on_smoothed_guide = options.smooth_guide && options.local_rounds > 0;
+  const bool on_smoothed_guide = locatesOnSmoothedGuide(options);
   ProjectedGuide out;
   std::vector<int>& guide_rows = out.rows;
   guide_rows.resize(static_cast<std::size_t>(surface.positions.rows()));
@@ -481,8 +489,8 @@ LocatedTarget locateTarget(const PreparedSource& source, const Mesh& target, con
   // one more local round's smoothed displacement of the projection sample,
   // without target pulls; or on the guide itself.
   const Mesh& matched = prepared.matched(target);
-  const bool on_smoothed_guide = options.smooth_guide && options.local_rounds > 0;
-  const double trust = options.refine_max_distance * report.target_diagonal;
+  const bool on_smoothed_guide = locatesOnSmoothedGuide(options);
+  const double trust = trustedDistance(options, report);
   LocatedTarget out;
   Eigen::MatrixX3d& located_on = out.located_on;
   located_on = guide.positions;
