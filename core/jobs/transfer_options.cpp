@@ -42,6 +42,9 @@ const std::map<std::string, bool WarpOptions::*> kWarpSwitches = {
     {"slide_centres", &WarpOptions::slide_centres},     {"target_pulls", &WarpOptions::target_pulls},
     {"smooth_guide", &WarpOptions::smooth_guide},       {"rim_location", &WarpOptions::rim_location},
     {"side_matching", &WarpOptions::side_matching}};
+// GLB weight encodings, by their JSON name.
+const std::map<std::string, WeightEncoding> kWeightEncodings = {
+    {"float", WeightEncoding::kFloat}, {"unorm16", WeightEncoding::kUnorm16}, {"unorm8", WeightEncoding::kUnorm8}};
 // The transfer's own on/off switches.
 const std::map<std::string, bool TransferOptions::*> kTransferSwitches = {
     {"uvs", &TransferOptions::uvs},
@@ -82,11 +85,11 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
       t.weight_options.max_influences = static_cast<int>(*x);
       s.write.max_influences = static_cast<int>(*x);
     } else if (key == "weight_encoding") {
-      const std::string e = value.is_string() ? value.get<std::string>() : "";
-      if (e == "float") s.write.weight_encoding = WeightEncoding::kFloat;
-      else if (e == "unorm16") s.write.weight_encoding = WeightEncoding::kUnorm16;
-      else if (e == "unorm8") s.write.weight_encoding = WeightEncoding::kUnorm8;
-      else return makeError(ErrorCode::kInvalidArgument, where + " must be \"float\", \"unorm16\" or \"unorm8\"");
+      const auto e = kWeightEncodings.find(value.is_string() ? value.get<std::string>() : "");
+      if (e == kWeightEncodings.end()) {
+        return makeError(ErrorCode::kInvalidArgument, where + " must be \"float\", \"unorm16\" or \"unorm8\"");
+      }
+      s.write.weight_encoding = e->second;
     } else if (key == "low_confidence_distance") {
       auto x = number(value, where, 0.0, 1.0);
       if (!x) return x.error();
@@ -141,9 +144,9 @@ std::string transferOptionsJson(const TransferSettings& settings) {
   for (const auto& [name, member] : kTransferSwitches) doc[name] = t.*member;
   for (const auto& [name, member] : kWarpSwitches) doc[name] = t.warp.*member;
   doc["max_influences"] = settings.write.max_influences;
-  doc["weight_encoding"] = settings.write.weight_encoding == WeightEncoding::kUnorm16  ? "unorm16"
-                           : settings.write.weight_encoding == WeightEncoding::kUnorm8 ? "unorm8"
-                                                                                       : "float";
+  for (const auto& [name, encoding] : kWeightEncodings) {
+    if (encoding == settings.write.weight_encoding) doc["weight_encoding"] = name;
+  }
   doc["low_confidence_distance"] = t.warp.locate.low_confidence_distance;
   doc["low_confidence_angle_deg"] = t.warp.locate.low_confidence_angle_deg;
   doc["adaptation"] = shapeAdaptationName(t.adaptation);
