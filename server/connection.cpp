@@ -58,11 +58,12 @@ IoResult socketOutcome(ssize_t n, IoResult::Kind would_block) {
 
 }  // namespace
 
-std::variant<std::shared_ptr<TlsContext>, std::string> TlsContext::load(const std::filesystem::path& certificate_chain,
-                                                                        const std::filesystem::path& private_key) {
+core::Result<std::shared_ptr<TlsContext>> TlsContext::load(const std::filesystem::path& certificate_chain,
+                                                            const std::filesystem::path& private_key) {
+  const auto invalid = [](const std::string& message) { return core::makeError(core::ErrorCode::kInvalidArgument, message); };
   ERR_clear_error();
   SSL_CTX* context = SSL_CTX_new(TLS_server_method());
-  if (!context) return "TLS: cannot create a context: " + openSslReason();
+  if (!context) return invalid("TLS: cannot create a context: " + openSslReason());
   std::shared_ptr<TlsContext> out(new TlsContext(context));
   // TLS 1.2 and 1.3 only; no renegotiation (a client could make the server
   // redo the expensive half of a handshake at will).
@@ -72,18 +73,15 @@ std::variant<std::shared_ptr<TlsContext>, std::string> TlsContext::load(const st
   // write is retried from wherever its buffer then is.
   SSL_CTX_set_mode(context, SSL_MODE_ENABLE_PARTIAL_WRITE | SSL_MODE_ACCEPT_MOVING_WRITE_BUFFER);
   if (SSL_CTX_use_certificate_chain_file(context, certificate_chain.c_str()) != 1) {
-    return "TLS certificate '" + certificate_chain.string() + "': " + openSslReason();
+    return invalid("TLS certificate '" + certificate_chain.string() + "': " + openSslReason());
   }
+  // Loading the key checks it against the certificate loaded above.
   if (SSL_CTX_use_PrivateKey_file(context, private_key.c_str(), SSL_FILETYPE_PEM) != 1) {
     if (ERR_GET_REASON(ERR_peek_last_error()) == X509_R_KEY_VALUES_MISMATCH) {
-      return "TLS private key '" + private_key.string() + "' does not belong to the certificate '" +
-             certificate_chain.string() + "'";
+      return invalid("TLS private key '" + private_key.string() + "' does not belong to the certificate '" +
+                     certificate_chain.string() + "'");
     }
-    return "TLS private key '" + private_key.string() + "': " + openSslReason();
-  }
-  if (SSL_CTX_check_private_key(context) != 1) {
-    return "TLS private key '" + private_key.string() + "' does not belong to the certificate '" +
-           certificate_chain.string() + "': " + openSslReason();
+    return invalid("TLS private key '" + private_key.string() + "': " + openSslReason());
   }
   return out;
 }

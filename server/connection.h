@@ -12,7 +12,8 @@
 #include <filesystem>
 #include <memory>
 #include <string>
-#include <variant>
+
+#include "core/base/error.h"
 
 typedef struct ssl_st SSL;
 typedef struct ssl_ctx_st SSL_CTX;
@@ -22,9 +23,9 @@ namespace server {
 // The server's certificate chain and private key (PEM files), loaded once.
 class TlsContext {
  public:
-  // The error names the file at fault and OpenSSL's reason.
-  static std::variant<std::shared_ptr<TlsContext>, std::string> load(const std::filesystem::path& certificate_chain,
-                                                                     const std::filesystem::path& private_key);
+  // The error (kInvalidArgument) names the file at fault and OpenSSL's reason.
+  static core::Result<std::shared_ptr<TlsContext>> load(const std::filesystem::path& certificate_chain,
+                                                         const std::filesystem::path& private_key);
   ~TlsContext();
   TlsContext(const TlsContext&) = delete;
   TlsContext& operator=(const TlsContext&) = delete;
@@ -53,7 +54,6 @@ class Connection {
   Connection& operator=(const Connection&) = delete;
 
   int fd() const { return fd_; }
-  bool tls() const { return tls_ != nullptr; }
   bool established() const { return established_; }  // plain, or its TLS handshake is done
   // Advances the TLS handshake: kBytes (0 bytes) once done, kWant* while it
   // waits for the client, kFailed / kClosed when it cannot complete.

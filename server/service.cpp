@@ -40,8 +40,8 @@ core::Result<std::unique_ptr<Service>> Service::create(const ServerConfig& confi
   }
   if (!config.tls_certificate_file.empty()) {
     auto loaded = TlsContext::load(config.tls_certificate_file, config.tls_private_key_file);
-    if (auto* error = std::get_if<std::string>(&loaded)) return core::makeError(core::ErrorCode::kInvalidArgument, *error);
-    tls = std::get<std::shared_ptr<TlsContext>>(std::move(loaded));
+    if (!loaded) return loaded.error();
+    tls = std::move(*loaded);
   }
   auto store = MetadataStore::open(config.data_dir / "rigport.sqlite");
   if (!store) return store.error();
