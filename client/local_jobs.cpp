@@ -20,6 +20,8 @@
 #include "core/retarget/retarget.h"
 #include "core/io/trc_io.h"
 #include "core/correspond/warp_job.h"
+#include "core/jobs/retarget_job.h"
+#include "core/jobs/transfer_job.h"
 
 namespace client {
 
@@ -122,17 +124,18 @@ int runWarp(const WarpArgs& args) {
 }
 
 int runTransfer(const TransferArgs& args) {
-  const auto t_start = Clock::now();
-  core::TransferSettings settings;
+  core::JobRun run;
+  run.threads = args.threads;
+  run.output_label = args.output.filename().string();
+  core::TransferJobInput input;
   if (!args.options.empty()) {
     auto text = core::readFileBytes(args.options);
     if (!text) return fail(text.error());
     auto parsed = core::parseTransferOptions(std::string(text->begin(), text->end()), args.options.filename().string());
     if (!parsed) return fail(parsed.error());
-    settings = std::move(*parsed);
+    input.settings = std::move(*parsed);
   }
-  settings.transfer.threads = args.threads;
-  if (args.strict) settings.transfer.strict = true;
+  if (args.strict) input.settings.transfer.strict = true;
 
   auto t0 = Clock::now();
   auto source = core::readRig(args.source);
@@ -143,38 +146,41 @@ int runTransfer(const TransferArgs& args) {
   if (!target) return fail(target.error());
   auto target_landmarks = core::readLandmarks(args.target_landmarks);
   if (!target_landmarks) return fail(target_landmarks.error());
-  const double read_ms = msSince(t0);
+  run.read_ms = msSince(t0);
   spdlog::info("read rig {} ({} vertices, {} joints, {} shapes, {} animations), target {} ({} vertices)",
                args.source.filename().string(), source->rig.mesh.vertexCount(),
                source->rig.skin ? source->rig.skin->joints.size() : 0, source->rig.morph_targets.size(),
                source->rig.animations.size(), args.target.filename().string(), target->mesh.vertexCount());
+  input.target = std::move(*target);
+  input.target_landmarks = std::move(*target_landmarks);
+  input.target_label = args.target.filename().string();
 
-  core::PrepareOptions prepare_options;
-  prepare_options.threads = args.threads;
-  auto prepared = core::prepareRig(std::move(source->rig), *source_landmarks, args.source.filename().string(), prepare_options);
-  if (!prepared) return fail(prepared.error());
-  auto result = core::transferRig(*prepared, target->mesh, *target_landmarks, args.target.filename().string(),
-                                  settings.transfer);
-  if (!result) return fail(result.error());
+  const core::PrepareRigSource prepare = [&]() -> core::Result<core::PreparedRigSource> {
+    core::PrepareOptions prepare_options;
+    prepare_options.threads = args.threads;
+    auto prepared = core::prepareRig(std::move(source->rig), *source_landmarks, args.source.filename().string(),
+                                     prepare_options);
+    if (!prepared) return prepared.error();
+    return core::PreparedRigSource{std::make_shared<const core::PreparedRig>(std::move(*prepared)), &source->report, false};
+  };
+  const std::size_t target_vertices = input.target.mesh.vertexCount();
+  auto job = core::runTransferJob(prepare, std::move(input), run);
+  if (!job) return fail(job.error());
+  if (auto ok = core::writeFileBytes(args.output, job->output.glb); !ok) return fail(ok.error());
 
-  t0 = Clock::now();
-  if (auto ok = core::writeRigGlb(result->rig, args.output, settings.write); !ok) return fail(ok.error());
-  const double write_ms = msSince(t0);
-
-  const core::DiagnosticsContext context = diagnosticsContext(source->report, target->report, read_ms, write_ms, t_start);
-  const auto& r = result->report;
-  if (auto ok = emitDiagnostics(core::formatTransferDiagnostics(r, context), args.diagnostics, args.print_diagnostics,
-                                r.warp, r.warnings);
+  const auto& r = job->report;
+  if (auto ok = emitDiagnostics(job->output.diagnostics, args.diagnostics, args.print_diagnostics, r.warp, r.warnings);
       !ok) {
     return fail(ok.error());
   }
   spdlog::info("transfer: {} joints, {} shapes, {} animations; {} vertices inpainted, {} pruned; "
                "landmark rms {:.3g}, correspondence p95 {:.3f}% of diagonal, {} flipped; {:.1f} ms",
                r.joints, r.shapes, r.animations, r.inpainted_vertices, r.pruned_vertices, r.warp.landmark_rms_residual,
-               100.0 * r.warp.p95_distance / r.warp.target_diagonal, r.warp.flipped_triangles, context.total_ms);
+               100.0 * r.warp.p95_distance / r.warp.target_diagonal, r.warp.flipped_triangles,
+               job->output.timings_ms.at("total"));
   if (r.uv_seam_vertices > 0) {
     spdlog::info("UVs: {} vertices added where the rig's UV seams cross the target (after its {} own)",
-                 r.uv_seam_vertices, target->mesh.vertexCount());
+                 r.uv_seam_vertices, target_vertices);
   }
   spdlog::info("wrote {}{}", args.output.string(), args.diagnostics.empty() ? "" : " and " + args.diagnostics.string());
   return 0;
@@ -200,18 +206,29 @@ int runGenerateHead(const GenerateHeadArgs& args) {
 }
 
 int runRetarget(const RetargetArgs& args) {
-  const auto t_start = Clock::now();
+  core::JobRun run;
+  run.threads = args.threads;
+  run.output_label = args.output.filename().string();
+  core::RetargetJobInput input;
+  core::RetargetSettings& settings = input.settings;
+  settings.clip.max_gap_frames = args.max_gap_frames;
+  settings.clip.fill_long_gaps = args.fill_long_gaps;
+  settings.distances.method = core::parseDistanceMethod(args.method).value_or(core::DistanceMethod::kHybrid);
+  core::RetargetOptions& options = settings.retarget;
+  options.kernel = core::parseRbfKernel(args.kernel).value_or(core::RbfKernel::kGaussian);
+  options.gamma = args.gamma;
+  options.rest_frame = args.rest_frame;
+  options.remove_head_motion = !args.keep_head_motion;
+  options.bake.tolerance = args.tolerance;
+  options.bake.exact = args.exact;
+
   auto t0 = Clock::now();
   auto mesh = core::readMesh(args.mesh);
   if (!mesh) return fail(mesh.error());
   auto markers = core::readLandmarks(args.markers);
   if (!markers) return fail(markers.error());
-  core::TrcReadOptions clip_options;
-  clip_options.max_gap_frames = args.max_gap_frames;
-  clip_options.fill_long_gaps = args.fill_long_gaps;
-  auto clip = core::readTrc(args.mocap, clip_options);
+  auto clip = core::readTrc(args.mocap, settings.clip);
   if (!clip) return fail(clip.error());
-  core::RetargetOptions options;
   if (!args.stiffness.empty()) {
     auto text = core::readFileBytes(args.stiffness);
     if (!text) return fail(text.error());
@@ -219,7 +236,7 @@ int runRetarget(const RetargetArgs& args) {
     if (!stiffness) return fail(stiffness.error());
     options.stiffness = std::move(*stiffness);
   }
-  const double read_ms = msSince(t0);
+  run.read_ms = msSince(t0);
   spdlog::info("read {} ({} vertices), {} markers, {} ({} markers, {} frames at {} Hz, {})", args.mesh.filename().string(),
                mesh->mesh.vertexCount(), markers->landmarks.size(), args.mocap.filename().string(), clip->markerCount(),
                clip->frameCount(), clip->data_rate, clip->units);
@@ -229,28 +246,19 @@ int runRetarget(const RetargetArgs& args) {
                  gap.fill == core::GapFill::kInterpolated ? std::string("interpolated")
                                                           : "carried by its neighbours " + core::joinNames(gap.donors));
   }
+  input.mesh = std::move(*mesh);
+  input.markers = std::move(*markers);
+  input.clip = std::move(*clip);
 
-  core::MarkerDistanceOptions distance_options;
-  distance_options.method = core::parseDistanceMethod(args.method).value_or(core::DistanceMethod::kHybrid);
-  distance_options.threads = args.threads;
-  options.kernel = core::parseRbfKernel(args.kernel).value_or(core::RbfKernel::kGaussian);
-  options.gamma = args.gamma;
-  options.rest_frame = args.rest_frame;
-  options.remove_head_motion = !args.keep_head_motion;
-  options.bake.tolerance = args.tolerance;
-  options.bake.exact = args.exact;
-  options.threads = args.threads;
-  auto result = core::retargetMocap(mesh->mesh, *markers, *clip, args.mesh.filename().string(), distance_options, options);
-  if (!result) return fail(result.error());
+  auto job = core::runRetargetJob(core::computeMarkerDistancesFor(input, args.mesh.filename().string(), args.threads),
+                                  input, run);
+  if (!job) return fail(job.error());
+  if (auto ok = core::writeFileBytes(args.output, job->output.glb); !ok) return fail(ok.error());
 
-  t0 = Clock::now();
-  if (auto ok = core::writeRigGlb(result->rig, args.output); !ok) return fail(ok.error());
-  const double write_ms = msSince(t0);
-
-  const auto& r = result->report;
-  const double total_ms = msSince(t_start);
-  const std::string diagnostics = core::formatRetargetDiagnostics(r, {{"read", read_ms}, {"write", write_ms}}, total_ms);
-  if (auto ok = emitDiagnostics(diagnostics, args.diagnostics, args.print_diagnostics, {}); !ok) return fail(ok.error());
+  const auto& r = job->report;
+  if (auto ok = emitDiagnostics(job->output.diagnostics, args.diagnostics, args.print_diagnostics, {}); !ok) {
+    return fail(ok.error());
+  }
   if (!r.unused_clip_markers.empty()) {
     spdlog::warn("{} clip markers are not in {} and were ignored", r.unused_clip_markers.size(), args.markers.filename().string());
   }
@@ -264,7 +272,7 @@ int runRetarget(const RetargetArgs& args) {
                core::distanceMethodName(r.method), core::rbfKernelName(r.kernel), r.frames, r.markers,
                r.marker_max_residual, r.rank, r.exact ? "frame targets" : "modes", r.rms_error,
                100.0 * r.rms_error / r.mesh_diagonal, r.relative_error, r.head_max_rotation_deg,
-               r.head_motion_removed ? "removed" : "kept", total_ms);
+               r.head_motion_removed ? "removed" : "kept", job->output.timings_ms.at("total"));
   spdlog::info("wrote {}{}", args.output.string(), args.diagnostics.empty() ? "" : " and " + args.diagnostics.string());
   return 0;
 }

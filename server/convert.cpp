@@ -7,7 +7,8 @@
 
 #include "api/content_id.h"
 #include "api/json.h"
-#include "core/jobs/diagnostics_json.h"
+#include "core/jobs/retarget_job.h"
+#include "core/jobs/transfer_job.h"
 #include "core/io/landmarks.h"
 #include "core/io/mesh_io.h"
 #include "core/jobs/retarget_options.h"
@@ -205,18 +206,12 @@ struct JobFiles {
   }
 };
 
-core::Error stoppedBefore(const JobRecord& job, const std::string& stage) {
-  return core::makeError(core::ErrorCode::kCancelled, "job " + job.id + ": stopped before " + stage);
-}
-
-std::variant<JobOutput, core::Error> runRetargetJob(const JobFiles& in, DistanceCache& cache, const StageHook& on_stage,
-                                                    int threads) {
-  const auto t_start = Clock::now();
-  if (!on_stage("read", 0.02)) return stoppedBefore(in.job, "reading inputs");
+core::Result<core::JobOutput> runRetargetJob(const JobFiles& in, DistanceCache& cache, core::JobRun run) {
+  if (!run.stage("read", 0.02)) return run.stoppedBefore("reading inputs");
+  core::RetargetJobInput input;
   auto settings = core::parseRetargetOptions(in.optionsText(), "spec.options");
   if (!settings) return settings.error();
-  settings->distances.threads = threads;
-  settings->retarget.threads = threads;
+  input.settings = std::move(*settings);
   auto mesh_bytes = in.bytes("mesh");
   if (!mesh_bytes) return mesh_bytes.error();
   auto mesh = core::readMeshFromMemory(*mesh_bytes, in.name("mesh"), in.name("mesh"));
@@ -227,58 +222,49 @@ std::variant<JobOutput, core::Error> runRetargetJob(const JobFiles& in, Distance
   if (!markers) return markers.error();
   auto clip_bytes = in.bytes("mocap");
   if (!clip_bytes) return clip_bytes.error();
-  auto clip = core::parseTrc(asText(*clip_bytes), in.name("mocap"), settings->clip);
+  auto clip = core::parseTrc(asText(*clip_bytes), in.name("mocap"), input.settings.clip);
   if (!clip) return clip.error();
   if (in.has("stiffness")) {
     auto stiffness_bytes = in.bytes("stiffness");
     if (!stiffness_bytes) return stiffness_bytes.error();
     auto stiffness = core::parseStiffness(std::string(asText(*stiffness_bytes)), in.name("stiffness"));
     if (!stiffness) return stiffness.error();
-    settings->retarget.stiffness = std::move(*stiffness);
+    input.settings.retarget.stiffness = std::move(*stiffness);
   }
-  const double read_ms = msSince(t_start);
+  input.mesh = std::move(*mesh);
+  input.markers = std::move(*markers);
+  input.clip = std::move(*clip);
+  run.read_ms = msSince(run.started);
 
-  // Distance fields depend only on (mesh, markers, distance options): cached.
-  if (!on_stage("distances", 0.05)) return stoppedBefore(in.job, "distances");
-  const core::MarkerDistanceOptions& d = settings->distances;
+  // Cached per tenant and (mesh, markers, distance options).
+  const core::MarkerDistanceOptions& d = input.settings.distances;
   const std::string key = api::sha256Hex(
       in.job.inputs.at("mesh") + "|" + in.job.inputs.at("markers") + "|" + core::distanceMethodName(d.method) + "|" +
       std::to_string(d.geodesic.time_factor) + "|" + std::to_string(d.geodesic.average_boundary_conditions) + "|" +
       std::to_string(d.geodesic.clamp_heat_weights) + "|" + std::to_string(d.hybrid.region_factor) + "|" +
       std::to_string(d.hybrid.blend_gamma) + "|" + std::to_string(d.hybrid.regions.size()));
-  auto distances = cache.get(tenantCacheKey(in.job.tenant, key), [&] { return core::computeMarkerDistances(mesh->mesh, *markers, in.name("mesh"), d); });
-  if (!distances) return distances.error();
-
-  if (!on_stage("retarget", 0.3)) return stoppedBefore(in.job, "retarget");
-  auto result = core::retargetMocap(mesh->mesh, *distances->value, *clip, settings->retarget);
-  if (!result) return result.error();
-  result->report.timings_ms["distances"] = distances->hit ? 0.0 : distances->value->compute_ms;
-
-  if (!on_stage("write", 0.9)) return stoppedBefore(in.job, "write");
-  auto t0 = Clock::now();
-  auto glb = core::encodeRigGlb(result->rig);
-  if (!glb) return glb.error();
-  const double write_ms = msSince(t0);
-  JobOutput out;
-  out.result = std::move(*glb);
-  out.cache_hit = distances->hit;
-  const double total_ms = msSince(t_start);
-  out.diagnostics = core::formatRetargetDiagnostics(result->report, {{"read", read_ms}, {"write", write_ms}}, total_ms);
-  out.timings_ms = {{"read", read_ms}, {"retarget", total_ms - read_ms - write_ms}, {"write", write_ms}, {"total", total_ms}};
-  return out;
+  const core::ComputeMarkerDistances compute = core::computeMarkerDistancesFor(input, in.name("mesh"), run.threads);
+  const core::ComputeMarkerDistances cached = [&]() -> core::Result<core::MarkerDistancesSource> {
+    auto distances = cache.get(tenantCacheKey(in.job.tenant, key), [&]() -> core::Result<core::MarkerDistances> {
+      auto computed = compute();
+      if (!computed) return computed.error();
+      return *computed->distances;
+    });
+    if (!distances) return distances.error();
+    return core::MarkerDistancesSource{distances->value, distances->hit};
+  };
+  auto out = core::runRetargetJob(cached, input, run);
+  if (!out) return out.error();
+  return std::move(out->output);
 }
 
-std::variant<JobOutput, core::Error> runTransferJob(const JobFiles& in, const RigRecord& rig_record, const BlobStore& blobs,
-                                                    RigCache& cache, const StageHook& on_stage, int threads) {
-  const JobRecord& job = in.job;
-  const auto t_start = Clock::now();
-
-  // --- read the job's inputs
-  if (!on_stage("read", 0.02)) return stoppedBefore(job, "reading inputs");
-  auto t0 = Clock::now();
+core::Result<core::JobOutput> runTransferJob(const JobFiles& in, const RigRecord& rig_record, const BlobStore& blobs,
+                                             RigCache& cache, core::JobRun run) {
+  if (!run.stage("read", 0.02)) return run.stoppedBefore("reading inputs");
+  core::TransferJobInput input;
   auto settings = core::parseTransferOptions(in.optionsText(), "spec.options");
   if (!settings) return settings.error();
-  settings->transfer.threads = threads;
+  input.settings = std::move(*settings);
   auto target_bytes = in.bytes("target");
   if (!target_bytes) return target_bytes.error();
   auto target = core::readMeshFromMemory(*target_bytes, in.name("target"), in.name("target"));
@@ -287,75 +273,50 @@ std::variant<JobOutput, core::Error> runTransferJob(const JobFiles& in, const Ri
   if (!landmark_bytes) return landmark_bytes.error();
   auto target_landmarks = core::parseLandmarks(asText(*landmark_bytes), in.name("target_landmarks"));
   if (!target_landmarks) return target_landmarks.error();
-  const double read_ms = msSince(t0);
-
-  // --- prepare (cached per tenant and rig content id; a hit skips all source-only work)
-  if (!on_stage("prepare", 0.05)) return stoppedBefore(job, "prepare");
-  t0 = Clock::now();
-  core::MeshReadReport source_read;
-  auto prepared = cache.get(tenantCacheKey(rig_record.tenant, rig_record.info.id), [&]() -> core::Result<core::PreparedRig> {
-    auto rig_bytes = blobs.read(rig_record.rig_blob);
-    if (!rig_bytes) return rig_bytes.error();
-    auto rig = readRigBytes(*rig_bytes, rig_record.info.name);
-    if (!rig) return rig.error();
-    source_read = rig->report;
-    auto source_landmark_bytes = blobs.read(rig_record.landmarks_blob);
-    if (!source_landmark_bytes) return source_landmark_bytes.error();
-    auto source_landmarks = core::parseLandmarks(asText(*source_landmark_bytes), "landmarks");
-    if (!source_landmarks) return source_landmarks.error();
-    core::PrepareOptions prepare_options;
-    prepare_options.threads = threads;
-    return core::prepareRig(std::move(rig->rig), std::move(*source_landmarks), rig_record.info.name, prepare_options);
-  });
-  if (!prepared) return prepared.error();
-  const double prepare_ms = msSince(t0);
-
-  // --- transfer (core reports its own stages; progress 0.1 .. 0.9)
-  settings->transfer.on_stage = [&](std::string_view stage, double fraction) {
-    return on_stage(stage, 0.1 + 0.8 * fraction);
-  };
-  auto result = core::transferRig(*prepared->value, target->mesh, *target_landmarks, in.name("target"), settings->transfer);
-  if (!result) return result.error();
+  input.target = std::move(*target);
+  input.target_landmarks = std::move(*target_landmarks);
+  input.target_label = in.name("target");
   if (rig_record.info.has_components) {
-    result->report.warnings.push_back("rig components (components JSON) are stored but not transferred yet");
+    input.warnings.push_back("rig components (components JSON) are stored but not transferred yet");
   }
+  run.read_ms = msSince(run.started);
 
-  // --- assemble
-  if (!on_stage("write", 0.92)) return stoppedBefore(job, "write");
-  t0 = Clock::now();
-  auto glb = core::encodeRigGlb(result->rig, settings->write);
-  if (!glb) return glb.error();
-  const double write_ms = msSince(t0);
-
-  JobOutput out;
-  out.cache_hit = prepared->hit;
-  out.result = std::move(*glb);
-  core::TransferReport& r = result->report;
-  if (prepared->hit) r.prepare_ms = 0.0;  // the cached preparation was paid by an earlier job
-  core::DiagnosticsContext context;
-  context.source_read = prepared->hit ? nullptr : &source_read;
-  context.target_read = &target->report;
-  context.extra_timings_ms = {{"read", read_ms}, {"write", write_ms}};
-  context.total_ms = msSince(t_start);
-  context.cache_hit = prepared->hit;
-  out.diagnostics = core::formatTransferDiagnostics(r, context);
-  out.timings_ms = {{"read", read_ms},
-                    {"prepare", prepared->hit ? 0.0 : prepare_ms},
-                    {"warp", r.warp.warp_ms},
-                    {"correspond", r.warp.correspond_ms},
-                    {"transfer", r.dense_map_ms + r.weights_ms + r.joints_ms + r.shapes_ms + r.attributes_ms},
-                    {"write", write_ms},
-                    {"total", context.total_ms}};
-  return out;
+  // Cached per tenant and rig content id: a hit skips all source-only work.
+  core::MeshReadReport source_read;
+  const core::PrepareRigSource prepare = [&]() -> core::Result<core::PreparedRigSource> {
+    auto prepared = cache.get(tenantCacheKey(rig_record.tenant, rig_record.info.id), [&]() -> core::Result<core::PreparedRig> {
+      auto rig_bytes = blobs.read(rig_record.rig_blob);
+      if (!rig_bytes) return rig_bytes.error();
+      auto rig = readRigBytes(*rig_bytes, rig_record.info.name);
+      if (!rig) return rig.error();
+      source_read = rig->report;
+      auto source_landmark_bytes = blobs.read(rig_record.landmarks_blob);
+      if (!source_landmark_bytes) return source_landmark_bytes.error();
+      auto source_landmarks = core::parseLandmarks(asText(*source_landmark_bytes), "landmarks");
+      if (!source_landmarks) return source_landmarks.error();
+      core::PrepareOptions prepare_options;
+      prepare_options.threads = run.threads;
+      return core::prepareRig(std::move(rig->rig), std::move(*source_landmarks), rig_record.info.name, prepare_options);
+    });
+    if (!prepared) return prepared.error();
+    return core::PreparedRigSource{prepared->value, &source_read, prepared->hit};
+  };
+  auto out = core::runTransferJob(prepare, std::move(input), run);
+  if (!out) return out.error();
+  return std::move(out->output);
 }
 
 }  // namespace
 
-std::variant<JobOutput, core::Error> runJob(const JobRecord& job, const RigRecord* rig, const BlobStore& blobs,
-                                            Caches& caches, const StageHook& on_stage, int threads) {
+core::Result<core::JobOutput> runJob(const JobRecord& job, const RigRecord* rig, const BlobStore& blobs, Caches& caches,
+                                     const core::StageHook& on_stage, int threads) {
   const JobFiles files{job, blobs};
-  if (job.kind == "transfer" && rig != nullptr) return runTransferJob(files, *rig, blobs, caches.rigs, on_stage, threads);
-  if (job.kind == "retarget") return runRetargetJob(files, caches.distances, on_stage, threads);
+  core::JobRun run;
+  run.threads = threads;
+  run.on_stage = on_stage;
+  run.job_label = "job " + job.id;
+  if (job.kind == "transfer" && rig != nullptr) return runTransferJob(files, *rig, blobs, caches.rigs, std::move(run));
+  if (job.kind == "retarget") return runRetargetJob(files, caches.distances, std::move(run));
   return core::makeError(core::ErrorCode::kInvalidArgument, "job " + job.id + ": kind '" + job.kind + "' cannot run");
 }
 

@@ -17,6 +17,7 @@
 #include "api/types.h"
 #include "core/base/error.h"
 #include "core/io/landmarks.h"
+#include "core/jobs/job.h"
 #include "server/config.h"
 #include "server/prepared_cache.h"
 #include "server/store.h"
@@ -47,20 +48,9 @@ std::optional<api::Problem> checkJobInputs(const api::JobSpec& spec,
                                            const std::map<std::string, std::pair<std::string, Bytes>>& files,
                                            const core::LandmarkSet* rig_landmarks, const ServerConfig& limits);
 
-struct JobOutput {
-  std::vector<std::uint8_t> result;       // GLB
-  std::string diagnostics;                // JSON
-  std::map<std::string, double> timings_ms;
-  bool cache_hit = false;
-};
-
-// Called at stage boundaries with the job's stage and progress (0-1); false
-// stops the job (ErrorCode::kCancelled).
-using StageHook = std::function<bool(std::string_view stage, double progress)>;
-
 // Runs a queued job on the calling (worker) thread. `rig` is the job's rig
 // record (nullptr for kinds without one).
-std::variant<JobOutput, core::Error> runJob(const JobRecord& job, const RigRecord* rig, const BlobStore& blobs,
-                                            Caches& caches, const StageHook& on_stage, int threads);
+core::Result<core::JobOutput> runJob(const JobRecord& job, const RigRecord* rig, const BlobStore& blobs, Caches& caches,
+                                     const core::StageHook& on_stage, int threads);
 
 }  // namespace server

@@ -276,17 +276,18 @@ JobManager::Retry JobManager::runOne(const std::string& tenant, const std::strin
 
   const auto t_start = Clock::now();
   Execution run = execute(*job, *state);
-  if (auto* error = std::get_if<core::Error>(&run.outcome); error && isStorage(*error)) {
-    return storageFault(tenant, id, "job_inputs", error->message, Retry::kRunning);
+  if (!run.outcome && isStorage(run.outcome.error())) {
+    return storageFault(tenant, id, "job_inputs", run.outcome.error().message, Retry::kRunning);
   }
   job->finished_ms = nowMs();
   // Held until the row references the result blobs: a job deleted meanwhile
   // may share their bytes (same inputs, same result) and must not remove them.
   std::shared_lock collection(blob_collection_);
-  if (auto* out = std::get_if<JobOutput>(&run.outcome)) {
+  if (run.outcome) {
+    const core::JobOutput* out = &*run.outcome;
     // Results are durable before the row points at them: a crash in between
     // leaves the job running (requeued), never half-written.
-    auto result_blob = blobs_.put(out->result);
+    auto result_blob = blobs_.put(out->glb);
     auto diagnostics_blob = blobs_.put(std::span(reinterpret_cast<const std::uint8_t*>(out->diagnostics.data()),
                                                  out->diagnostics.size()));
     if (!result_blob || !diagnostics_blob) {
@@ -300,7 +301,8 @@ JobManager::Retry JobManager::runOne(const std::string& tenant, const std::strin
     job->cache_hit = out->cache_hit;
     job->timings_json = nlohmann::json(out->timings_ms).dump();
   }
-  if (auto* error = std::get_if<core::Error>(&run.outcome)) {
+  if (!run.outcome) {
+    const core::Error* error = &run.outcome.error();
     bool abandoned = false;
     {
       std::lock_guard lock(mutex_);
@@ -340,7 +342,7 @@ JobManager::Execution JobManager::execute(const JobRecord& job, Running& state) 
   const auto t_start = Clock::now();
   const auto deadline = t_start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(config_.job_time_limit_s));
   auto stage_start = t_start;
-  StageHook on_stage = [&](std::string_view stage, double progress) {
+  core::StageHook on_stage = [&](std::string_view stage, double progress) {
     const auto now = Clock::now();
     if (!run.stage.empty()) metrics_.observeStage(run.stage, std::chrono::duration<double>(now - stage_start).count());
     run.stage = stage;

@@ -92,7 +92,7 @@ class JobManager {
   // running (requeued in the store first).
   enum class Retry { kNo, kQueued, kRunning };
   struct Execution {
-    std::variant<JobOutput, core::Error> outcome = core::Error{core::ErrorCode::kCancelled, "not run"};
+    core::Result<core::JobOutput> outcome = core::Error{core::ErrorCode::kCancelled, "not run"};
     std::string stage;       // the last stage reached
     bool timed_out = false;
   };
