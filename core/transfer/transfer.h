@@ -136,7 +136,7 @@ struct TransferReport {
   // why: the options' choice. rigport does not switch it by itself: no
   // measure of the faces found tells a stylised face, whose deltas follow
   // the stylisation ("local"), from an identity, whose deltas do not
-  // (docs/ACCURACY.md, "Stylised faces").
+  // (docs/journal/ACCURACY_HISTORY_TARGETS.md, "Stylised faces").
   std::string adaptation;
   std::string adaptation_reason;
   double global_scale = 1.0;      // similarity scale source -> target landmarks
