@@ -18,7 +18,7 @@ int main(int argc, char** argv) {
   // accessors, per-shape deltas, indices). By default glibc maps each afresh
   // and every page of it faults in again; kept in the heap they are reused.
   // A CLI run is short, so memory not handed back is no loss
-  // (docs/BENCHMARKS.md: one transfer 126 -> 118 ms).
+  // (docs/journal/BENCHMARKS_HISTORY.md, 2026-11-23: one transfer 101.6 -> 93.7 ms).
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
   CLI::App app{"rigport: facial rig transfer (warp, transfer, retarget; rigs, jobs and bench on the service)"};

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Service load benchmark (numbers in docs/BENCHMARKS.md): starts rigport-server
+# Service load benchmark (numbers in docs/journal/BENCHMARKS_HISTORY.md): starts rigport-server
 # on loopback with a fresh store, runs `rigport bench` against it and samples
 # the server's resident memory every 5 s.
 #   bash scripts/bench_service.sh [JOBS] [CONCURRENCY] [WORKERS] [CACHE_MB]

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Soak test (not in CI; numbers in docs/BENCHMARKS.md): one rigport-server on
+# Soak test (not in CI; numbers in docs/journal/BENCHMARKS_HISTORY.md): one rigport-server on
 # loopback under `rigport bench` at CONCURRENCY clients for MINUTES, in
 # back-to-back segments of SEGMENT_JOBS jobs (~10 s each on a 2-core machine).
 # After each segment: jobs/s, p99, errors and the server's resident memory,

@@ -17,14 +17,9 @@
 namespace core {
 
 struct ProjectionOptions {
-  // Target faces whose normal differs more than this from the warped source
-  // vertex normal are not candidates. 160 only keeps opposite-facing sheets
-  // apart (touching lips: ~180 degrees); stricter values strand eyelid-margin
-  // vertices on the wrong side of the rim (measured: ICT remeshed eyeBlink E
-  // 0.63 at 90 degrees, 0.20 at 160).
+  // Target faces whose normal differs more than this (degrees) from the warped source vertex's are not candidates.
   double max_normal_angle_deg = 160.0;
-  // Candidates beyond this fraction of the target bbox diagonal are ignored:
-  // such a vertex stays at its warped position and counts as unmatched.
+  // Candidates beyond this fraction of the target bbox diagonal are ignored (the vertex stays warped, unmatched).
   double max_distance = 0.1;
   int threads = 0;  // 0 = hardware threads
 };
@@ -88,26 +83,17 @@ FoldReport countFolds(const Eigen::MatrixX3d& warped_positions, const Eigen::Mat
                       const Eigen::MatrixX3i& triangles);
 
 struct LocateOptions {
-  // Guide faces whose normal differs more than this from the target vertex
-  // normal are not candidates.
+  // Guide faces whose normal differs more than this (degrees) from the target vertex's are not candidates.
   double max_normal_angle_deg = 90.0;
-  // Confidence falls linearly to 0 at this distance (fraction of the target
-  // bbox diagonal) and at this normal disagreement; beyond either the vertex is
-  // "low confidence".
+  // Confidence falls linearly to 0 at this distance (fraction of the target bbox diagonal): "low confidence".
   double low_confidence_distance = 0.05;
+  // ... and at this normal disagreement (degrees).
   double low_confidence_angle_deg = 30.0;
-  // Also low confidence: farther from the guide than this many times the
-  // vertex's mean incident edge length. The guide lies on the target, so a
-  // right match is (nearly) on it; a vertex matched across a thin gap (the
-  // other lip or lid) is a gap-width away. 0 disables.
+  // Also low confidence: farther from the guide than this many mean incident edge lengths. 0 disables.
   double max_relative_distance = 0.5;
-  // A target vertex near an opening (target_sides) whose location's normal
-  // differs more than this takes, when there is one, a location at most one
-  // of its edges farther whose normal is within it: where lips or lids touch
-  // near a corner the other side's surface can be nearest (measured on
-  // other ICT identities: 4-26 lip vertices a fang's length off without it).
+  // Near an opening (target_sides): a location whose normal differs more yields to one within an edge that agrees.
   double opening_normal_angle_deg = 45.0;
-  int threads = 0;
+  int threads = 0;  // 0 = hardware threads
 };
 
 // Every target vertex located on the guide = on the source surface.

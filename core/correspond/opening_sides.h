@@ -23,13 +23,9 @@
 namespace core {
 
 struct OpeningSideOptions {
-  // A rim is an opening when a landmark lies within this fraction of the
-  // mesh's bounding-box diagonal of it (the mouth, the eyes; not a neck cut).
+  // A rim is an opening (mouth, eyes; not a neck cut) when a landmark lies within this fraction of the diagonal of it.
   double landmark_distance = 0.02;
-  // The surface within this fraction of the opening's width (corner to
-  // corner) of its rim is given sides: the lips and the skin around them
-  // (a mouth 5 cm wide: 2.5 cm), the lids. Landmarks this near the rim are
-  // the opening's: its two farthest apart mark the corners.
+  // Sides are given within this fraction of the opening's width of its rim; landmarks as near mark its corners.
   double zone = 0.5;
 };
 

@@ -27,18 +27,11 @@ using Rim = BoundaryLoop;
 std::vector<Rim> meshRims(const Mesh& mesh, const std::vector<int>& representative);
 
 struct RimMatchOptions {
-  // A source rim (as warped) and a target rim match when each one's mean
-  // distance to the other is within this fraction of the source rim's rms
-  // radius, their lengths are within max_length_ratio of each other, and each
-  // is the other's closest candidate. A full radius (not half) lets the neck
-  // of an identity exaggerated 3x match (ICT: the landmark warp leaves it
-  // 0.5-1 radius off); the eyes and mouth, a few centimetres apart, cannot be
-  // confused at their own radius.
+  // Rims match when each one's mean distance to the other is within this fraction of the source rim's rms radius,
   double max_mismatch = 1.0;
+  // ... their lengths are within this ratio of each other, and each is the other's closest candidate.
   double max_length_ratio = 1.5;
-  // Only the longest rims of each side are candidates (a face has a handful;
-  // a scan full of small holes or an unwelded soup must not cost a quadratic
-  // search).
+  // Only this many of the longest rims of each mesh are candidates.
   int max_rims = 16;
 };
 

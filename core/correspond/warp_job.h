@@ -21,13 +21,11 @@
 namespace core {
 
 struct PrepareOptions {
-  // Dense-map centres: the source landmarks plus this many farthest-point
-  // samples of the source vertices.
+  // Dense-map centres: the source landmarks plus this many farthest-point samples of the source vertices.
   int dense_centres = 400;
-  // Regularisation of the dense map as a fraction of the source bbox diagonal
-  // (smooths projection noise; 0 interpolates).
+  // Dense-map regularisation, a fraction of the source bbox diagonal (smooths projection noise; 0 interpolates).
   double dense_regularization = 0.002;
-  int threads = 0;
+  int threads = 0;  // 0 = hardware threads
 };
 
 // Everything that depends only on the source: immutable, shared between jobs.
@@ -80,99 +78,44 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
 
 struct WarpOptions {
   TpsOptions landmark_tps;             // regularisation of the landmark warp (0 = exact)
-  // Non-rigid ICP rounds: fit the dense map to the current guide, re-warp the
-  // source through it and re-project. 0 = the papers' plain warp + projection.
+  // Non-rigid ICP rounds: fit the dense map to the guide, re-warp, re-project. 0 = the papers' plain warp.
   int refine_iterations = 2;
-  // In each refinement round the projected dense centres slide along the
-  // target surface to where the dense map bends least
-  // (slideInTangentPlanes): projection alone leaves them where the landmark
-  // warp put them along the surface. The job's landmarks and centres on
-  // matched rims stay.
+  // Refinement centres slide along the target to where the dense map bends least (slideInTangentPlanes).
   bool slide_centres = true;
-  // Projections farther than this (fraction of the target diagonal) do not
-  // pull their dense centre during refinement.
+  // Projections farther than this (fraction of the target diagonal) do not pull their dense centre in refinement.
   double refine_max_distance = 0.1;
-  // Local rounds after the dense map: the trusted projection displacements of
-  // the projection sample are smoothed over the source mesh
-  // (`smoothing_passes` Jacobi passes of normalised convolution) and applied;
-  // the surface is projected again after the last round.
-  // Corrects misfit finer than the dense centres' spacing.
+  // Local rounds after the dense map: the projection sample's trusted steps, smoothed over the source, applied.
   int local_rounds = 2;
+  // Jacobi passes of normalised convolution that smooth each local round's steps.
   int smoothing_passes = 10;
-  // In the local rounds the target's vertices pull too: a sample of them (an
-  // independent set, each standing for the neighbours it covers) is matched
-  // once, after the dense map, to the closest points on the warped source
-  // (within target_pull_max_distance of the target diagonal, normals within
-  // target_pull_max_angle_deg), and each pulls its point onto itself.
-  // Projection from the source alone never reaches the parts of the target
-  // the source does not already cover (a fuller lip, a deeper fold).
+  // In the local rounds a sample of the target's vertices pulls its closest points on the warped source too.
   bool target_pulls = true;
+  // Target pulls: matches farther than this (fraction of the target diagonal) do not pull.
   double target_pull_max_distance = 0.015;
+  // Target pulls: matches whose normals differ by more than this (degrees) do not pull.
   double target_pull_max_angle_deg = 60.0;
-  // After local rounds the target's vertices are located on the smoothed
-  // guide: the warped source moved by the guide's displacement smoothed as in
-  // the rounds. The guide's own triangles fold where projection crowds
-  // vertices together, and locations on them scatter. Without local rounds
-  // (the warped source may be far from the target) or with false: located
-  // on the guide itself, as in the papers.
+  // After local rounds, target vertices are located on the smoothed guide; false: on the guide (the papers').
   bool smooth_guide = true;
-  // Project every source vertex for the guide (WarpResult::guide), as a warp
-  // job returns it. false (what a transfer asks): when the target is located
-  // on the smoothed guide, only the vertices read from the guide are
-  // projected (the projection sample and the dense centres' vertices); the
-  // others keep their warped position. The locations are the same either way.
+  // Project every source vertex for WarpResult::guide; false (a transfer): only those the location reads.
   bool full_guide = true;
-  // When source and target both carry region labels (Mesh::regions), every
-  // match (projection, refinement, location) stays within compatible regions;
-  // see faceRegionSets. false: labels are ignored.
+  // With region labels on both meshes (Mesh::regions) every match stays in its region (faceRegionSets).
   bool region_matching = true;
-  // The source's openings (the mouth, the eyes) are matched to the target's
-  // rims, both split into their two sides (upper and lower lip, upper and
-  // lower lid), and every match (projection, refinement, target pulls,
-  // location) stays on its own side: a lower-lip vertex never takes the
-  // upper lip's motion, however close the lips are; the inpainting of
-  // untrusted vertices does not cross either (cutAcrossSides). _REGION labels
-  // on both, when region_matching uses them, take the sides' place in the
-  // matching. false: the sides (found whenever rims are matched) are only
-  // read by the transfer's quality check.
+  // Matches and inpainting (cutAcrossSides) stay on their side of the mouth and eyes; false: sides only checked.
   bool side_matching = true;
-  OpeningSideOptions sides;
-  // Source rims (neck cut, mouth, eyes) matched to target rims after the
-  // landmark warp (matchRims); those no landmark pins join the warp (below),
-  // and in the refinement every matched rim pulls its dense centres onto its
-  // target rim instead of the surface. Only there: snapping the guide's rim
-  // vertices themselves folds the triangles next to them (measured: 57 more
-  // flipped triangles and eyeBlink_R E 0.18 -> 0.21 on a 10-landmark
-  // target), while the dense map carries the rim's pull smoothly.
-  // false: rims are matched like any other surface.
+  OpeningSideOptions sides;            // how openings and their sides are found
+  // Source rims matched to the target's after the landmark warp (matchRims), pulling their dense centres onto them.
   bool rim_matching = true;
-  RimMatchOptions rims;
-  // Matched rims that no source landmark lies on (within 2% of the source
-  // diagonal: a neck cut, not the mouth or eyes) join the landmark warp with
-  // this many point pairs each, at most one per rim vertex (pairRimPoints):
-  // far from the face's landmarks the warp only extrapolates. Rims the
-  // landmarks pin are left out: pairs a few millimetres from a landmark's
-  // exact target would bend the warp between them. 0: rims only act in the
-  // refinement.
+  RimMatchOptions rims;                // when two rims match
+  // Point pairs per matched rim no landmark pins (a neck cut) added to the landmark warp (pairRimPoints); 0: none.
   int rim_warp_points = 24;
-  // Target vertices on a rim, once located on the guide's surface, move to
-  // the guide's rim: the rim point nearest their surface location among rim
-  // edges running their way (closestPointOnRim). A border corresponds to a
-  // border, and the surface location of a rim vertex falls short of the
-  // source's rim, inside the lid (remeshed ICT identities: eye-hole vertices
-  // 1-4 mm off). Only when that rim point is within
-  // rim_location_max_distance (fraction of the target diagonal) of the
-  // vertex and at most rim_location_max_ratio times as far from it as the
-  // surface point: a coarse remesh's hole can cut across the lid, and a
-  // vertex of it far from any source rim keeps its surface point. A vertex
-  // the location refused (its surface point across a thin gap: the other
-  // lip) is taken back when the rim point running its way, searched from the
-  // vertex, lies on another face. Independent of rim_matching.
+  // Located target rim vertices move to the guide's rim, running their way (closestPointOnRim).
   bool rim_location = true;
+  // Rim location: only onto a rim point within this fraction of the target diagonal of the vertex.
   double rim_location_max_distance = 0.015;
+  // Rim location: only onto a rim point at most this many times as far from the vertex as its surface point.
   double rim_location_max_ratio = 2.0;
-  ProjectionOptions projection;
-  LocateOptions locate;
+  ProjectionOptions projection;        // the warped source projected onto the target (the guide)
+  LocateOptions locate;                // the target's vertices located on the guide
   int threads = 0;                     // 0 = hardware threads (stages that run in parallel)
 };
 

@@ -43,8 +43,7 @@ Result<LandmarkSet> readLandmarks(const std::filesystem::path& path);
 std::string formatLandmarks(const LandmarkSet& set);
 
 struct ResolveLandmarksOptions {
-  // `position` landmarks farther than this fraction of the mesh's bounding-box
-  // diagonal from its surface are rejected as "off the mesh".
+  // `position` landmarks farther than this fraction of the bbox diagonal from the surface are "off the mesh".
   double max_off_surface = 0.01;
 };
 

@@ -31,10 +31,9 @@ enum class WeightEncoding {
 };
 
 struct RigWriteOptions {
-  // Influences written per vertex: 4 -> JOINTS_0/WEIGHTS_0, 8 -> also _1 (max 8).
-  // The largest are kept and renormalised.
+  // Influences per vertex, largest kept and renormalised: 4 -> JOINTS_0/WEIGHTS_0, 8 -> also _1 (max 8).
   int max_influences = 4;
-  WeightEncoding weight_encoding = WeightEncoding::kFloat;
+  WeightEncoding weight_encoding = WeightEncoding::kFloat;  // WEIGHTS_n component type
   // Morph deltas as sparse accessors when that is smaller (rows exactly 0 omitted).
   bool sparse_morph_targets = true;
 };

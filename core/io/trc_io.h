@@ -49,19 +49,11 @@ struct MarkerTrajectories {
 };
 
 struct TrcReadOptions {
-  // Gaps (empty or NaN cells) up to this many consecutive frames are filled by
-  // linear interpolation between the neighbouring samples (held at clip ends).
+  // Gaps (empty or NaN cells) up to this many frames are filled by linear interpolation (held at clip ends).
   int max_gap_frames = 10;
-  // Longer gaps (an occluded marker) are filled from the marker's neighbours:
-  // it follows the rigid motion of the 3-4 nearest markers present throughout
-  // the gap, estimated from the samples on either side and blended across it.
-  // An error naming the marker and frames when this is off, or when no such
-  // neighbours exist.
+  // Longer gaps follow the rigid motion of the 3-4 nearest markers present throughout; false: an error.
   bool fill_long_gaps = true;
-  // A header NumFrames different from the number of data rows is an error by
-  // default, because fewer rows is exactly what a truncated file looks like.
-  // When true (hand-trimmed clips whose header was not updated), the rows
-  // present are used and NumFrames is only reported (header_frame_count).
+  // true: a header NumFrames unlike the row count is reported (header_frame_count), rows used; false: an error.
   bool allow_frame_count_mismatch = false;
 };
 

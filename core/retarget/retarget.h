@@ -47,26 +47,17 @@ enum class DistanceMethod {
 const char* distanceMethodName(DistanceMethod method);  // "euclidean", "geodesic", "hybrid"
 
 struct HybridOptions {
-  // Geodesic regions as vertex index sets (e.g. from a REGION label). Empty:
-  // found automatically around the mesh's feature holes (see below).
+  // Geodesic regions as vertex index sets (e.g. from a REGION label); empty: found around the feature holes.
   std::vector<std::vector<int>> regions;
-  // Automatic regions: each hole loop (boundaryLoops) whose centroid lies in
-  // the bounding box of the placed markers (grown by 10% of its diagonal) is a
-  // feature hole (mouth, eyes); the longest loop is always excluded (the outer
-  // rim / neck cut, which lies outside the markers anyway). The region is the
-  // vertices within region_factor x the loop's extent (largest distance between
-  // two loop vertices: mouth width, eye width) of the loop.
+  // Automatic regions: vertices within this times a feature hole's extent (mouth, eye width) of it (boundaryLoops).
   double region_factor = 0.5;
-  // Outside the regions a vertex's geodesic weight decays as exp(-d / blend_gamma)
-  // with d its distance to the region (paper: "Gaussian" with gamma = 2, in cm
-  // on a ~20 cm face); 0 = 0.02 x mesh bounding-box diagonal. Weights below
-  // 1e-3 become 0 (pure Euclidean).
+  // Outside the regions the geodesic weight decays as exp(-d / blend_gamma); 0 = 0.02 x mesh bbox diagonal.
   double blend_gamma = 0.0;
 };
 
 struct MarkerDistanceOptions {
-  DistanceMethod method = DistanceMethod::kHybrid;
-  HybridOptions hybrid;
+  DistanceMethod method = DistanceMethod::kHybrid;  // marker-to-vertex distance
+  HybridOptions hybrid;      // kHybrid: the geodesic regions and the blend
   GeodesicOptions geodesic;  // heat-method solver (geodesic and hybrid)
   int threads = 0;  // 0 = hardware threads; results do not depend on it
 };
@@ -111,50 +102,36 @@ enum class BakeError {
 };
 
 struct BakeOptions {
-  BakeError metric = BakeError::kRelativeFrobenius;
-  // Smallest rank whose error (metric above) is <= tolerance. Mocap marker
-  // jitter makes the spectrum of a real clip flat (AnimFace on ICT: ~22-28
-  // modes at 5%, 64 at 1%, residual rms ~0.1 mm at 5%), hence 5%.
+  BakeError metric = BakeError::kRelativeFrobenius;  // how the bake's error is measured
+  // The smallest rank whose error (metric) is <= this.
   double tolerance = 0.05;
   int max_rank = 64;  // cap on morph targets (the tolerance may then be missed: see report.tolerance_met)
-  // Exact per-frame output: one morph target per frame (the rest frame too)
-  // and one-hot LINEAR weights (linear blending between consecutive frames).
-  // For short clips only: more than max_exact_frames frames is an Error.
+  // Exact per-frame output: one morph target per frame, one-hot LINEAR weights (short clips only).
   bool exact = false;
-  int max_exact_frames = 300;
-  // Also measure the true max vertex error over all frames (one #V x #M x
-  // 3*#frames product: about as long as the rest of the job together).
+  int max_exact_frames = 300;  // exact: more frames than this is an Error
+  // Also measure the true max vertex error over all frames (about as long as the rest of the job together).
   bool measure_max_error = false;
 };
 
 struct RetargetOptions {
-  RbfKernel kernel = RbfKernel::kGaussian;
-  // Kernel shape parameter (model units); 0 = kDefaultGammaFactor x the mesh's
-  // bounding-box diagonal (about 3 cm on a 30 cm head: a marker's influence
-  // spans its neighbours, ~2 cm apart on the AnimFace layout).
+  RbfKernel kernel = RbfKernel::kGaussian;          // RBF kernel
+  // Kernel shape parameter (model units); 0 = kDefaultGammaFactor x the mesh's bounding-box diagonal.
   double gamma = 0.0;
   RbfPolynomial polynomial = RbfPolynomial::kAuto;  // affine is replaced by constant for geodesic/hybrid distances
   std::map<std::string, double> stiffness;          // marker name -> 1..9 (paper 002 4.3.5); absent = 1
   double stiffness_step = 0.05;                     // see RbfOptions::stiffness_step
   int rest_frame = 0;                               // 0-based frame whose marker positions are the neutral face
-  // Remove rigid head motion first: each frame's markers are rigidly aligned
-  // (Umeyama, rotation + translation) to the rest frame's on `head_markers`
-  // (names; empty = chosen from the clip: the half of the markers the
-  // expression moves least, so a jaw opening is not read as a nod), so only
-  // the expression is retargeted. The
-  // paper's tool (algorithm 4.1) transfers raw offsets; a kernel without a
-  // polynomial cannot move the whole head, so head motion would smear the face.
+  // Remove rigid head motion first: each frame's markers rigidly aligned (Umeyama) to the rest frame's head_markers.
   bool remove_head_motion = true;
+  // Markers the head motion is taken from; empty: the half of the markers the expression moves least in the clip.
   std::vector<std::string> head_markers;
-  // Calibration TPS (aligned rest markers -> placed markers) regularisation,
-  // a fraction of the placed markers' bounding-box diagonal (TpsOptions
-  // units). Smooths the Jacobian against marker placement noise.
+  // Calibration TPS (aligned rest -> placed markers) regularisation, fraction of the placed markers' bbox diagonal.
   double calibration_regularization = 0.05;
   bool calibration_jacobian = true;  // false: similarity rotation + scale only
-  BakeOptions bake;
-  std::string mesh_name = "face";
-  std::string animation_name = "mocap";
-  int threads = 0;
+  BakeOptions bake;                  // the morph-target compression
+  std::string mesh_name = "face";    // the output mesh's name
+  std::string animation_name = "mocap";  // the output animation's name
+  int threads = 0;                   // 0 = hardware threads
 };
 
 inline constexpr double kDefaultGammaFactor = 0.1;

@@ -17,23 +17,11 @@
 namespace core {
 
 struct GeodesicOptions {
-  // Heat time t = time_factor * h^2, h = mean edge length. Crane et al. use
-  // m = 1. Measured on a 10k-vertex icosphere and a jittered 100x100 plane
-  // (sweep 0.5..10): mean relative error falls 3-4x from m = 1 to m = 3..5
-  // (sphere 0.31% -> 0.07%, plane 1.1% -> 0.3%), and beyond 5 the error
-  // near plane corners and boundaries grows again (max 2.0% -> 3.8% at 10): 4.
+  // Heat time t = time_factor * h^2, h = mean edge length (Crane et al. use 1).
   double time_factor = 4.0;
-  // On meshes with boundaries, average the heat solutions with Neumann and
-  // zero-Dirichlet boundary conditions (Crane et al. sec. 3.2.2): isolines no
-  // longer bend towards open boundaries, at the cost of a third factorisation.
+  // On meshes with boundaries, average the Neumann and zero-Dirichlet heat solutions (Crane et al. sec. 3.2.2).
   bool average_boundary_conditions = true;
-  // Heat step only: clamp negative edge weights (non-Delaunay edges) of the
-  // cotangent Laplacian to 0, making M + tL an M-matrix. Off by default: it
-  // costs accuracy on ordinary meshes (jittered plane: max error 1.5% -> 4%;
-  // ICT face: mean asymmetry 2.2% -> 3.1%), but it rescues meshes with many
-  // obtuse triangles, where at small t the far field of the heat is
-  // cancellation noise and whole distance fields collapse (a jittered
-  // synthetic head at time_factor 1: mean asymmetry 30% -> 2.6%).
+  // Heat step only: clamp negative cotangent weights (non-Delaunay edges) to 0, making M + tL an M-matrix.
   bool clamp_heat_weights = false;
 };
 

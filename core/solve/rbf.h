@@ -36,23 +36,15 @@ enum class RbfPolynomial {
 };
 
 struct RbfOptions {
-  RbfKernel kernel = RbfKernel::kGaussian;
-  // Shape parameter, distance units: the decay length of kGaussian and the
-  // offset of kMultiquadric (> 0 for those kernels; unused by the others).
+  RbfKernel kernel = RbfKernel::kGaussian;  // phi
+  // Shape parameter, distance units: kGaussian's decay length, kMultiquadric's offset (> 0 there; unused otherwise).
   double gamma = 1.0;
-  RbfPolynomial polynomial = RbfPolynomial::kAuto;
-  // Per-centre stiffness on the paper's 1-9 scale (1 = most flexible: the
-  // centre is interpolated exactly; 9 = stiffest), or empty = all 1. Stiffness
-  // s adds lambda = stiffness_step * (s - 1) * kernel_scale to the centre's
-  // diagonal entry (approximating RBF: the surface no longer follows that
-  // centre exactly, and bends less around it), where kernel_scale is the mean
-  // |phi| over the centre kernel matrix. The sign follows the kernel's
-  // definiteness (+ for kGaussian and kThinPlate, - for kMultiquadric and
-  // kLinear) so regularisation never drives the system towards singularity.
+  RbfPolynomial polynomial = RbfPolynomial::kAuto;  // the polynomial term
+  // Per-centre stiffness on the paper's 1-9 scale (1: interpolated exactly, 9: stiffest); empty = all 1.
   std::vector<double> stiffness;
+  // Stiffness s adds +-stiffness_step * (s - 1) * (mean |phi| of the centre kernel matrix) to the centre's diagonal.
   double stiffness_step = 0.05;
-  // The system is singular when its smallest singular value is below this
-  // fraction of the largest.
+  // The system is singular when its smallest singular value is below this fraction of the largest.
   double singular_tolerance = 1e-13;
 };
 

@@ -18,22 +18,16 @@
 namespace core {
 
 struct TpsOptions {
-  // Approximating TPS: lambda added to the kernel diagonal (model units, the
-  // kernel is a distance). 0 interpolates the landmarks exactly; larger values
-  // trade landmark fit for less bending (noisy landmarks).
+  // Approximating TPS: lambda added to the kernel diagonal (model units); 0 interpolates the landmarks exactly.
   double regularization = 0.0;
-  // Compute leave-one-out residuals (O(n^3) once per factorisation). Off for
-  // large dense centre sets where they are not used.
+  // Compute leave-one-out residuals (O(n^3) once per factorisation); off for large dense centre sets.
   bool leave_one_out = true;
-  // Threads for batch evaluation; 0 = hardware threads.
-  int threads = 0;
-  // Centres closer than this fraction of their bounding-box diagonal are
-  // duplicates; the system is also rejected when the centres' thinnest extent
-  // (smallest principal axis / largest) is below `min_flatness`.
+  int threads = 0;  // batch evaluation; 0 = hardware threads
+  // Centres closer than this fraction of their bounding-box diagonal are duplicates.
   double duplicate_tolerance = 1e-6;
+  // The system is rejected when the centres' thinnest extent (smallest principal axis / largest) is below this.
   double min_flatness = 1e-3;
-  // A landmark is suspicious when the spline through the others misses it by
-  // more than this many times its distance to the nearest other landmark.
+  // A landmark is suspicious when the spline through the others misses it by this times its nearest spacing.
   double outlier_spacing_ratio = 1.0;
 };
 

@@ -28,10 +28,7 @@ struct TransferredSkeleton {
 TransferredSkeleton transferSkeleton(const Rig& source, const TpsWarp& dense_map, const Eigen::Matrix3d& rotation);
 
 struct AnimationTransferOptions {
-  // Scales animated motion away from the rest pose, by joint (node) name:
-  // translation offsets, rotation angles (about the same axis) and scale
-  // ratios (in log scale) of the skin joints and their descendants.
-  // Morph-weight keys are kept (the shapes carry their own exaggeration).
+  // Gain on animated motion away from rest, by joint name (translations, rotation angles, log scale).
   Exaggeration exaggeration;
 };
 // The source's animations on `nodes` (the transferred skeleton, or the

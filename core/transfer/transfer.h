@@ -36,75 +36,42 @@ enum class ShapeAdaptation {
 const char* shapeAdaptationName(ShapeAdaptation adaptation);
 
 struct TransferOptions {
-  WarpOptions warp;
-  bool weights = true;
-  bool joints = true;
-  bool shapes = true;
-  bool animations = true;
+  WarpOptions warp;                // the correspondence
+  bool weights = true;             // skin weights
+  bool joints = true;              // joints (moved through the dense map)
+  bool shapes = true;              // blend shapes
+  bool animations = true;          // animations
   bool attributes = true;          // labels, fields, colours
-  // Replace the target's UV sets with the source's (transferUvLayout): target
-  // vertices where a seam crosses are split, copies appended.
+  // Replace the target's UV sets with the source's (transferUvLayout): vertices where a seam crosses are split.
   bool uvs = false;
-  SkinWeightOptions weight_options;
-  ShapeAdaptation adaptation = ShapeAdaptation::kRotation;
-  // kRotation/kSimilarity: a global rotation below this angle (degrees) is
-  // read as face-shape variation (an identity's tilt), not a pose, and not
-  // applied to deltas. Measured: ICT identities tilt up to ~4 degrees while
-  // their expressions stay unrotated.
+  SkinWeightOptions weight_options;  // influences kept, inpainting
+  ShapeAdaptation adaptation = ShapeAdaptation::kRotation;  // how deltas and joint translations are mapped
+  // kRotation/kSimilarity: a global rotation below this (degrees) is read as face shape, not a pose: not applied.
   double min_rotation_deg = 6.0;
-  // A face shaped differently can feign a rotation about as large as the
-  // angle whose tangent is the landmarks' non-rigid residual (relative to
-  // their spread): ICT identities exaggerated 3x "tilt" 2-11 degrees with a
-  // residual angle of 10-11. A rotation below this factor times that angle
-  // is read as shape too (0: only min_rotation_deg counts).
+  // ... nor one below this factor times the landmarks' residual angle (misfit over spread) (0: only the above).
   double shape_rotation_factor = 1.5;
-  // kRotation: the global scale is applied too when it is at least this
-  // ratio away from 1 (either way): a target in other units or a scaled copy.
-  // Closer to 1 it is read as face size, which ICT identities' deltas do not
-  // follow (measured: 0.93-1.04 at 1x, 0.78 for an identity exaggerated 3x).
+  // kRotation: the global scale is applied too when at least this ratio away from 1 (units, a scaled copy).
   double min_scale_ratio = 1.5;
-  // The two floors above (min_rotation_deg, min_scale_ratio) hold in full for
-  // a face whose landmarks miss the similarity by this residual angle or more
-  // (ICT identities: 2.8-3.7 degrees); below it they shrink in proportion, so
-  // that a copy of the source's shape (residual 0) is turned and scaled by any
-  // similarity, however small. 0: the floors always hold in full.
+  // Below this landmark residual angle (degrees) the two floors above shrink in proportion. 0: they always hold.
   double shape_residual_deg = 1.0;
-  // kRotation: a target whose landmarks (8 or more) are an affine map of the
-  // source's stretched at least this ratio more along one axis than another,
-  // and by more than shape_stretch_factor times the map's misfit can feign
-  // (log ratio against the rms misfit per remaining degree of freedom over
-  // the landmarks' thinnest principal spread), has its deltas and animated
-  // joint translations mapped by that affine map (a face twice as wide:
-  // twice as far sideways). The ratio floor shrinks like the ones above for
-  // a near affine copy of the source (misfit angle under
-  // shape_residual_deg). ICT identities: ratios 1.03-1.16 (1.53 exaggerated
-  // 3x), log ratio at most 1.5 times their misfit. 0: never.
+  // kRotation: deltas follow the landmarks' (8+) affine map when it stretches this ratio more on one axis. 0: never.
   double min_stretch_ratio = 1.5;
+  // ... and its log stretch ratio exceeds this many times what the affine fit's misfit can feign.
   double shape_stretch_factor = 3.0;
   // kLocal: regularisation of the smoothed map, fraction of the source diagonal.
   double local_smoothing = 0.5;
-  // Movement exaggeration (papers 000 sec. 5.4.2): shapes' deltas, and the
-  // skin joints' animated motion away from rest (translation offsets,
-  // rotation angles, scale ratios in log scale).
+  // Movement exaggeration (papers 000 sec. 5.4.2): gain on shapes' deltas and skin joints' motion away from rest.
   double exaggeration = 1.0;
   std::map<std::string, double> shape_exaggeration;  // by morph target name
   std::map<std::string, double> joint_exaggeration;  // by joint name
   bool diagnostic_attributes = false;             // add _CONFIDENCE, _INPAINTED and _QUALITY to the output
-  // The transfer checks its own output (checkTransferQuality): shape
-  // outliers and vertices located across an opening are reported (and
-  // warned about) always; with strict they fail the transfer
-  // (ErrorCode::kQualityGate) naming the shapes and vertex counts.
-  QualityOptions quality;
+  QualityOptions quality;          // the output's own check (checkTransferQuality), always run and reported
+  // A failed quality check fails the transfer (ErrorCode::kQualityGate) naming the shapes; false: a warning.
   bool strict = false;
-  // Vertices of low confidence that the check finds moving as none of their
-  // ring does have their deltas inpainted from their neighbours (then
-  // checked again); false: reported only.
+  // Low-confidence vertices the check flags get deltas inpainted from neighbours, then rechecked; false: reported.
   bool repair_unsure = true;
-  int threads = 0;
-  // Called at each stage boundary with the stage about to run ("warp",
-  // "dense_map", "weights", "joints", "animations", "shapes", "attributes") and the fraction
-  // of the transfer done (0-1). Returning false stops the transfer there with
-  // ErrorCode::kCancelled (cancellation, time limits). Empty = run to the end.
+  int threads = 0;                 // 0 = hardware threads
+  // Before each stage ("warp", "dense_map", "weights", "joints", "animations", "shapes", "attributes"): false cancels.
   std::function<bool(std::string_view stage, double fraction)> on_stage;
 };
 
@@ -136,7 +103,7 @@ struct TransferReport {
   // why: the options' choice. rigport does not switch it by itself: no
   // measure of the faces found tells a stylised face, whose deltas follow
   // the stylisation ("local"), from an identity, whose deltas do not
-  // (docs/ACCURACY.md, "Stylised faces").
+  // (docs/journal/ACCURACY_HISTORY_TARGETS.md, "Stylised faces").
   std::string adaptation;
   std::string adaptation_reason;
   double global_scale = 1.0;      // similarity scale source -> target landmarks

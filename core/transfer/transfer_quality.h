@@ -18,25 +18,14 @@
 namespace core {
 
 struct QualityOptions {
-  // A vertex is an outlier of a shape when its delta is farther than this
-  // fraction of the ring's largest motion (its own and its neighbours'
-  // |delta|) from every neighbour's delta: it moves as none of its ring
-  // does. A smooth field changes by an edge times its gradient from one
-  // vertex to the next; the ICT ground truth on every target (coarse
-  // remeshes included) scores at most 0.57, the ICT rig itself 0.50
-  // (mouthPress); a lip vertex stuck while its lip opens 3.5 cm 0.83-0.99,
-  // a vertex given the other cheek's motion 0.77-0.92.
+  // Outlier of a shape: a delta farther than this fraction of its ring's largest motion from every neighbour's.
   double outlier_ratio = 0.7;
-  // ...and farther than this factor times the sharpest the source shape is
-  // itself where the vertex lies (its location's corners and their rings):
-  // a crease the rig has is not the transfer's fault.
+  // ... and farther than this factor times the sharpest the source shape is itself where the vertex lies.
   double source_factor = 1.5;
-  // Rings moving less than this fraction of the shape's largest |delta| are
-  // not judged (rounding-level motion has no shape to disagree with).
+  // Rings moving less than this fraction of the shape's largest |delta| are not judged.
   double min_motion = 0.25;
-  // How many of the worst vertices the report lists.
-  int worst_count = 10;
-  int threads = 0;
+  int worst_count = 10;  // how many of the worst vertices the report lists
+  int threads = 0;       // 0 = hardware threads
 };
 
 struct QualityVertex {

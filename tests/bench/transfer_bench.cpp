@@ -24,7 +24,7 @@ namespace {
 // heap): otherwise whether glibc hands the ~15 MB freed with an iteration's
 // rig back to the OS, to fault it in again in the next one, depends on the
 // order of frees, and moved the end-to-end time by 3-6 ms between builds
-// with the same work (docs/BENCHMARKS.md, 2026-11-22 night).
+// with the same work (docs/journal/BENCHMARKS_HISTORY.md, 2026-11-22 night).
 const bool kHeapKept = [] {
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TRIM_THRESHOLD, 1 << 30);

@@ -200,11 +200,12 @@ TEST_P(IctTransfer, ShapesBeatThePlainMethodAndOutputIsValid) {
     EXPECT_LE(jaw, 0.03) << "jawOpen";
     EXPECT_LE(blink, 0.03) << "eyeBlink_L/R";
   }
-  // The parts of the issue's E limits that are met (docs/ACCURACY.md): the
-  // worst shape of every ordinary identity within 0.12 (measured 0.066-0.119,
-  // id_s03_remesh's eyeBlink_R the closest), and the 10-landmark target's
-  // median within 0.08 (measured 0.0798). The ordinary medians' 0.03 and the
-  // cartoon's 0.10 are not met and not asserted.
+  // The parts of the issue's E limits that are met
+  // (docs/journal/ACCURACY_HISTORY.md, "Where the issue's E limits stand"):
+  // the worst shape of every ordinary identity within 0.12 (measured
+  // 0.066-0.119, id_s03_remesh's eyeBlink_R the closest), and the 10-landmark
+  // target's median within 0.08 (measured 0.0798). The ordinary medians' 0.03
+  // and the cartoon's 0.10 are not met and not asserted.
   if (name.starts_with("id_")) {
     EXPECT_LE(e.worst(), 0.12) << "worst shape of an ordinary identity";
   }
@@ -303,7 +304,7 @@ TEST(IctOtherIdentities, ShapesBeatThePlainMethod) {
   }
   // The worst shape is better on average, not on every identity: on
   // s02_plus_s03 eyeBlink_L is 0.137 against the plain method's 0.121
-  // (measured 2026-11-22; docs/ACCURACY.md, "Other identities").
+  // (measured 2026-11-22; docs/journal/ACCURACY_HISTORY.md, "Other identities").
   EXPECT_LT(worst_sum, plain_worst_sum);
 }
 
@@ -314,7 +315,7 @@ TEST(IctOtherIdentities, ShapesBeatThePlainMethod) {
 // Same topology, so the landmarks are the source's vertices, and the truth
 // is each expression carried through the stylisation: D(X + delta) - D(X).
 // The issue's requirement: the default must not lose to the papers' plain
-// method on any kind of face (docs/ACCURACY.md, "Stylised faces").
+// method on any kind of face (docs/journal/ACCURACY_HISTORY.md, "Stylised faces").
 struct Stylisation {
   double nose_inflate, nose_push, jaw_widen, jaw_drop, forehead, scale_x, scale_y, scale_z;
 };
@@ -409,7 +410,8 @@ TEST(IctMadeCartoons, TheDefaultDoesNotLoseToThePlainMethod) {
   EXPECT_LT(median_sum, plain_median_sum);
 }
 
-// What limits E (printed; summarised in docs/ACCURACY.md). On the
+// What limits E (printed; measured in docs/journal/ACCURACY_HISTORY_TARGETS.md,
+// "Ordinary identities", summarised in docs/ACCURACY.md). On the
 // same-topology targets the true correspondence is known (target vertex i is
 // source vertex i), so the error can be split: the true correspondence with
 // raw deltas reproduces the ordinary identity's ground truth exactly (ICT

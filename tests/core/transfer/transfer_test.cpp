@@ -158,7 +158,8 @@ TEST(TransferRig, IsEquivariantUnderRotationTranslationAndUniformScale) {
 // stretched as a whole (its landmarks an exact affine map of the source's),
 // by that affine map. A face shaped otherwise keeps its deltas under the
 // default (an identity's deltas do not follow its proportions;
-// docs/ACCURACY.md, and RotationFeignedByShapeIsNotAppliedButAPoseIs).
+// docs/journal/ACCURACY_HISTORY_TARGETS.md, "Faces stretched as a whole", and
+// RotationFeignedByShapeIsNotAppliedButAPoseIs).
 TEST(TransferRig, ShapesAndJointsFollowAFaceStretchedAsAWhole) {
   const core::Rig& src = sourceRig().rig;
   const Eigen::Matrix3d wide = Eigen::Vector3d(2.0, 1.0, 1.0).asDiagonal();
