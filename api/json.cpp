@@ -56,7 +56,7 @@ json toJson(const RigInfo& r) {
 }
 
 json toJson(const JobSpec& s) {
-  json j = {{"kind", s.kind}, {"options", s.options}};
+  json j = {{"kind", jobKindName(s.kind)}, {"options", s.options}};
   if (!s.rig.empty()) j["rig"] = s.rig;
   return j;
 }
@@ -135,9 +135,17 @@ Parsed<JobSpec> jobSpecFromJson(const json& j) {
   for (const auto& [key, value] : j.items()) {
     if (key != "kind" && key != "rig" && key != "options") return "spec." + key + ": not a known field (kind, rig, options)";
   }
-  for (const std::string& e : {readString(j, "kind", s.kind, "spec", true), readString(j, "rig", s.rig, "spec", false)}) {
+  std::string kind;
+  for (const std::string& e : {readString(j, "kind", kind, "spec", true), readString(j, "rig", s.rig, "spec", false)}) {
     if (!e.empty()) return e;
   }
+  const auto parsed_kind = parseJobKind(kind);
+  if (!parsed_kind) {
+    std::string known;
+    for (const JobKindInfo& k : jobKinds()) known += std::string(known.empty() ? "" : ", ") + jobKindName(k.kind);
+    return "spec.kind: unknown kind '" + kind + "' (known: " + known + ")";
+  }
+  s.kind = *parsed_kind;
   if (const auto it = j.find("options"); it != j.end() && !it->is_null()) {
     if (!it->is_object()) return std::string("spec.options: expected an object");
     s.options = *it;

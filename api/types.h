@@ -20,6 +20,10 @@ const char* jobStatusName(JobStatus status);            // "queued", "running", 
 std::optional<JobStatus> parseJobStatus(std::string_view name);
 bool isFinal(JobStatus status);                          // succeeded, failed or cancelled
 
+enum class JobKind { kTransfer, kRetarget };
+const char* jobKindName(JobKind kind);                   // "transfer", "retarget": the spec's "kind"
+std::optional<JobKind> parseJobKind(std::string_view name);
+
 // RFC 9457 problem details (application/problem+json). `type` is a stable URI
 // per problem class (problemType()); `detail` names the field or file at fault.
 struct Problem {
@@ -48,14 +52,14 @@ struct RigInfo {
 
 // The `spec` part of POST /v1/jobs: {"kind":"transfer","rig":"<id>","options":{...}}.
 struct JobSpec {
-  std::string kind;            // a jobKinds() name
+  JobKind kind = JobKind::kTransfer;
   std::string rig;             // rig id (transfer)
   nlohmann::json options = nlohmann::json::object();  // kind-specific, validated by the kind's parser
 };
 
 struct JobInfo {
   std::string id;
-  std::string kind;
+  std::string kind;            // jobKindName; text, so a client reads listings of kinds newer than itself
   std::string rig;
   JobStatus status = JobStatus::kQueued;
   std::string stage;           // current or last pipeline stage ("queued", "prepare", "warp", ..., "done")
@@ -77,15 +81,15 @@ struct RigPage {
   std::vector<RigInfo> items;
 };
 
-// The job kinds the service runs, and the multipart file fields each needs
-// besides `spec` (required first, then optional).
-struct JobKind {
-  std::string name;
+// What a job kind needs: a rig or not, and the multipart file fields besides
+// `spec` (required first, then optional).
+struct JobKindInfo {
+  JobKind kind;
   bool needs_rig = false;
   std::vector<std::string> required_files;
   std::vector<std::string> optional_files;
 };
-const std::vector<JobKind>& jobKinds();
-const JobKind* findJobKind(std::string_view name);
+const std::vector<JobKindInfo>& jobKinds();  // every kind the service runs
+const JobKindInfo& jobKindInfo(JobKind kind);
 
 }  // namespace api

@@ -124,13 +124,14 @@ std::variant<api::RigInfo, api::Problem> checkRigUpload(Bytes rig_bytes, const s
   return info;
 }
 
-std::optional<api::Problem> checkJobInputs(const api::JobSpec& spec,
+std::optional<api::Problem> checkJobInputs(api::JobSpec& spec,
                                            const std::map<std::string, std::pair<std::string, Bytes>>& files,
                                            const core::LandmarkSet* rig_landmarks, const ServerConfig& limits) {
   const std::string instance = "/v1/jobs";
-  if (spec.kind == "transfer") {
+  if (spec.kind == api::JobKind::kTransfer) {
     auto settings = core::parseTransferOptions(spec.options.dump(), "spec.options");
     if (!settings) return problemFromCoreError(settings.error(), instance);
+    spec.options = nlohmann::json::parse(core::transferOptionsJson(*settings));
     const auto& [target_name, target_bytes] = files.at("target");
     auto target = core::readMeshFromMemory(target_bytes, target_name, "target '" + target_name + "'");
     if (!target) return problemFromCoreError(target.error(), instance);
@@ -149,9 +150,10 @@ std::optional<api::Problem> checkJobInputs(const api::JobSpec& spec,
     }
     return std::nullopt;
   }
-  if (spec.kind == "retarget") {
+  if (spec.kind == api::JobKind::kRetarget) {
     auto settings = core::parseRetargetOptions(spec.options.dump(), "spec.options");
     if (!settings) return problemFromCoreError(settings.error(), instance);
+    spec.options = nlohmann::json::parse(core::retargetOptionsJson(*settings));
     const auto& [mesh_name, mesh_bytes] = files.at("mesh");
     auto mesh = core::readMeshFromMemory(mesh_bytes, mesh_name, "mesh '" + mesh_name + "'");
     if (!mesh) return problemFromCoreError(mesh.error(), instance);
@@ -181,7 +183,8 @@ std::optional<api::Problem> checkJobInputs(const api::JobSpec& spec,
     }
     return std::nullopt;
   }
-  return api::makeProblem(api::WireError::kMalformedRequest, "spec.kind: '" + spec.kind + "' is not served yet", instance);
+  return api::makeProblem(api::WireError::kMalformedRequest,
+                          "spec.kind: '" + std::string(api::jobKindName(spec.kind)) + "' is not served yet", instance);
 }
 
 namespace {
@@ -315,9 +318,13 @@ core::Result<core::JobOutput> runJob(const JobRecord& job, const RigRecord* rig,
   run.threads = threads;
   run.on_stage = on_stage;
   run.job_label = "job " + job.id;
-  if (job.kind == "transfer" && rig != nullptr) return runTransferJob(files, *rig, blobs, caches.rigs, std::move(run));
-  if (job.kind == "retarget") return runRetargetJob(files, caches.distances, std::move(run));
-  return core::makeError(core::ErrorCode::kInvalidArgument, "job " + job.id + ": kind '" + job.kind + "' cannot run");
+  switch (job.kind) {
+    case api::JobKind::kTransfer:
+      if (rig == nullptr) break;
+      return runTransferJob(files, *rig, blobs, caches.rigs, std::move(run));
+    case api::JobKind::kRetarget: return runRetargetJob(files, caches.distances, std::move(run));
+  }
+  return core::makeError(core::ErrorCode::kInvalidArgument, "job " + job.id + ": a transfer job without its rig cannot run");
 }
 
 }  // namespace server

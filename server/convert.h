@@ -43,8 +43,10 @@ std::variant<api::RigInfo, api::Problem> checkRigUpload(Bytes rig, const std::st
 // surface mesh; landmarks sharing >= 4 names with the rig's `rig_landmarks`
 // and spanning 3D; markers on the mesh; stiffness 1-9 of known markers).
 // `files` maps multipart field -> (file name, bytes); `rig_landmarks` is null
-// for kinds without a rig.
-std::optional<api::Problem> checkJobInputs(const api::JobSpec& spec,
+// for kinds without a rig. On success `spec.options` holds the options
+// normalised (every option with its value): what is stored and what the job
+// runs with, whatever defaults a later build has.
+std::optional<api::Problem> checkJobInputs(api::JobSpec& spec,
                                            const std::map<std::string, std::pair<std::string, Bytes>>& files,
                                            const core::LandmarkSet* rig_landmarks, const ServerConfig& limits);
 

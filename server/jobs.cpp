@@ -19,7 +19,7 @@ using Clock = std::chrono::steady_clock;
 api::JobInfo jobInfoOf(const JobRecord& job, const std::optional<LiveProgress>& live) {
   api::JobInfo info;
   info.id = job.id;
-  info.kind = job.kind;
+  info.kind = api::jobKindName(job.kind);
   info.rig = job.rig;
   info.status = job.status;
   info.stage = job.stage;
@@ -272,7 +272,7 @@ JobManager::Retry JobManager::runOne(const std::string& tenant, const std::strin
   job->attempts += 1;
   job->started_ms = started_ms;
   metrics_.observeStage("queue", static_cast<double>(started_ms - job->created_ms) / 1000.0);
-  log_.info("job_started", {{"job", id}, {"tenant", tenant}, {"kind", job->kind}, {"attempt", job->attempts}});
+  log_.info("job_started", {{"job", id}, {"tenant", tenant}, {"kind", api::jobKindName(job->kind)}, {"attempt", job->attempts}});
 
   const auto t_start = Clock::now();
   Execution run = execute(*job, *state);

@@ -267,7 +267,9 @@ JobRecord readJob(const Stmt& s) {
   j.sequence = s.int64(0);
   j.id = s.text(1);
   j.tenant = s.text(2);
-  j.kind = s.text(3);
+  // Written from jobKindName only; a new kind comes with a new schema version,
+  // which older builds refuse to open, so every stored kind parses.
+  j.kind = api::parseJobKind(s.text(3)).value_or(api::JobKind::kTransfer);
   j.rig = s.text(4);
   j.spec_json = s.text(5);
   j.inputs = jsonToMap(s.text(6));
@@ -558,7 +560,7 @@ core::Result<std::pair<JobRecord, bool>> MetadataStore::insertJob(const JobRecor
     auto stmt = c.prepare(kInsert);
     if (!stmt) return stmt.error();
     Stmt s(*stmt);
-    s.bind(1, stored.id).bind(2, stored.tenant).bind(3, stored.kind).bind(4, stored.rig).bind(5, stored.spec_json);
+    s.bind(1, stored.id).bind(2, stored.tenant).bind(3, std::string(api::jobKindName(stored.kind))).bind(4, stored.rig).bind(5, stored.spec_json);
     s.bind(6, mapToJson(stored.inputs)).bind(7, mapToJson(stored.input_names)).bind(8, stored.idempotency_key);
     s.bind(9, api::jobStatusName(stored.status)).bind(10, stored.stage).bind(11, stored.attempts);
     s.bind(12, stored.cache_hit).bind(13, stored.error_json).bind(14, stored.result_blob);

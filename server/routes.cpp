@@ -288,16 +288,10 @@ void postJob(const Request& req, Response& res, const httplib::ContentReader& re
   if (auto* e = std::get_if<std::string>(&parsed_spec)) {
     return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest, *e, req.path), ctx);
   }
-  const api::JobSpec& spec = std::get<api::JobSpec>(parsed_spec);
-  const api::JobKind* kind = api::findJobKind(spec.kind);
-  if (!kind) {
-    std::vector<std::string> known;
-    for (const auto& k : api::jobKinds()) known.push_back(k.name);
-    return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest, "spec.kind: unknown kind '" + spec.kind +
-                                             "' (known: " + core::joinNames(known) + ")", req.path), ctx);
-  }
+  api::JobSpec& spec = std::get<api::JobSpec>(parsed_spec);
+  const api::JobKindInfo& kind = api::jobKindInfo(spec.kind);
   std::optional<core::LandmarkSet> rig_landmarks;
-  if (kind->needs_rig) {
+  if (kind.needs_rig) {
     if (!isHexId(spec.rig, 64)) {
       return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest,
                                                "spec.rig: expected the 64-hex-digit id of an uploaded rig", req.path), ctx);
@@ -316,9 +310,9 @@ void postJob(const Request& req, Response& res, const httplib::ContentReader& re
     }
     rig_landmarks = std::move(*landmarks);
   }
-  std::set<std::string> required(kind->required_files.begin(), kind->required_files.end());
+  std::set<std::string> required(kind.required_files.begin(), kind.required_files.end());
   required.insert("spec");
-  auto loaded = loadParts(upload, required, {kind->optional_files.begin(), kind->optional_files.end()}, req.path,
+  auto loaded = loadParts(upload, required, {kind.optional_files.begin(), kind.optional_files.end()}, req.path,
                           ctx.config.max_document_part_bytes);
   if (auto* p = std::get_if<api::Problem>(&loaded)) return sendProblem(res, *p, ctx);
   const auto& bytes = std::get<LoadedParts>(loaded).bytes;
@@ -370,7 +364,7 @@ void postJob(const Request& req, Response& res, const httplib::ContentReader& re
                        ctx);
   }
   if (created) {
-    ctx.log.info("job_accepted", {{"job", record.id}, {"tenant", *tenant}, {"kind", record.kind}, {"rig", record.rig}});
+    ctx.log.info("job_accepted", {{"job", record.id}, {"tenant", *tenant}, {"kind", api::jobKindName(record.kind)}, {"rig", record.rig}});
   }
   res.set_header("Location", "/v1/jobs/" + record.id);
   sendJson(res, created ? 202 : 200, api::toJson(jobInfoOf(record, ctx.jobs.live(record.id))));

@@ -67,7 +67,7 @@ struct RigRecord {
 struct JobRecord {
   std::string tenant;
   std::string id;                    // random 32 hex, unique over all tenants
-  std::string kind;
+  api::JobKind kind = api::JobKind::kTransfer;
   std::string rig;                   // rig id (may be empty for kinds without a rig)
   std::string spec_json;             // the submitted spec, as normalised JSON
   std::map<std::string, std::string> inputs;  // multipart field -> blob hash (target, target_landmarks, ...)

@@ -167,7 +167,7 @@ TEST(ApiJson, RigInfoRoundTrips) {
 
 TEST(ApiJson, JobSpecRoundTrips) {
   api::JobSpec s;
-  s.kind = "transfer";
+  s.kind = api::JobKind::kTransfer;
   s.rig = std::string(64, 'c');
   s.options = {{"max_influences", 4}, {"components", {{"shapes", false}}}};
   const api::JobSpec back = valueOf(api::jobSpecFromJson(api::toJson(s)));
@@ -178,10 +178,10 @@ TEST(ApiJson, JobSpecRoundTrips) {
 
 TEST(ApiJson, JobSpecWithoutRigOmitsItAndRoundTrips) {
   api::JobSpec s;
-  s.kind = "retarget";
+  s.kind = api::JobKind::kRetarget;
   EXPECT_FALSE(api::toJson(s).contains("rig"));
   const api::JobSpec back = valueOf(api::jobSpecFromJson(api::toJson(s)));
-  EXPECT_EQ(back.kind, "retarget");
+  EXPECT_EQ(back.kind, api::JobKind::kRetarget);
   EXPECT_TRUE(back.rig.empty());
   EXPECT_EQ(back.options, json::object());
 }
@@ -310,11 +310,12 @@ TEST(ApiTypes, JobStatusNamesRoundTripAndFinalStatesAreTheThreeEnds) {
 }
 
 TEST(ApiTypes, TransferKindNeedsRigTargetAndTargetLandmarks) {
-  const api::JobKind* transfer = api::findJobKind("transfer");
-  ASSERT_NE(transfer, nullptr);
-  EXPECT_TRUE(transfer->needs_rig);
-  EXPECT_EQ(transfer->required_files, (std::vector<std::string>{"target", "target_landmarks"}));
-  EXPECT_EQ(api::findJobKind("nope"), nullptr);
+  const api::JobKindInfo& transfer = api::jobKindInfo(api::JobKind::kTransfer);
+  EXPECT_EQ(transfer.kind, api::JobKind::kTransfer);
+  EXPECT_TRUE(transfer.needs_rig);
+  EXPECT_EQ(transfer.required_files, (std::vector<std::string>{"target", "target_landmarks"}));
+  EXPECT_EQ(api::parseJobKind("transfer"), api::JobKind::kTransfer);
+  EXPECT_EQ(api::parseJobKind("nope"), std::nullopt);
 }
 
 // ---- error codes -----------------------------------------------------------------

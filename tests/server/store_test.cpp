@@ -70,7 +70,7 @@ JobRecord makeJob(const std::string& tenant, const std::string& id, const std::s
   JobRecord job;
   job.tenant = tenant;
   job.id = id;
-  job.kind = "transfer";
+  job.kind = api::JobKind::kTransfer;
   job.rig = "rig1";
   job.spec_json = R"({"kind":"transfer","rig":"rig1"})";
   job.inputs = {{"target", std::string(64, 'd')}, {"target_landmarks", std::string(64, 'e')}};
@@ -482,7 +482,7 @@ TEST(MetadataStore, InsertJobHonoursIdempotencyKeyPerTenant) {
   EXPECT_EQ(got->inputs, expected.inputs);
   EXPECT_EQ(got->input_names, expected.input_names);
   EXPECT_EQ(got->spec_json, expected.spec_json);
-  EXPECT_EQ(got->kind, "transfer");
+  EXPECT_EQ(got->kind, api::JobKind::kTransfer);
   EXPECT_EQ(got->rig, "rig1");
   EXPECT_EQ(got->status, JobStatus::kQueued);
   EXPECT_EQ(got->stage, "queued");

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include "core/jobs/transfer_options.h"
 #include "tests/server/service_fixture.h"
 #include "tests/test_support.h"
 
@@ -121,6 +122,11 @@ TEST(Tenancy, IdempotencyKeyReturnsTheSameJob) {
   ASSERT_EQ(first.status, 202) << first.raw;
   EXPECT_EQ(again.status, 200) << again.raw;
   EXPECT_EQ(first.body["id"], again.body["id"]);
+  // Options are stored normalised: the defaults written out are the same request.
+  Reply spelled_out = submitTransfer(*alice, rig_id, files, "batch-7/head-12",
+                                     nlohmann::json::parse(core::transferOptionsJson(core::TransferSettings{})));
+  EXPECT_EQ(spelled_out.status, 200) << spelled_out.raw;
+  EXPECT_EQ(spelled_out.body["id"], first.body["id"]);
   Reply other_key = submitTransfer(*alice, rig_id, files, "batch-7/head-13");
   EXPECT_NE(other_key.body["id"], first.body["id"]);
   Reply other_tenant = submitTransfer(*bob, rig_id, files, "batch-7/head-12");  // keys are per tenant
