@@ -488,7 +488,7 @@ LocatedTarget locateTarget(const PreparedSource& source, const Mesh& target, con
   // The target is located on the smoothed guide (WarpOptions::smooth_guide):
   // one more local round's smoothed displacement of the projection sample,
   // without target pulls; or on the guide itself.
-  const Mesh& matched = prepared.matched(target);
+  const Mesh& matched = prepared.matched();
   const bool on_smoothed_guide = locatesOnSmoothedGuide(options);
   const double trust = trustedDistance(options, report);
   LocatedTarget out;

@@ -7,6 +7,7 @@
 
 #include <Eigen/Geometry>
 
+#include "core/base/timing.h"
 #include "core/correspond/warp_stages.h"
 #include "core/geometry/similarity.h"
 
@@ -66,7 +67,7 @@ Status checkRegionLabels(const Eigen::VectorXi& source, const Eigen::VectorXi& t
 // it meets the head).
 std::vector<int> detachedPieces(const Mesh& target, const std::vector<int>& representative,
                                  const LandmarkSet& landmarks, const Eigen::MatrixX3d& landmark_positions,
-                                 const ClosestPointIndex& index, WarpReport& report) {
+                                 const ClosestPointIndex& index, int& detached_pieces, int& detached_vertices) {
   const MeshPieces pieces = meshPieces(target, representative);
   if (pieces.count < 2) return {};
   std::vector<char> skin(static_cast<std::size_t>(pieces.count), 0);
@@ -78,8 +79,8 @@ std::vector<int> detachedPieces(const Mesh& target, const std::vector<int>& repr
     if (loop.vertices.empty()) continue;
     skin[static_cast<std::size_t>(pieces.vertex_piece[static_cast<std::size_t>(loop.vertices.front())])] = 1;
   }
-  report.detached_pieces = static_cast<int>(std::count(skin.begin(), skin.end(), 0));
-  if (report.detached_pieces == 0) return {};
+  detached_pieces = static_cast<int>(std::count(skin.begin(), skin.end(), 0));
+  if (detached_pieces == 0) return {};
   std::vector<int> number(static_cast<std::size_t>(pieces.count), -1);
   for (int piece = 0, next = 0; piece < pieces.count; ++piece) {
     if (!skin[static_cast<std::size_t>(piece)]) number[static_cast<std::size_t>(piece)] = next++;
@@ -89,7 +90,7 @@ std::vector<int> detachedPieces(const Mesh& target, const std::vector<int>& repr
     const int piece = pieces.vertex_piece[static_cast<std::size_t>(v)];
     if (piece >= 0 && !skin[static_cast<std::size_t>(piece)]) {
       detached[static_cast<std::size_t>(v)] = number[static_cast<std::size_t>(piece)];
-      ++report.detached_vertices;
+      ++detached_vertices;
     }
   }
   return detached;
@@ -181,9 +182,32 @@ std::vector<std::uint64_t> selectMasks(const std::vector<std::uint64_t>& masks, 
   return out;
 }
 
-Result<WarpTarget> setUpTarget(const PreparedSource& source, const Mesh& target, const LandmarkSet& target_landmarks,
-                               const std::string& target_label, const WarpOptions& options, WarpReport& report) {
-  const bool source_regions = !source.face_regions.empty(), target_regions = target.regions.size() > 0;
+Result<PreparedTarget> prepareTarget(Mesh mesh, LandmarkSet landmarks, const std::string& label) {
+  const auto t0 = Clock::now();
+  if (auto ok = validateSurfaceMesh(mesh, label); !ok) return ok.error();
+  ClosestPointIndex index(mesh.positions, mesh.triangles);
+  auto landmark_positions = resolveLandmarks(landmarks, mesh, label, &index);
+  if (!landmark_positions) return landmark_positions.error();
+  PreparedTarget target{std::move(mesh), label, std::move(landmarks), std::move(*landmark_positions), {}, {}, {}, {}, 0, 0,
+                        std::move(index), 0.0, 0.0};
+  const Mesh& m = target.mesh;
+  target.normals = m.normals.rows() == m.vertexCount() ? m.normals : computeSeamlessVertexNormals(m.positions, m.triangles);
+  target.representative = coincidentVertexRepresentatives(m.positions);
+  target.adjacency = vertexAdjacency(m.triangles, m.vertexCount());
+  target.detached = detachedPieces(m, target.representative, target.landmarks, target.landmark_positions, target.index,
+                                   target.detached_pieces, target.detached_vertices);
+  if (!target.detached.empty()) target.index = ClosestPointIndex(m.positions, skinTriangles(m.triangles, target.detached));
+  target.diagonal = boundingBoxDiagonal(m.positions);
+  target.prepare_ms = msSince(t0);
+  return target;
+}
+
+Result<WarpTarget> setUpTarget(const PreparedSource& source, PreparedTarget prepared, const WarpOptions& options,
+                               WarpReport& report) {
+  WarpTarget target;
+  static_cast<PreparedTarget&>(target) = std::move(prepared);
+  const std::string& target_label = target.label;
+  const bool source_regions = !source.face_regions.empty(), target_regions = target.mesh.regions.size() > 0;
   report.region_matching = options.region_matching && source_regions && target_regions;
   // Labelled rigs onto unlabelled scans are the usual case; labels painted on
   // a target for nothing are worth a word.
@@ -192,22 +216,17 @@ Result<WarpTarget> setUpTarget(const PreparedSource& source, const Mesh& target,
                               " labels but the source does not: matching is not region-constrained");
   }
   if (report.region_matching) {
-    if (auto ok = checkRegionLabels(source.mesh.regions, target.regions, target_label, report.warnings); !ok) {
+    if (auto ok = checkRegionLabels(source.mesh.regions, target.mesh.regions, target_label, report.warnings); !ok) {
       return ok.error();
     }
+    // Label sets per target face (corner order does not matter: also those
+    // of the turned copy of orientTarget).
+    target.face_regions = faceRegionSets(target.mesh.regions, target.mesh.triangles);
+    target.index.setFaceLabels(target.face_regions);
   }
-  // Label sets per target face (corner order does not matter: also those of
-  // the turned copy of orientTarget).
-  std::vector<std::uint64_t> face_regions =
-      report.region_matching ? faceRegionSets(target.regions, target.triangles) : std::vector<std::uint64_t>();
-  ClosestPointIndex index(target.positions, target.triangles, face_regions);
-  auto target_positions = resolveLandmarks(target_landmarks, target, target_label, &index);
-  if (!target_positions) return target_positions.error();
-  std::vector<int> representative = coincidentVertexRepresentatives(target.positions);
-  VertexAdjacency adjacency = vertexAdjacency(target.triangles, target.vertexCount());
-  std::vector<int> detached = detachedPieces(target, representative, target_landmarks, *target_positions, index, report);
-  if (!detached.empty()) {
-    index = ClosestPointIndex(target.positions, skinTriangles(target.triangles, detached), face_regions);
+  report.detached_pieces = target.detached_pieces;
+  report.detached_vertices = target.detached_vertices;
+  if (!target.detached.empty()) {
     report.warnings.push_back(target_label + ": " + std::to_string(report.detached_pieces) + " closed piece" +
                               (report.detached_pieces == 1 ? "" : "s") + " with no landmark on " +
                               (report.detached_pieces == 1 ? "it" : "them") + " (" +
@@ -215,8 +234,7 @@ Result<WarpTarget> setUpTarget(const PreparedSource& source, const Mesh& target,
                               " vertices: eyes, teeth?) not matched as skin; a transfer moves each rigidly with "
                               "the joint that dominates the skin weights where it sits, without shape deltas");
   }
-  return WarpTarget{std::move(face_regions), std::move(index), std::move(*target_positions), std::move(representative),
-                    std::move(adjacency), std::move(detached), std::nullopt};
+  return target;
 }
 
 Result<LandmarkFit> fitLandmarkWarp(const PreparedSource& source, const LandmarkSet& target_landmarks,
@@ -321,7 +339,7 @@ void orientTarget(const PreparedSource& source, const TpsWarp& landmark_warp, co
            std::to_string(std::lround(100.0 * count / static_cast<double>(std::max<Eigen::Index>(1, vertices)))) +
            "%) point against its faces' winding";
   };
-  const Mesh& matched = prepared.matched(target);
+  const Mesh& matched = prepared.matched();
   if (matched.normals.rows() == matched.vertexCount()) {
     WindingNormals checked = normalsAgreeingWithWinding(matched.normals, matched.positions, matched.triangles);
     report.target_normals_against_winding = checked.replaced;
@@ -332,10 +350,14 @@ void orientTarget(const PreparedSource& source, const TpsWarp& landmark_warp, co
                                 ": matched by their face normals there; the output keeps its normals as they are");
     }
   } else {
-    // A file without normals: computed once here for every match that follows
-    // (target pulls and location).
-    if (!adjusted) adjusted = target;
-    adjusted->normals = computeSeamlessVertexNormals(adjusted->positions, adjusted->triangles);
+    // A file without normals: the prepared ones for every match that follows
+    // (target pulls and location); a turned copy's from its own winding.
+    if (adjusted) {
+      adjusted->normals = computeSeamlessVertexNormals(adjusted->positions, adjusted->triangles);
+    } else {
+      adjusted = target;
+      adjusted->normals = prepared.normals;
+    }
   }
   report.source_normals_against_winding = source.normals_against_winding;
   if (source.normals_against_winding > 0) {
@@ -355,7 +377,7 @@ OpeningMatch matchOpenings(const PreparedSource& source, const TpsWarp& landmark
   // The openings' sides are found whenever rims or sides are matched, also
   // when _REGION labels or nothing filter the matches (the transfer's quality
   // check reads them); with side_matching and no labels they filter.
-  const Mesh& matched = prepared.matched(target);
+  const Mesh& matched = prepared.matched();
   OpeningMatch openings;
   const bool sides_wanted = (options.side_matching || options.rim_matching) && !source.openings.empty();
   if ((options.rim_matching || options.rim_location || sides_wanted) && !source.rims.empty()) {

@@ -139,35 +139,36 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
 }
 
 
-Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, const LandmarkSet& target_landmarks,
-                           const std::string& target_label, const WarpOptions& options) {
+Result<WarpResult> runWarp(const PreparedSource& source, PreparedTarget target_prepared, const WarpOptions& options) {
   const auto t_start = Clock::now();
   if (!source.guide_index) {
     return makeError(ErrorCode::kInvalidArgument, "the source was not prepared (prepareSource) before the warp");
   }
-  if (auto ok = validateSurfaceMesh(target, target_label); !ok) return ok.error();
   WarpResult result;
   WarpReport& report = result.report;
+  const double target_prepare_ms = target_prepared.prepare_ms;
+
+  // --- warp: landmark TPS on the shared names
+  auto t0 = Clock::now();
+  auto prepared = setUpTarget(source, std::move(target_prepared), options, report);
+  if (!prepared) return prepared.error();
+  const Mesh& target = prepared->mesh;
+  const std::string& target_label = prepared->label;
   report.source_vertices = static_cast<int>(source.mesh.vertexCount());
   report.source_triangles = static_cast<int>(source.mesh.triangleCount());
   report.target_vertices = static_cast<int>(target.vertexCount());
   report.target_triangles = static_cast<int>(target.triangleCount());
-  report.target_diagonal = boundingBoxDiagonal(target.positions);
-
-  // --- warp: landmark TPS on the shared names
-  auto t0 = Clock::now();
-  auto prepared = setUpTarget(source, target, target_landmarks, target_label, options, report);
-  if (!prepared) return prepared.error();
-  auto fit = fitLandmarkWarp(source, target_landmarks, *prepared, target_label, options, report);
+  report.target_diagonal = prepared->diagonal;
+  auto fit = fitLandmarkWarp(source, prepared->landmarks, *prepared, target_label, options, report);
   if (!fit) return fit.error();
-  report.warp_ms = msSince(t0);
+  report.warp_ms = target_prepare_ms + msSince(t0);
 
   // --- correspond: refine through the dense map, project, locate
   t0 = Clock::now();
   ProjectionOptions projection = options.projection;
   projection.threads = options.threads;
   orientTarget(source, fit->warp, target, target_label, *prepared, report);
-  const Mesh& matched = prepared->matched(target);
+  const Mesh& matched = prepared->matched();
   OpeningMatch openings = matchOpenings(source, fit->warp, target, *prepared, options, report);
   addRimPointsToWarp(source, openings, matched, target_label, options, *fit, report);
   SurfaceWarp surface = warpSurface(source, *fit, openings, *prepared, matched, projection, options, report);
@@ -184,10 +185,16 @@ Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, con
   result.guide = std::move(projected.guide);
   result.locations = std::move(located.locations);
   result.target_sides = std::move(openings.target_sides);
-  result.target_adjacency = std::move(prepared->adjacency);
-  result.target_representative = std::move(prepared->representative);
-  report.total_ms = msSince(t_start);
+  result.target = std::move(static_cast<PreparedTarget&>(*prepared));
+  report.total_ms = target_prepare_ms + msSince(t_start);
   return result;
+}
+
+Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, const LandmarkSet& target_landmarks,
+                           const std::string& target_label, const WarpOptions& options) {
+  auto prepared = prepareTarget(target, target_landmarks, target_label);
+  if (!prepared) return prepared.error();
+  return runWarp(source, std::move(*prepared), options);
 }
 
 }  // namespace core

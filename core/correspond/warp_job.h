@@ -16,6 +16,7 @@
 #include "core/geometry/moving_mesh_index.h"
 #include "core/correspond/opening_sides.h"
 #include "core/correspond/rims.h"
+#include "core/geometry/closest_point.h"
 #include "core/solve/tps.h"
 
 namespace core {
@@ -75,6 +76,27 @@ struct PreparedSource {
 
 Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std::string& label,
                                      const PrepareOptions& options = {});
+
+// Everything that depends only on the target, prepared once per job, as the
+// source is once per rig: read by every stage of the warp and the transfer.
+struct PreparedTarget {
+  Mesh mesh;                            // as read (its normals, if any, as in the file)
+  std::string label;                    // the target's file name, for messages
+  LandmarkSet landmarks;
+  Eigen::MatrixX3d landmark_positions;  // #L by 3 on the mesh
+  Eigen::MatrixX3d normals;             // the file's normals, or computeSeamlessVertexNormals without them
+  std::vector<int> representative;      // coincidentVertexRepresentatives (split points' copies)
+  VertexAdjacency adjacency;            // vertexAdjacency of its triangles (split points apart)
+  // Closed pieces no landmark is on (eyes, teeth): per vertex its piece, -1 for skin (empty: none).
+  std::vector<int> detached;
+  int detached_pieces = 0, detached_vertices = 0;
+  ClosestPointIndex index;              // closest points on its skin faces (detached pieces skipped)
+  double diagonal = 0.0;                // bounding-box diagonal
+  double prepare_ms = 0.0;
+};
+
+// Checks the target (a surface mesh; landmarks on it) and prepares it.
+Result<PreparedTarget> prepareTarget(Mesh mesh, LandmarkSet landmarks, const std::string& label);
 
 struct WarpOptions {
   TpsOptions landmark_tps;             // regularisation of the landmark warp (0 = exact)
@@ -211,12 +233,14 @@ struct WarpResult {
   // (PreparedSource::vertex_sides; openingSides); empty when no opening was
   // matched with its sides, or neither sides nor rims were matched.
   std::vector<int> target_sides;
-  VertexAdjacency target_adjacency;  // of the target's vertices (vertexAdjacency; split points apart)
-  // coincidentVertexRepresentatives of the target (split points' copies; empty: none).
-  std::vector<int> target_representative;
+  PreparedTarget target;  // as prepared; its index as the warp left it (label sets set, turned with target_turned)
   WarpReport report;
 };
 
+// The warp of a target prepared for this job (prepareTarget); the target is
+// handed back in WarpResult::target for the stages after.
+Result<WarpResult> runWarp(const PreparedSource& source, PreparedTarget target, const WarpOptions& options = {});
+// The same, preparing the target first.
 Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, const LandmarkSet& target_landmarks,
                            const std::string& target_label, const WarpOptions& options = {});
 

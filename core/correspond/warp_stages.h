@@ -2,7 +2,7 @@
 // function of plain data in and out, in the order it runs them:
 //
 //   target_setup.cpp
-//     setUpTarget         region matching; the target's index, landmarks, split copies, detached pieces
+//     setUpTarget         region matching on the prepared target (prepareTarget: index, landmarks, split copies, detached pieces)
 //     fitLandmarkWarp     TPS on the shared landmark names: residuals, leave-one-out, misfit and mirror warnings
 //     orientTarget        the target as matched: turned when it faces away, normals that agree with its winding
 //     matchOpenings       rims matched, the openings' sides, the filters every later match uses
@@ -28,19 +28,13 @@
 
 namespace core {
 
-// The target as the stages match to it, prepared once per job.
-struct WarpTarget {
+// The target as the stages match to it: the prepared target, with its index's
+// label sets (regions, sides) and, when it faces away or its normals disagree
+// with its winding, the adjusted copy matched instead of the file's mesh.
+struct WarpTarget : PreparedTarget {
   std::vector<std::uint64_t> face_regions;  // label sets per face (region matching), else empty
-  // Closest points on the target's faces: detached pieces' faces made
-  // degenerate (skipped), the faces turned when the target faces away, the
-  // sides' face sets set when the sides filter.
-  ClosestPointIndex index;
-  Eigen::MatrixX3d landmark_positions;      // the job's target landmarks on the target
-  std::vector<int> representative;          // coincidentVertexRepresentatives (split copies)
-  VertexAdjacency adjacency;                // vertexAdjacency of its triangles
-  std::vector<int> detached;                // per vertex: its detached piece, -1 for skin (empty: none)
   std::optional<Mesh> adjusted;             // the target as matched, when that differs from the file
-  const Mesh& matched(const Mesh& file) const { return adjusted ? *adjusted : file; }
+  const Mesh& matched() const { return adjusted ? *adjusted : mesh; }
 };
 
 struct LandmarkFit {
@@ -83,8 +77,8 @@ Eigen::MatrixX3d selectRows(const Eigen::MatrixX3d& m, const std::vector<int>& r
 // The entries `rows` of per-vertex masks (empty stays empty: no constraint).
 std::vector<std::uint64_t> selectMasks(const std::vector<std::uint64_t>& masks, const std::vector<int>& rows);
 
-Result<WarpTarget> setUpTarget(const PreparedSource& source, const Mesh& target, const LandmarkSet& target_landmarks,
-                               const std::string& target_label, const WarpOptions& options, WarpReport& report);
+Result<WarpTarget> setUpTarget(const PreparedSource& source, PreparedTarget target, const WarpOptions& options,
+                               WarpReport& report);
 Result<LandmarkFit> fitLandmarkWarp(const PreparedSource& source, const LandmarkSet& target_landmarks,
                                     const WarpTarget& target, const std::string& target_label,
                                     const WarpOptions& options, WarpReport& report);

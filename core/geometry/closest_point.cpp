@@ -495,6 +495,8 @@ void ClosestPointIndex::setFaceLabels(std::vector<std::uint64_t> face_labels) {
   }
 }
 
+ClosestPointIndex::ClosestPointIndex() : ClosestPointIndex(Eigen::MatrixX3d(0, 3), Eigen::MatrixX3i(0, 3)) {}
+
 ClosestPointIndex::~ClosestPointIndex() = default;
 ClosestPointIndex::ClosestPointIndex(ClosestPointIndex&&) noexcept = default;
 ClosestPointIndex& ClosestPointIndex::operator=(ClosestPointIndex&&) noexcept = default;

@@ -45,6 +45,7 @@ class ClosestPointIndex {
   // Degenerate triangles are skipped.
   ClosestPointIndex(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles,
                     std::vector<std::uint64_t> face_labels = {});
+  ClosestPointIndex();  // of no faces: every query finds none
   ~ClosestPointIndex();
   ClosestPointIndex(ClosestPointIndex&&) noexcept;
   ClosestPointIndex& operator=(ClosestPointIndex&&) noexcept;

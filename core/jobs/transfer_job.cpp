@@ -21,7 +21,9 @@ Result<TransferJobOutput> runTransferJob(const PrepareRigSource& prepare, Transf
       return run.on_stage(stage, 0.1 + 0.8 * fraction);
     };
   }
-  auto result = transferRig(*source->rig, input.target.mesh, input.target_landmarks, input.target_label, settings.transfer);
+  auto target = prepareTarget(std::move(input.target.mesh), std::move(input.target_landmarks), input.target_label);
+  if (!target) return target.error();
+  auto result = transferRig(*source->rig, std::move(*target), settings.transfer);
   if (!result) return result.error();
   TransferReport& r = result->report;
   for (std::string& warning : input.warnings) r.warnings.push_back(std::move(warning));

@@ -255,7 +255,15 @@ Result<PreparedRig> prepareRig(Rig rig, LandmarkSet landmarks, const std::string
 
 Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target, const LandmarkSet& target_landmarks,
                                    const std::string& target_label, const TransferOptions& options) {
+  auto prepared = prepareTarget(target, target_landmarks, target_label);
+  if (!prepared) return prepared.error();
+  return transferRig(source, std::move(*prepared), options);
+}
+
+Result<TransferResult> transferRig(const PreparedRig& source, PreparedTarget prepared_target,
+                                   const TransferOptions& options) {
   const auto t_start = Clock::now();
+  const std::string target_label = prepared_target.label;
   const Rig& src = source.rig;
   if ((options.weights || options.joints) && !src.skin) {
     return makeError(ErrorCode::kInvalidMesh, source.surface.label + ": the rig has no skin (nothing to transfer "
@@ -277,8 +285,9 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   // The output is the target rigged, not the guide: project only what the
   // transfer reads from it.
   warp_options.full_guide = false;
-  auto warp = runWarp(source.surface, target, target_landmarks, target_label, warp_options);
+  auto warp = runWarp(source.surface, std::move(prepared_target), warp_options);
   if (!warp) return warp.error();
+  const Mesh& target = warp->target.mesh;
   TransferResult result;
   TransferReport& report = result.report;
   report.warp = warp->report;
@@ -359,9 +368,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   // --- assemble the target rig as we go: the target keeps its topology
   Rig& out = result.rig;
   out.mesh = target;  // its own normals too: authored hard edges and seams stay as they came
-  if (out.mesh.normals.rows() != target.vertexCount()) {
-    out.mesh.normals = computeSeamlessVertexNormals(target.positions, target.triangles);
-  }
+  out.mesh.normals = warp->target.normals;  // the file's, or computed once when it has none
   out.mesh_name = src.mesh_name;
   out.nodes = src.nodes;
   out.mesh_node = src.mesh_node;
@@ -372,7 +379,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   // across the openings' sides: a lip takes values from its own side only.
   Eigen::SparseMatrix<double> target_laplacian;
   if (locations.low_confidence > 0) {
-    target_laplacian = uniformLaplacian(target.triangles, target.vertexCount(), warp->target_representative);
+    target_laplacian = uniformLaplacian(target.triangles, target.vertexCount(), warp->target.representative);
     if (options.warp.side_matching && !warp->target_sides.empty()) {
       cutAcrossSides(target_laplacian, warp->target_sides);
     }
@@ -458,7 +465,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   quality_options.threads = options.threads;
   const QualitySource quality_source{src_mesh.triangles, source.surface.adjacency, source.surface.vertex_sides,
                                      src.morph_targets};
-  report.quality = checkTransferQuality(target, warp->target_adjacency, out.morph_targets, locations,
+  report.quality = checkTransferQuality(target, warp->target.adjacency, out.morph_targets, locations,
                                         warp->target_sides, quality_source, quality_options);
   if (options.repair_unsure && !report.quality.clean() && !out.morph_targets.empty() && target_laplacian.rows() > 0) {
     std::vector<char> known(static_cast<std::size_t>(target.vertexCount()), 1);
@@ -473,7 +480,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
       if (!repair) return Error{repair.error().code, target_label + ": inpainting unsure vertices: " + repair.error().message};
       inpaintShapeDeltas(*repair, out.morph_targets);
       updateNormalDeltas(out.mesh, out.morph_targets, options.threads);
-      report.quality = checkTransferQuality(target, warp->target_adjacency, out.morph_targets, locations,
+      report.quality = checkTransferQuality(target, warp->target.adjacency, out.morph_targets, locations,
                                             warp->target_sides, quality_source, quality_options);
       report.quality.repaired_vertices = repaired;
     }
@@ -506,7 +513,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
     report.warnings.push_back("uvs: " + source.surface.label + " has no UV set to transfer; " + target_label +
                               " keeps its own UVs");
   } else if (options.uvs) {
-    auto layout = transferUvLayout(src_mesh, *source.uv_layout, target, locations, warp->target_representative);
+    auto layout = transferUvLayout(src_mesh, *source.uv_layout, target, locations, warp->target.representative);
     if (!layout) return Error{layout.error().code, target_label + ": " + layout.error().message};
     appendVertexCopies(out, layout->copy_of);
     out.mesh.triangles = layout->triangles;

@@ -144,6 +144,9 @@ struct TransferResult {
   TransferReport report;
 };
 
+// The transfer to a target prepared for this job (prepareTarget).
+Result<TransferResult> transferRig(const PreparedRig& source, PreparedTarget target, const TransferOptions& options = {});
+// The same, preparing the target first.
 Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target, const LandmarkSet& target_landmarks,
                                    const std::string& target_label, const TransferOptions& options = {});
 

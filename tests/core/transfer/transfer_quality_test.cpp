@@ -43,7 +43,7 @@ TEST(TransferQuality, AVertexGivenTheOtherLipsDeltaIsCaughtAndNamed) {
 
   auto warp = core::runWarp(rigport_test::preparedTouchingLipsSource().surface, scan, rigport_test::tenLandmarks(target), "target");
   ASSERT_TRUE(warp) << warp.error().message;
-  const core::QualityReport report = core::checkTransferQuality(scan, warp->target_adjacency, shapes, warp->locations,
+  const core::QualityReport report = core::checkTransferQuality(scan, warp->target.adjacency, shapes, warp->locations,
                                                                 warp->target_sides, qualitySource(rigport_test::preparedTouchingLipsSource()));
   EXPECT_FALSE(report.clean());
   ASSERT_EQ(report.shapes.size(), 1u);
