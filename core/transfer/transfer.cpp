@@ -192,6 +192,231 @@ void warnUnknownNames(const std::map<std::string, double>& gains, const std::vec
   }
 }
 
+
+// Names in the exaggeration maps that the rig does not have: a typo must not
+// go unnoticed.
+void warnUnknownExaggerations(const Rig& src, const TransferOptions& options, TransferReport& report) {
+  if (options.shapes) {
+    std::vector<std::string> shape_names;
+    for (const auto& t : src.morph_targets) shape_names.push_back(t.name);
+    warnUnknownNames(options.shape_exaggeration, shape_names, "shape_exaggeration", "morph target", report.warnings);
+  }
+  if (options.animations) {
+    std::vector<std::string> node_names;
+    for (const auto& n : src.nodes) node_names.push_back(n.name);
+    warnUnknownNames(options.joint_exaggeration, node_names, "joint_exaggeration", "joint", report.warnings);
+  }
+}
+
+// What the dense map gives every later stage: the global similarity, the
+// adaptation of deltas at a point (TransferOptions::adaptation) and per target
+// vertex (one matrix for all unless local).
+struct DenseMapAdaptation {
+  const TpsWarp& dense_map;  // the warp's dense map, or its landmark warp without one
+  GlobalAdaptation global;
+  ShapeAdaptation mode = ShapeAdaptation::kRotation;
+  std::optional<TpsWarp> smooth_map;  // kLocal: the dense map smoothed
+  std::vector<Eigen::Matrix3d> vertex_adaptation;
+
+  Eigen::Matrix3d at(const Eigen::Vector3d& p) const {
+    switch (mode) {
+      case ShapeAdaptation::kNone: return Eigen::Matrix3d::Identity();
+      case ShapeAdaptation::kRotation:
+      case ShapeAdaptation::kSimilarity: return global.deltas;
+      case ShapeAdaptation::kLocal: return smooth_map->jacobian(p);
+    }
+    return Eigen::Matrix3d::Identity();
+  }
+  // Animated joint translations keep the source's proportions adjusted to the
+  // target's (papers 000 sec. 4.7.2: a jaw thrust on a face a third larger
+  // moves a third farther): by default the stretch of the dense map's local
+  // Jacobian at the joint (its polar factor), turned by the global rotation
+  // when that is a pose, so that keys and joint frames turn alike.
+  Eigen::Matrix3d jointAt(const Eigen::Vector3d& p) const {
+    if (mode != ShapeAdaptation::kRotation) return at(p);
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(dense_map.jacobian(p), Eigen::ComputeFullV);
+    return global.rotation * svd.matrixV() * svd.singularValues().asDiagonal() * svd.matrixV().transpose();
+  }
+};
+
+Result<DenseMapAdaptation> adaptToDenseMap(const PreparedRig& source, const WarpResult& warp,
+                                           const TransferOptions& options, const std::string& target_label,
+                                           TransferReport& report) {
+  const Eigen::MatrixX3d& src_landmarks = warp.landmark_pairs.source;
+  Eigen::MatrixX3d tgt_landmarks(src_landmarks.rows(), 3);
+  for (Eigen::Index i = 0; i < src_landmarks.rows(); ++i) {
+    tgt_landmarks.row(i) = warp.landmark_warp.apply(Eigen::Vector3d(src_landmarks.row(i).transpose())).transpose();
+  }
+  DenseMapAdaptation adaptation{warp.dense_map ? *warp.dense_map : warp.landmark_warp,
+                                globalAdaptation(src_landmarks, tgt_landmarks, options, target_label, report),
+                                options.adaptation, std::nullopt, {}};
+  report.adaptation = shapeAdaptationName(options.adaptation);
+  report.adaptation_reason =
+      options.adaptation == ShapeAdaptation::kRotation
+          ? "the default: deltas as the rig's, turned, scaled or stretched only for a pose, other units or a face "
+            "stretched as a whole; a stylised face whose shapes should follow its stylisation takes \"local\""
+          : "set in the options";
+  if (options.adaptation != ShapeAdaptation::kLocal) {
+    adaptation.vertex_adaptation = {adaptation.at(Eigen::Vector3d::Zero())};
+    return adaptation;
+  }
+  TpsOptions smooth;
+  smooth.regularization = options.local_smoothing * source.surface.diagonal;
+  smooth.leave_one_out = false;
+  smooth.threads = options.threads;
+  auto fitted = fitTps(source.surface.dense_centres, adaptation.dense_map.apply(source.surface.dense_centres), smooth);
+  if (!fitted) return fitted.error();
+  adaptation.smooth_map = std::move(*fitted);
+  const Mesh& src_mesh = source.surface.mesh;
+  const Eigen::Index nt = warp.target.mesh.vertexCount();
+  Eigen::MatrixX3d at(nt, 3);
+  for (Eigen::Index v = 0; v < nt; ++v) {
+    const SurfacePoint& sp = warp.locations.on_source[static_cast<std::size_t>(v)];
+    at.row(v) = sp.found() ? interpolateOnFace(src_mesh.positions, src_mesh.triangles, sp.face, sp.barycentric)
+                           : Eigen::RowVector3d::Zero();
+  }
+  adaptation.vertex_adaptation = adaptation.smooth_map->jacobians(at);
+  return adaptation;
+}
+
+// One graph Laplacian of the target for every stage that inpaints untrusted
+// vertices (mismatched vertices are also low-confidence), and one
+// factorisation of the mismatched split for shapes and attributes. Cut
+// across the openings' sides: a lip takes values from its own side only.
+struct TargetInpainting {
+  Eigen::SparseMatrix<double> laplacian;      // empty when every vertex is trusted
+  std::optional<HarmonicInpainting> mismatched;
+  const HarmonicInpainting* mismatchedOrNull() const { return mismatched ? &*mismatched : nullptr; }
+};
+
+Result<TargetInpainting> targetInpainting(const Rig& src, const WarpResult& warp, const TransferOptions& options,
+                                          const std::string& target_label) {
+  const Mesh& target = warp.target.mesh;
+  const TargetLocations& locations = warp.locations;
+  TargetInpainting out;
+  if (locations.low_confidence > 0) {
+    out.laplacian = uniformLaplacian(target.triangles, target.vertexCount(), warp.target.representative);
+    if (options.warp.side_matching && !warp.target_sides.empty()) cutAcrossSides(out.laplacian, warp.target_sides);
+  }
+  const bool attributes_inpainted =
+      options.attributes && (src.attributes.colors.rows() > 0 || !src.attributes.fields.empty());
+  if (locations.mismatched.any() && ((options.shapes && !src.morph_targets.empty()) || attributes_inpainted)) {
+    std::vector<char> known(static_cast<std::size_t>(target.vertexCount()));
+    for (Eigen::Index v = 0; v < target.vertexCount(); ++v) known[static_cast<std::size_t>(v)] = locations.mismatched(v) == 0;
+    auto created = HarmonicInpainting::create(out.laplacian, known);
+    if (!created) return Error{created.error().code, target_label + ": inpainting mismatched vertices: " + created.error().message};
+    out.mismatched = std::move(*created);
+  }
+  return out;
+}
+
+std::vector<Animation> transferJointAnimations(const Rig& src, const std::vector<Node>& moved_nodes, bool joints_moved,
+                                               const DenseMapAdaptation& adaptation, const TransferOptions& options) {
+  const AnimationTransferOptions animation_options{{options.exaggeration, options.joint_exaggeration}};
+  if (!joints_moved) {
+    const auto unchanged = [](const Eigen::Vector3d&) -> Eigen::Matrix3d { return Eigen::Matrix3d::Identity(); };
+    return transferAnimations(src, src.nodes, Eigen::Matrix3d::Identity(), unchanged, animation_options);
+  }
+  const auto joint_adaptation = [&adaptation](const Eigen::Vector3d& p) { return adaptation.jointAt(p); };
+  return transferAnimations(src, moved_nodes, adaptation.global.rotation, joint_adaptation, animation_options);
+}
+
+void transferShapes(const PreparedRig& source, const TargetLocations& locations,
+                    const std::vector<Eigen::Matrix3d>& vertex_adaptation, const HarmonicInpainting* mismatched,
+                    const TransferOptions& options, Rig& out) {
+  const Rig& src = source.rig;
+  if (options.shapes) {
+    const ShapeTransferOptions shape_options{{options.exaggeration, options.shape_exaggeration}, options.threads};
+    out.morph_targets = transferMorphTargets(src.morph_targets, source.surface.mesh.triangles, locations,
+                                             vertex_adaptation, out.mesh, mismatched, shape_options);
+    out.morph_default_weights = src.morph_default_weights;
+    return;
+  }
+  // Morph-weight channels would point at targets that no longer exist.
+  for (auto& a : out.animations) {
+    std::erase_if(a.channels, [](const AnimationChannel& c) { return c.path == AnimationPath::kWeights; });
+  }
+  std::erase_if(out.animations, [](const Animation& a) { return a.channels.empty(); });
+}
+
+// The output's worst vertices, before any UV copies. A vertex of low
+// confidence moving as none of its ring does took its location's values from
+// the wrong place (the other lip, the other side of the columella): its
+// deltas are inpainted from its neighbours, as a mismatched vertex's are, and
+// the output checked again. Strict: a check that still fails fails the job.
+Status checkAndRepairShapes(const PreparedRig& source, const WarpResult& warp,
+                            const Eigen::SparseMatrix<double>& laplacian, const TransferOptions& options, Rig& out,
+                            TransferReport& report) {
+  const Mesh& target = warp.target.mesh;
+  const TargetLocations& locations = warp.locations;
+  const std::string& target_label = warp.target.label;
+  QualityOptions quality_options = options.quality;
+  quality_options.threads = options.threads;
+  const QualitySource quality_source{source.surface.mesh.triangles, source.surface.adjacency,
+                                     source.surface.vertex_sides, source.rig.morph_targets};
+  report.quality = checkTransferQuality(target, warp.target.adjacency, out.morph_targets, locations,
+                                        warp.target_sides, quality_source, quality_options);
+  if (options.repair_unsure && !report.quality.clean() && !out.morph_targets.empty() && laplacian.rows() > 0) {
+    std::vector<char> known(static_cast<std::size_t>(target.vertexCount()), 1);
+    int repaired = 0;
+    for (Eigen::Index v = 0; v < target.vertexCount(); ++v) {
+      const bool unsure = report.quality.per_vertex(v) > 0.0 && locations.confidence(v) == 0.0;
+      known[static_cast<std::size_t>(v)] = locations.mismatched(v) == 0 && !unsure;
+      repaired += unsure && locations.mismatched(v) == 0 ? 1 : 0;
+    }
+    if (repaired > 0) {
+      auto repair = HarmonicInpainting::create(laplacian, known);
+      if (!repair) return Error{repair.error().code, target_label + ": inpainting unsure vertices: " + repair.error().message};
+      inpaintShapeDeltas(*repair, out.morph_targets);
+      updateNormalDeltas(out.mesh, out.morph_targets, options.threads);
+      report.quality = checkTransferQuality(target, warp.target.adjacency, out.morph_targets, locations,
+                                            warp.target_sides, quality_source, quality_options);
+      report.quality.repaired_vertices = repaired;
+    }
+  }
+  if (!report.quality.clean()) {
+    if (options.strict) {
+      return makeError(ErrorCode::kQualityGate, target_label + ": the transfer failed its quality check (strict): " +
+                                                    report.quality.summary());
+    }
+    report.warnings.push_back(target_label + ": unsure vertices, check them before use: " + report.quality.summary());
+  }
+  return Ok{};
+}
+
+void addDiagnosticAttributes(const TargetLocations& locations, const TransferredWeights& weights,
+                             const QualityReport& quality, Rig& out) {
+  const Eigen::Index nt = out.mesh.vertexCount();
+  out.attributes.fields["CONFIDENCE"] = locations.confidence;
+  out.attributes.fields["INPAINTED"] = weights.inpainted.size() == nt ? weights.inpainted.cast<double>().eval()
+                                                                      : Eigen::VectorXd::Zero(nt).eval();
+  out.attributes.fields["QUALITY"] = quality.per_vertex;
+}
+
+// Last: carrying the source's UV seams over splits target vertices, and
+// every per-vertex value before goes with its copies.
+Status transferUvs(const PreparedRig& source, const WarpResult& warp, const TransferOptions& options, Rig& out,
+                   TransferReport& report) {
+  if (!options.uvs) return Ok{};
+  const std::string& target_label = warp.target.label;
+  if (!source.uv_layout) {
+    report.warnings.push_back("uvs: " + source.surface.label + " has no UV set to transfer; " + target_label +
+                              " keeps its own UVs");
+    return Ok{};
+  }
+  const Mesh& src_mesh = source.surface.mesh;
+  auto layout = transferUvLayout(src_mesh, *source.uv_layout, warp.target.mesh, warp.locations, warp.target.representative);
+  if (!layout) return Error{layout.error().code, target_label + ": " + layout.error().message};
+  appendVertexCopies(out, layout->copy_of);
+  out.mesh.triangles = layout->triangles;
+  std::size_t next = 0;
+  if (src_mesh.uvs.rows() > 0) out.mesh.uvs = layout->sets[next++];
+  out.attributes.extra_uv_sets.assign(layout->sets.begin() + static_cast<std::ptrdiff_t>(next), layout->sets.end());
+  report.uv_seam_vertices = static_cast<int>(layout->copy_of.size());
+  report.uv_extended_vertices = layout->extended_vertices;
+  return Ok{};
+}
+
 }  // namespace
 
 const char* shapeAdaptationName(ShapeAdaptation adaptation) {
@@ -287,122 +512,37 @@ Result<TransferResult> transferRig(const PreparedRig& source, PreparedTarget pre
   warp_options.full_guide = false;
   auto warp = runWarp(source.surface, std::move(prepared_target), warp_options);
   if (!warp) return warp.error();
-  const Mesh& target = warp->target.mesh;
   TransferResult result;
   TransferReport& report = result.report;
   report.warp = warp->report;
-  if (options.shapes) {
-    std::vector<std::string> shape_names;
-    for (const auto& t : src.morph_targets) shape_names.push_back(t.name);
-    warnUnknownNames(options.shape_exaggeration, shape_names, "shape_exaggeration", "morph target", report.warnings);
-  }
-  if (options.animations) {
-    std::vector<std::string> node_names;
-    for (const auto& n : src.nodes) node_names.push_back(n.name);
-    warnUnknownNames(options.joint_exaggeration, node_names, "joint_exaggeration", "joint", report.warnings);
-  }
+  warnUnknownExaggerations(src, options, report);
   report.prepare_ms = source.surface.prepare_ms;
-  const TargetLocations& locations = warp->locations;
-  for (const auto& sp : locations.on_source) report.unlocated_vertices += sp.found() ? 0 : 1;
-  const Mesh& src_mesh = source.surface.mesh;
+  for (const auto& sp : warp->locations.on_source) report.unlocated_vertices += sp.found() ? 0 : 1;
 
   // --- dense map products: global similarity and per-vertex adaptation
   if (stopBefore("dense_map", 0.5)) return stopped("dense_map");
   auto t0 = Clock::now();
-  const Eigen::MatrixX3d& src_landmarks = warp->landmark_pairs.source;
-  Eigen::MatrixX3d tgt_landmarks(src_landmarks.rows(), 3);
-  for (Eigen::Index i = 0; i < src_landmarks.rows(); ++i) {
-    tgt_landmarks.row(i) = warp->landmark_warp.apply(Eigen::Vector3d(src_landmarks.row(i).transpose())).transpose();
-  }
-  const GlobalAdaptation global = globalAdaptation(src_landmarks, tgt_landmarks, options, target_label, report);
-  report.adaptation = shapeAdaptationName(options.adaptation);
-  report.adaptation_reason =
-      options.adaptation == ShapeAdaptation::kRotation
-          ? "the default: deltas as the rig's, turned, scaled or stretched only for a pose, other units or a face "
-            "stretched as a whole; a stylised face whose shapes should follow its stylisation takes \"local\""
-          : "set in the options";
-  const TpsWarp& dense_map = warp->dense_map ? *warp->dense_map : warp->landmark_warp;
-  std::optional<TpsWarp> smooth_map;
-  if (options.adaptation == ShapeAdaptation::kLocal) {
-    TpsOptions smooth;
-    smooth.regularization = options.local_smoothing * source.surface.diagonal;
-    smooth.leave_one_out = false;
-    smooth.threads = options.threads;
-    auto fitted = fitTps(source.surface.dense_centres, dense_map.apply(source.surface.dense_centres), smooth);
-    if (!fitted) return fitted.error();
-    smooth_map = std::move(*fitted);
-  }
-  auto adaptationAt = [&](const Eigen::Vector3d& p) -> Eigen::Matrix3d {
-    switch (options.adaptation) {
-      case ShapeAdaptation::kNone: return Eigen::Matrix3d::Identity();
-      case ShapeAdaptation::kRotation:
-      case ShapeAdaptation::kSimilarity: return global.deltas;
-      case ShapeAdaptation::kLocal: return smooth_map->jacobian(p);
-    }
-    return Eigen::Matrix3d::Identity();
-  };
-  // Animated joint translations keep the source's proportions adjusted to the
-  // target's (papers 000 sec. 4.7.2: a jaw thrust on a face a third larger
-  // moves a third farther): by default the stretch of the dense map's local
-  // Jacobian at the joint (its polar factor), turned by the global rotation
-  // when that is a pose, so that keys and joint frames turn alike.
-  auto jointAdaptationAt = [&](const Eigen::Vector3d& p) -> Eigen::Matrix3d {
-    if (options.adaptation != ShapeAdaptation::kRotation) return adaptationAt(p);
-    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(dense_map.jacobian(p), Eigen::ComputeFullV);
-    return global.rotation * svd.matrixV() * svd.singularValues().asDiagonal() * svd.matrixV().transpose();
-  };
-  std::vector<Eigen::Matrix3d> vertex_adaptation;
-  if (options.adaptation == ShapeAdaptation::kLocal) {
-    Eigen::MatrixX3d at(target.vertexCount(), 3);
-    for (Eigen::Index v = 0; v < target.vertexCount(); ++v) {
-      const SurfacePoint& sp = locations.on_source[static_cast<std::size_t>(v)];
-      at.row(v) = sp.found() ? interpolateOnFace(src_mesh.positions, src_mesh.triangles, sp.face, sp.barycentric)
-                             : Eigen::RowVector3d::Zero();
-    }
-    vertex_adaptation = smooth_map->jacobians(at);
-  } else {
-    vertex_adaptation = {adaptationAt(Eigen::Vector3d::Zero())};
-  }
+  auto adaptation = adaptToDenseMap(source, *warp, options, target_label, report);
+  if (!adaptation) return adaptation.error();
   report.dense_map_ms = msSince(t0);
 
   // --- assemble the target rig as we go: the target keeps its topology
   Rig& out = result.rig;
-  out.mesh = target;  // its own normals too: authored hard edges and seams stay as they came
+  out.mesh = warp->target.mesh;  // its own normals too: authored hard edges and seams stay as they came
   out.mesh.normals = warp->target.normals;  // the file's, or computed once when it has none
   out.mesh_name = src.mesh_name;
   out.nodes = src.nodes;
   out.mesh_node = src.mesh_node;
-
-  // One graph Laplacian of the target for every stage that inpaints
-  // untrusted vertices (mismatched vertices are also low-confidence), and one
-  // factorisation of the mismatched split for shapes and attributes. Cut
-  // across the openings' sides: a lip takes values from its own side only.
-  Eigen::SparseMatrix<double> target_laplacian;
-  if (locations.low_confidence > 0) {
-    target_laplacian = uniformLaplacian(target.triangles, target.vertexCount(), warp->target.representative);
-    if (options.warp.side_matching && !warp->target_sides.empty()) {
-      cutAcrossSides(target_laplacian, warp->target_sides);
-    }
-  }
-  const bool attributes_inpainted =
-      options.attributes && (src.attributes.colors.rows() > 0 || !src.attributes.fields.empty());
-  std::optional<HarmonicInpainting> mismatched;
-  if (locations.mismatched.any() && ((options.shapes && !src.morph_targets.empty()) || attributes_inpainted)) {
-    std::vector<char> known(static_cast<std::size_t>(target.vertexCount()));
-    for (Eigen::Index v = 0; v < target.vertexCount(); ++v) known[static_cast<std::size_t>(v)] = locations.mismatched(v) == 0;
-    auto created = HarmonicInpainting::create(target_laplacian, known);
-    if (!created) return Error{created.error().code, target_label + ": inpainting mismatched vertices: " + created.error().message};
-    mismatched = std::move(*created);
-  }
-  const HarmonicInpainting* mismatched_inpainting = mismatched ? &*mismatched : nullptr;
+  auto inpainting = targetInpainting(src, *warp, options, target_label);
+  if (!inpainting) return inpainting.error();
 
   // --- weights
   if (stopBefore("weights", 0.6)) return stopped("weights");
   t0 = Clock::now();
   TransferredWeights weights;
   if (options.weights) {
-    auto w = transferSkinWeights(src.weights, src_mesh.triangles, locations, target.vertexCount(), target_laplacian,
-                                 options.weight_options);
+    auto w = transferSkinWeights(src.weights, source.surface.mesh.triangles, warp->locations,
+                                 warp->target.mesh.vertexCount(), inpainting->laplacian, options.weight_options);
     if (!w) return w.error();
     weights = std::move(*w);
     out.weights = weights.weights;
@@ -417,7 +557,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, PreparedTarget pre
   t0 = Clock::now();
   const bool joints_moved = options.joints && src.skin;
   if (joints_moved) {
-    TransferredSkeleton skeleton = transferSkeleton(src, dense_map, global.rotation);
+    TransferredSkeleton skeleton = transferSkeleton(src, adaptation->dense_map, adaptation->global.rotation);
     out.nodes = std::move(skeleton.nodes);
     out.skin = std::move(skeleton.skin);
     report.joints = static_cast<int>(out.skin->joints.size());
@@ -427,102 +567,31 @@ Result<TransferResult> transferRig(const PreparedRig& source, PreparedTarget pre
   // --- animations: on the moved joints, translation keys in their new frames
   if (stopBefore("animations", 0.72)) return stopped("animations");
   t0 = Clock::now();
-  if (options.animations) {
-    const AnimationTransferOptions animation_options{{options.exaggeration, options.joint_exaggeration}};
-    const auto unchanged = [](const Eigen::Vector3d&) -> Eigen::Matrix3d { return Eigen::Matrix3d::Identity(); };
-    out.animations = joints_moved
-                         ? transferAnimations(src, out.nodes, global.rotation, jointAdaptationAt, animation_options)
-                         : transferAnimations(src, src.nodes, Eigen::Matrix3d::Identity(), unchanged, animation_options);
-  }
+  if (options.animations) out.animations = transferJointAnimations(src, out.nodes, joints_moved, *adaptation, options);
   report.animations_ms = msSince(t0);
 
   // --- shapes
   if (stopBefore("shapes", 0.75)) return stopped("shapes");
   t0 = Clock::now();
-  if (options.shapes) {
-    const ShapeTransferOptions shape_options{{options.exaggeration, options.shape_exaggeration}, options.threads};
-    out.morph_targets = transferMorphTargets(src.morph_targets, src_mesh.triangles, locations, vertex_adaptation,
-                                             out.mesh, mismatched_inpainting, shape_options);
-    out.morph_default_weights = src.morph_default_weights;
-    report.shapes = static_cast<int>(out.morph_targets.size());
-  } else {
-    // Morph-weight channels would point at targets that no longer exist.
-    for (auto& a : out.animations) {
-      std::erase_if(a.channels, [](const AnimationChannel& c) { return c.path == AnimationPath::kWeights; });
-    }
-    std::erase_if(out.animations, [](const Animation& a) { return a.channels.empty(); });
-  }
+  transferShapes(source, warp->locations, adaptation->vertex_adaptation, inpainting->mismatchedOrNull(), options, out);
+  report.shapes = static_cast<int>(out.morph_targets.size());
   report.shapes_ms = msSince(t0);
   report.animations = static_cast<int>(out.animations.size());
 
-  // --- check: the output's worst vertices, before any UV copies. A vertex
-  // of low confidence moving as none of its ring does took its location's
-  // values from the wrong place (the other lip, the other side of the
-  // columella): its deltas are inpainted from its neighbours, as a
-  // mismatched vertex's are, and the output checked again.
+  // --- check the output (and repair unsure vertices), before any UV copies
   t0 = Clock::now();
-  QualityOptions quality_options = options.quality;
-  quality_options.threads = options.threads;
-  const QualitySource quality_source{src_mesh.triangles, source.surface.adjacency, source.surface.vertex_sides,
-                                     src.morph_targets};
-  report.quality = checkTransferQuality(target, warp->target.adjacency, out.morph_targets, locations,
-                                        warp->target_sides, quality_source, quality_options);
-  if (options.repair_unsure && !report.quality.clean() && !out.morph_targets.empty() && target_laplacian.rows() > 0) {
-    std::vector<char> known(static_cast<std::size_t>(target.vertexCount()), 1);
-    int repaired = 0;
-    for (Eigen::Index v = 0; v < target.vertexCount(); ++v) {
-      const bool unsure = report.quality.per_vertex(v) > 0.0 && locations.confidence(v) == 0.0;
-      known[static_cast<std::size_t>(v)] = locations.mismatched(v) == 0 && !unsure;
-      repaired += unsure && locations.mismatched(v) == 0 ? 1 : 0;
-    }
-    if (repaired > 0) {
-      auto repair = HarmonicInpainting::create(target_laplacian, known);
-      if (!repair) return Error{repair.error().code, target_label + ": inpainting unsure vertices: " + repair.error().message};
-      inpaintShapeDeltas(*repair, out.morph_targets);
-      updateNormalDeltas(out.mesh, out.morph_targets, options.threads);
-      report.quality = checkTransferQuality(target, warp->target.adjacency, out.morph_targets, locations,
-                                            warp->target_sides, quality_source, quality_options);
-      report.quality.repaired_vertices = repaired;
-    }
-  }
+  if (auto ok = checkAndRepairShapes(source, *warp, inpainting->laplacian, options, out, report); !ok) return ok.error();
   report.quality_ms = msSince(t0);
-  if (!report.quality.clean()) {
-    if (options.strict) {
-      return makeError(ErrorCode::kQualityGate, target_label + ": the transfer failed its quality check (strict): " +
-                                                    report.quality.summary());
-    }
-    report.warnings.push_back(target_label + ": unsure vertices, check them before use: " + report.quality.summary());
-  }
 
-  // --- attributes (+ diagnostics as data)
+  // --- attributes (+ diagnostics as data), then the UV layout
   if (stopBefore("attributes", 0.9)) return stopped("attributes");
   t0 = Clock::now();
   if (options.attributes) {
-    out.attributes = transferAttributes(src_mesh, src.attributes, locations, target_laplacian, mismatched_inpainting);
+    out.attributes = transferAttributes(source.surface.mesh, src.attributes, warp->locations, inpainting->laplacian,
+                                        inpainting->mismatchedOrNull());
   }
-  if (options.diagnostic_attributes) {
-    out.attributes.fields["CONFIDENCE"] = locations.confidence;
-    out.attributes.fields["INPAINTED"] =
-        weights.inpainted.size() == target.vertexCount() ? weights.inpainted.cast<double>().eval()
-                                                          : Eigen::VectorXd::Zero(target.vertexCount()).eval();
-    out.attributes.fields["QUALITY"] = report.quality.per_vertex;
-  }
-  // Last: carrying the source's UV seams over splits target vertices, and
-  // every per-vertex value above goes with its copies.
-  if (options.uvs && !source.uv_layout) {
-    report.warnings.push_back("uvs: " + source.surface.label + " has no UV set to transfer; " + target_label +
-                              " keeps its own UVs");
-  } else if (options.uvs) {
-    auto layout = transferUvLayout(src_mesh, *source.uv_layout, target, locations, warp->target.representative);
-    if (!layout) return Error{layout.error().code, target_label + ": " + layout.error().message};
-    appendVertexCopies(out, layout->copy_of);
-    out.mesh.triangles = layout->triangles;
-    std::size_t next = 0;
-    if (src_mesh.uvs.rows() > 0) out.mesh.uvs = layout->sets[next++];
-    out.attributes.extra_uv_sets.assign(layout->sets.begin() + static_cast<std::ptrdiff_t>(next), layout->sets.end());
-    report.uv_seam_vertices = static_cast<int>(layout->copy_of.size());
-    report.uv_extended_vertices = layout->extended_vertices;
-  }
+  if (options.diagnostic_attributes) addDiagnosticAttributes(warp->locations, weights, report.quality, out);
+  if (auto ok = transferUvs(source, *warp, options, out, report); !ok) return ok.error();
   report.attributes_ms = msSince(t0);
   report.total_ms = msSince(t_start);
   return result;
