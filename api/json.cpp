@@ -36,9 +36,6 @@ std::string readBool(const json& j, const char* key, bool& out, const std::strin
 
 json nullIfEmpty(const std::string& s) { return s.empty() ? json(nullptr) : json(s); }
 
-template <typename T>
-bool failed(const Parsed<T>& p) { return std::holds_alternative<std::string>(p); }
-
 }  // namespace
 
 json toJson(const Problem& p) {
@@ -182,8 +179,8 @@ Parsed<JobInfo> jobInfoFromJson(const json& j) {
   }
   if (const auto it = j.find("error"); it != j.end() && !it->is_null()) {
     auto problem = problemFromJson(*it);
-    if (failed(problem)) return "job.error: " + std::get<std::string>(problem);
-    job.error = std::get<Problem>(std::move(problem));
+    if (!problem) return "job.error: " + problem.error();
+    job.error = std::move(*problem);
   }
   return job;
 }
@@ -193,8 +190,8 @@ Parsed<JobPage> jobPageFromJson(const json& j) {
   JobPage page;
   for (const auto& item : j["items"]) {
     auto job = jobInfoFromJson(item);
-    if (failed(job)) return std::get<std::string>(job);
-    page.items.push_back(std::get<JobInfo>(std::move(job)));
+    if (!job) return job.error();
+    page.items.push_back(std::move(*job));
   }
   if (const std::string e = readString(j, "next", page.next, "page", false); !e.empty()) return e;
   return page;
@@ -205,8 +202,8 @@ Parsed<RigPage> rigPageFromJson(const json& j) {
   RigPage page;
   for (const auto& item : j["items"]) {
     auto rig = rigInfoFromJson(item);
-    if (failed(rig)) return std::get<std::string>(rig);
-    page.items.push_back(std::get<RigInfo>(std::move(rig)));
+    if (!rig) return rig.error();
+    page.items.push_back(std::move(*rig));
   }
   return page;
 }

@@ -4,17 +4,17 @@
 
 #include <string>
 #include <string_view>
-#include <variant>
 
 #include <nlohmann/json.hpp>
 
 #include "api/types.h"
+#include "common/result.h"
 
 namespace api {
 
 // A value or the name of what is wrong ("spec.rig: expected a string").
 template <typename T>
-using Parsed = std::variant<T, std::string>;
+using Parsed = rigport::Result<T, std::string>;
 
 nlohmann::json toJson(const Problem& problem);
 nlohmann::json toJson(const RigInfo& rig);

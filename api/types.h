@@ -13,6 +13,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "common/result.h"
+
 namespace api {
 
 enum class JobStatus { kQueued, kRunning, kSucceeded, kFailed, kCancelled };
@@ -33,6 +35,10 @@ struct Problem {
   std::string detail;
   std::string instance;        // request path, or the job id for job errors
 };
+
+// A value or the problem that prevented it (server checks, client calls).
+template <typename T>
+using Result = rigport::Result<T, Problem>;
 
 
 struct RigInfo {

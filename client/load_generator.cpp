@@ -104,19 +104,19 @@ void runWorker(SharedRun& run, WorkerTally& tally) {
     auto submitted = client.submitJob(run.spec, run.files);
     if (!submitted) {
       // 429 comes back only when waiting longer would pass the deadline.
-      timed_out = submitted.problem().status == 429;
-      if (!timed_out) logProblem(run, "submit", submitted.problem());
+      timed_out = submitted.error().status == 429;
+      if (!timed_out) logProblem(run, "submit", submitted.error());
     } else {
       const std::string id = submitted->job.id;
       const auto remaining = std::chrono::duration_cast<std::chrono::milliseconds>(run.deadline - Clock::now());
       auto final_job = client.waitJob(id, {}, poll, std::max(remaining, std::chrono::milliseconds(1)));
       if (!final_job) {
-        timed_out = final_job.problem().type == kWaitTimeoutProblem;
-        if (!timed_out) logProblem(run, "wait " + id, final_job.problem());
+        timed_out = final_job.error().type == kWaitTimeoutProblem;
+        if (!timed_out) logProblem(run, "wait " + id, final_job.error());
       } else if (final_job->status != api::JobStatus::kSucceeded) {
         if (final_job->error) logProblem(run, "job " + id + " " + api::jobStatusName(final_job->status), *final_job->error);
       } else if (auto result = client.fetchResult(id); !result) {
-        logProblem(run, "result " + id, result.problem());
+        logProblem(run, "result " + id, result.error());
       } else {
         succeeded = true;
         tally.latencies_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
@@ -150,12 +150,11 @@ int runBench(const BenchArgs& args) {
       return 1;
     }
     auto parsed = api::parseJsonText(std::string(std::istreambuf_iterator<char>(in), {}), args.options.string());
-    if (std::holds_alternative<std::string>(parsed) || !std::get<nlohmann::json>(parsed).is_object()) {
-      spdlog::error("bench: {}", std::holds_alternative<std::string>(parsed) ? std::get<std::string>(parsed)
-                                                                            : args.options.string() + ": expected a JSON object");
+    if (!parsed || !parsed->is_object()) {
+      spdlog::error("bench: {}", !parsed ? parsed.error() : args.options.string() + ": expected a JSON object");
       return 1;
     }
-    options = std::get<nlohmann::json>(std::move(parsed));
+    options = std::move(*parsed);
   }
 
   RemoteOptions upload_options;
@@ -165,7 +164,7 @@ int runBench(const BenchArgs& args) {
   RemoteClient uploader(upload_options);
   auto rig = uploader.uploadRig({args.source, args.source_landmarks, {}});
   if (!rig) {
-    spdlog::error("bench: rig upload: {}", describeProblem(rig.problem()));
+    spdlog::error("bench: rig upload: {}", describeProblem(rig.error()));
     return 1;
   }
   spdlog::info("bench: rig {} {}", rig->rig.id, rig->uploaded ? "uploaded" : "already on the service");

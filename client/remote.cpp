@@ -33,7 +33,7 @@ api::Problem localProblem(const char* type, const char* title, std::string detai
 }
 
 // Reads a whole local file; the problem names the path and the OS error.
-RemoteResult<std::string> readFile(const std::filesystem::path& path) {
+api::Result<std::string> readFile(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return localProblem(kClientIoProblem, "Cannot read a local file", path.string() + ": " + std::strerror(errno));
   std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -42,7 +42,7 @@ RemoteResult<std::string> readFile(const std::filesystem::path& path) {
 }
 
 // Writes through `path`.part and renames, so a failed download leaves no half file.
-RemoteResult<std::int64_t> writeFile(const std::filesystem::path& path, const std::string& bytes) {
+api::Result<std::int64_t> writeFile(const std::filesystem::path& path, const std::string& bytes) {
   std::filesystem::path part = path;
   part += ".part";
   {
@@ -149,10 +149,10 @@ struct RemoteClient::Http {
   // The problem of a non-2xx answer: its problem+json body, else one made from
   // the status and the first bytes of the body.
   api::Problem responseProblem(const std::string& method, const std::string& path, const httplib::Response& res) const {
-    if (auto parsed = api::parseJsonText(res.body, "problem"); std::holds_alternative<json>(parsed)) {
-      auto problem = api::problemFromJson(std::get<json>(parsed));
-      if (std::holds_alternative<api::Problem>(problem)) {
-        api::Problem p = std::get<api::Problem>(std::move(problem));
+    if (auto parsed = api::parseJsonText(res.body, "problem"); parsed) {
+      auto problem = api::problemFromJson(*parsed);
+      if (problem) {
+        api::Problem p = std::move(*problem);
         if (p.status == 0) p.status = res.status;
         if (p.detail.empty()) p.detail = method + " " + path + ": " + p.title;
         return p;
@@ -172,22 +172,22 @@ struct RemoteClient::Http {
 
   // Parses a 2xx JSON body with one of the api/json.h readers.
   template <typename T, typename Reader>
-  RemoteResult<T> parseBody(const std::string& method, const std::string& path, const httplib::Response& res,
+  api::Result<T> parseBody(const std::string& method, const std::string& path, const httplib::Response& res,
                             Reader reader) const {
     auto parsed = api::parseJsonText(res.body, method + " " + path + " response");
-    if (std::holds_alternative<std::string>(parsed)) {
-      api::Problem p = localProblem(kBadResponseProblem, "Unexpected response body", std::get<std::string>(parsed));
+    if (!parsed) {
+      api::Problem p = localProblem(kBadResponseProblem, "Unexpected response body", parsed.error());
       p.status = res.status;
       return p;
     }
-    auto value = reader(std::get<json>(parsed));
-    if (std::holds_alternative<std::string>(value)) {
+    auto value = reader(*parsed);
+    if (!value) {
       api::Problem p = localProblem(kBadResponseProblem, "Unexpected response body",
-                                    method + " " + path + " response: " + std::get<std::string>(value));
+                                    method + " " + path + " response: " + value.error());
       p.status = res.status;
       return p;
     }
-    return std::get<T>(std::move(value));
+    return std::move(*value);
   }
 };
 
@@ -244,7 +244,7 @@ httplib::Result getWithRetries(httplib::Client& client, const RemoteOptions& opt
 #define RIGPORT_REQUIRE_CLIENT()                                                                      \
   if (!http_->client) return localProblem(kTransportProblem, "Invalid service URL", http_->invalid_reason)
 
-RemoteResult<api::RigInfo> RemoteClient::getRig(const std::string& id) {
+api::Result<api::RigInfo> RemoteClient::getRig(const std::string& id) {
   RIGPORT_REQUIRE_CLIENT();
   const std::string path = "/v1/rigs/" + escape(id);
   auto res = getWithRetries(*http_->client, options_, path);
@@ -253,7 +253,7 @@ RemoteResult<api::RigInfo> RemoteClient::getRig(const std::string& id) {
   return http_->parseBody<api::RigInfo>("GET", path, *res, api::rigInfoFromJson);
 }
 
-RemoteResult<api::RigPage> RemoteClient::listRigs() {
+api::Result<api::RigPage> RemoteClient::listRigs() {
   RIGPORT_REQUIRE_CLIENT();
   const std::string path = "/v1/rigs";
   auto res = getWithRetries(*http_->client, options_, path);
@@ -262,16 +262,16 @@ RemoteResult<api::RigPage> RemoteClient::listRigs() {
   return http_->parseBody<api::RigPage>("GET", path, *res, api::rigPageFromJson);
 }
 
-RemoteResult<UploadedRig> RemoteClient::uploadRig(const RigFiles& files) {
+api::Result<UploadedRig> RemoteClient::uploadRig(const RigFiles& files) {
   RIGPORT_REQUIRE_CLIENT();
   auto rig = readFile(files.rig);
-  if (!rig) return rig.problem();
+  if (!rig) return rig.error();
   auto landmarks = readFile(files.landmarks);
-  if (!landmarks) return landmarks.problem();
+  if (!landmarks) return landmarks.error();
   std::string components_bytes;
   if (!files.components.empty()) {
     auto components = readFile(files.components);
-    if (!components) return components.problem();
+    if (!components) return components.error();
     components_bytes = std::move(*components);
   }
   const std::string id = api::rigContentId(asBytes(*rig), asBytes(*landmarks), asBytes(components_bytes));
@@ -279,7 +279,7 @@ RemoteResult<UploadedRig> RemoteClient::uploadRig(const RigFiles& files) {
   // Already there? Then the upload is skipped (the id is content-derived).
   auto existing = getRig(id);
   if (existing) return UploadedRig{std::move(*existing), false};
-  if (existing.problem().status != 404) return existing.problem();
+  if (existing.error().status != 404) return existing.error();
 
   httplib::MultipartFormDataItems items = {
       {"rig", std::move(*rig), files.rig.filename().string(), mediaTypeOf(files.rig)},
@@ -294,15 +294,15 @@ RemoteResult<UploadedRig> RemoteClient::uploadRig(const RigFiles& files) {
   if (!res) return http_->transportProblem("POST", path, res.error());
   if (!isSuccess(res->status)) return http_->responseProblem("POST", path, *res);
   auto info = http_->parseBody<api::RigInfo>("POST", path, *res, api::rigInfoFromJson);
-  if (!info) return info.problem();
+  if (!info) return info.error();
   return UploadedRig{std::move(*info), res->status == 201};
 }
 
-RemoteResult<Done> RemoteClient::deleteRig(const std::string& id) { return deleteAt("/v1/rigs/" + escape(id)); }
+api::Result<Done> RemoteClient::deleteRig(const std::string& id) { return deleteAt("/v1/rigs/" + escape(id)); }
 
-RemoteResult<Done> RemoteClient::deleteJob(const std::string& id) { return deleteAt("/v1/jobs/" + escape(id)); }
+api::Result<Done> RemoteClient::deleteJob(const std::string& id) { return deleteAt("/v1/jobs/" + escape(id)); }
 
-RemoteResult<Done> RemoteClient::deleteAt(const std::string& path) {
+api::Result<Done> RemoteClient::deleteAt(const std::string& path) {
   RIGPORT_REQUIRE_CLIENT();
   auto res = http_->client->Delete(path);
   if (options_.on_response) options_.on_response(res ? res->status : 0);
@@ -323,14 +323,14 @@ std::string randomIdempotencyKey() {
 
 }  // namespace
 
-RemoteResult<SubmittedJob> RemoteClient::submitJob(const nlohmann::json& spec,
+api::Result<SubmittedJob> RemoteClient::submitJob(const nlohmann::json& spec,
                                                    const std::map<std::string, std::filesystem::path>& files,
                                                    const std::string& idempotency_key) {
   RIGPORT_REQUIRE_CLIENT();
   httplib::MultipartFormDataItems items = {{"spec", spec.dump(), "", "application/json"}};
   for (const auto& [field, file] : files) {
     auto bytes = readFile(file);
-    if (!bytes) return bytes.problem();
+    if (!bytes) return bytes.error();
     items.push_back({field, std::move(*bytes), file.filename().string(), mediaTypeOf(file)});
   }
   // Every submission carries an Idempotency-Key (the caller's, or a random
@@ -359,12 +359,12 @@ RemoteResult<SubmittedJob> RemoteClient::submitJob(const nlohmann::json& spec,
     }
     if (!isSuccess(res->status)) return http_->responseProblem("POST", path, *res);
     auto job = http_->parseBody<api::JobInfo>("POST", path, *res, api::jobInfoFromJson);
-    if (!job) return job.problem();
+    if (!job) return job.error();
     return SubmittedJob{std::move(*job), res->status != 200, retries};
   }
 }
 
-RemoteResult<api::JobInfo> RemoteClient::getJob(const std::string& id, std::chrono::milliseconds wait) {
+api::Result<api::JobInfo> RemoteClient::getJob(const std::string& id, std::chrono::milliseconds wait) {
   RIGPORT_REQUIRE_CLIENT();
   std::string path = "/v1/jobs/" + escape(id);
   if (wait.count() > 0) path += "?wait_ms=" + std::to_string(wait.count());
@@ -374,7 +374,7 @@ RemoteResult<api::JobInfo> RemoteClient::getJob(const std::string& id, std::chro
   return http_->parseBody<api::JobInfo>("GET", path, *res, api::jobInfoFromJson);
 }
 
-RemoteResult<api::JobPage> RemoteClient::listJobs(const JobQuery& query) {
+api::Result<api::JobPage> RemoteClient::listJobs(const JobQuery& query) {
   RIGPORT_REQUIRE_CLIENT();
   std::string path = "/v1/jobs";
   char sep = '?';
@@ -394,7 +394,7 @@ RemoteResult<api::JobPage> RemoteClient::listJobs(const JobQuery& query) {
   return http_->parseBody<api::JobPage>("GET", path, *res, api::jobPageFromJson);
 }
 
-RemoteResult<api::JobInfo> RemoteClient::cancelJob(const std::string& id) {
+api::Result<api::JobInfo> RemoteClient::cancelJob(const std::string& id) {
   RIGPORT_REQUIRE_CLIENT();
   const std::string path = "/v1/jobs/" + escape(id) + ":cancel";
   auto res = http_->client->Post(path);
@@ -404,7 +404,7 @@ RemoteResult<api::JobInfo> RemoteClient::cancelJob(const std::string& id) {
   return http_->parseBody<api::JobInfo>("POST", path, *res, api::jobInfoFromJson);
 }
 
-RemoteResult<std::string> RemoteClient::fetchDiagnostics(const std::string& id) {
+api::Result<std::string> RemoteClient::fetchDiagnostics(const std::string& id) {
   RIGPORT_REQUIRE_CLIENT();
   const std::string path = "/v1/jobs/" + escape(id) + "/diagnostics";
   auto res = getWithRetries(*http_->client, options_, path);
@@ -413,7 +413,7 @@ RemoteResult<std::string> RemoteClient::fetchDiagnostics(const std::string& id) 
   return std::move(res->body);
 }
 
-RemoteResult<std::string> RemoteClient::fetchResult(const std::string& id) {
+api::Result<std::string> RemoteClient::fetchResult(const std::string& id) {
   RIGPORT_REQUIRE_CLIENT();
   const std::string path = "/v1/jobs/" + escape(id) + "/result";
   auto res = getWithRetries(*http_->client, options_, path);
@@ -422,19 +422,19 @@ RemoteResult<std::string> RemoteClient::fetchResult(const std::string& id) {
   return std::move(res->body);
 }
 
-RemoteResult<std::int64_t> RemoteClient::downloadResult(const std::string& id, const std::filesystem::path& file) {
+api::Result<std::int64_t> RemoteClient::downloadResult(const std::string& id, const std::filesystem::path& file) {
   auto bytes = fetchResult(id);
-  if (!bytes) return bytes.problem();
+  if (!bytes) return bytes.error();
   return writeFile(file, *bytes);
 }
 
-RemoteResult<std::int64_t> RemoteClient::downloadDiagnostics(const std::string& id, const std::filesystem::path& file) {
+api::Result<std::int64_t> RemoteClient::downloadDiagnostics(const std::string& id, const std::filesystem::path& file) {
   auto text = fetchDiagnostics(id);
-  if (!text) return text.problem();
+  if (!text) return text.error();
   return writeFile(file, *text);
 }
 
-RemoteResult<api::JobInfo> RemoteClient::waitJob(const std::string& id, const JobProgressCallback& on_progress,
+api::Result<api::JobInfo> RemoteClient::waitJob(const std::string& id, const JobProgressCallback& on_progress,
                                                  std::chrono::milliseconds poll_interval,
                                                  std::chrono::milliseconds timeout) {
   using namespace std::chrono;
@@ -449,7 +449,7 @@ RemoteResult<api::JobInfo> RemoteClient::waitJob(const std::string& id, const Jo
       if (timeout.count() > 0) wait = std::min(wait, duration_cast<milliseconds>(timeout - (asked - start)));
     }
     auto job = getJob(id, std::max(wait, milliseconds(0)));
-    if (!job) return job.problem();
+    if (!job) return job.error();
     if (on_progress) on_progress(*job);
     if (api::isFinal(job->status)) return job;
     if (timeout.count() > 0 && steady_clock::now() - start + poll_interval > timeout) {

@@ -1,7 +1,7 @@
 // Typed HTTP client of the rigport service (/v1, see api/openapi.json).
 // One RemoteClient holds one keep-alive connection (cpp-httplib behind PImpl:
 // httplib.h is included by remote.cpp only) and is NOT thread-safe: give each
-// thread its own. Every call returns a RemoteResult carrying the value or an
+// thread its own. Every call returns an api::Result carrying the value or an
 // api::Problem:
 //   - a non-2xx answer: its application/problem+json body (or a Problem made
 //     from the status and the body's first bytes when the body is not one);
@@ -27,7 +27,6 @@
 #include <optional>
 #include <string>
 #include <utility>
-#include <variant>
 
 #include <nlohmann/json.hpp>
 
@@ -39,25 +38,6 @@ inline constexpr const char* kTransportProblem = "urn:rigport:problem:transport"
 inline constexpr const char* kClientIoProblem = "urn:rigport:problem:client-io";
 inline constexpr const char* kBadResponseProblem = "urn:rigport:problem:bad-response";
 inline constexpr const char* kWaitTimeoutProblem = "urn:rigport:problem:wait-timeout";
-
-// A value or the problem that prevented it (httplib::Result's model, typed).
-template <typename T>
-class RemoteResult {
- public:
-  RemoteResult(T value) : v_(std::move(value)) {}                   // NOLINT: implicit by design
-  RemoteResult(api::Problem problem) : v_(std::move(problem)) {}    // NOLINT: implicit by design
-  explicit operator bool() const { return v_.index() == 0; }
-  const T& value() const { return std::get<0>(v_); }
-  T& value() { return std::get<0>(v_); }
-  const T& operator*() const { return value(); }
-  T& operator*() { return value(); }
-  const T* operator->() const { return &value(); }
-  T* operator->() { return &value(); }
-  const api::Problem& problem() const { return std::get<1>(v_); }
-
- private:
-  std::variant<T, api::Problem> v_;
-};
 
 struct Done {};  // the value of calls that return nothing (DELETE)
 
@@ -118,32 +98,32 @@ class RemoteClient {
 
   // Computes the content id (api/content_id.h), asks GET /v1/rigs/{id} and
   // uploads (POST /v1/rigs multipart: rig, landmarks, components) only on 404.
-  RemoteResult<UploadedRig> uploadRig(const RigFiles& files);
-  RemoteResult<api::RigInfo> getRig(const std::string& id);
-  RemoteResult<api::RigPage> listRigs();
-  RemoteResult<Done> deleteRig(const std::string& id);
+  api::Result<UploadedRig> uploadRig(const RigFiles& files);
+  api::Result<api::RigInfo> getRig(const std::string& id);
+  api::Result<api::RigPage> listRigs();
+  api::Result<Done> deleteRig(const std::string& id);
 
   // POST /v1/jobs: `spec` is sent as is (any kind), `files` maps a multipart
   // field name ("target", "target_landmarks", "mesh", ...) to a local file
   // sent with its file name. Retries 429 after Retry-After (max_queue_retries).
-  RemoteResult<SubmittedJob> submitJob(const nlohmann::json& spec,
+  api::Result<SubmittedJob> submitJob(const nlohmann::json& spec,
                                        const std::map<std::string, std::filesystem::path>& files,
                                        const std::string& idempotency_key = {});
   // `wait` > 0 asks the server to answer when the job finishes or after
   // `wait` (long polling, `wait_ms`), whichever comes first.
-  RemoteResult<api::JobInfo> getJob(const std::string& id,
+  api::Result<api::JobInfo> getJob(const std::string& id,
                                     std::chrono::milliseconds wait = std::chrono::milliseconds(0));
-  RemoteResult<api::JobPage> listJobs(const JobQuery& query = {});
-  RemoteResult<api::JobInfo> cancelJob(const std::string& id);
-  RemoteResult<Done> deleteJob(const std::string& id);  // a final job, its result and the inputs only it used
+  api::Result<api::JobPage> listJobs(const JobQuery& query = {});
+  api::Result<api::JobInfo> cancelJob(const std::string& id);
+  api::Result<Done> deleteJob(const std::string& id);  // a final job, its result and the inputs only it used
 
   // Writes the body of GET /v1/jobs/{id}/result (or /diagnostics) to `path`
   // (through `path`.part, renamed when complete); returns the bytes written.
-  RemoteResult<std::int64_t> downloadResult(const std::string& id, const std::filesystem::path& path);
-  RemoteResult<std::int64_t> downloadDiagnostics(const std::string& id, const std::filesystem::path& path);
+  api::Result<std::int64_t> downloadResult(const std::string& id, const std::filesystem::path& path);
+  api::Result<std::int64_t> downloadDiagnostics(const std::string& id, const std::filesystem::path& path);
   // The bodies themselves (GLB bytes; diagnostics JSON text).
-  RemoteResult<std::string> fetchResult(const std::string& id);
-  RemoteResult<std::string> fetchDiagnostics(const std::string& id);
+  api::Result<std::string> fetchResult(const std::string& id);
+  api::Result<std::string> fetchDiagnostics(const std::string& id);
 
   // Polls GET /v1/jobs/{id} until the job is final (succeeded, failed or
   // cancelled) and returns its last state; a failed job is a value, not a
@@ -151,12 +131,12 @@ class RemoteClient {
   // without, it long-polls (the server answers when the job finishes) and
   // never asks more often than every `poll_interval`. Gives up with a timeout
   // problem (status 0) after `timeout` (zero = never).
-  RemoteResult<api::JobInfo> waitJob(const std::string& id, const JobProgressCallback& on_progress = {},
+  api::Result<api::JobInfo> waitJob(const std::string& id, const JobProgressCallback& on_progress = {},
                                      std::chrono::milliseconds poll_interval = std::chrono::milliseconds(250),
                                      std::chrono::milliseconds timeout = std::chrono::milliseconds(0));
 
  private:
-  RemoteResult<Done> deleteAt(const std::string& path);
+  api::Result<Done> deleteAt(const std::string& path);
   struct Http;
   RemoteOptions options_;
   std::unique_ptr<Http> http_;

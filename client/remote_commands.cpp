@@ -10,7 +10,6 @@
 #include <iterator>
 #include <map>
 #include <string>
-#include <variant>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -70,13 +69,12 @@ void printJson(const json& j) {
 }
 
 // Reads a JSON file that must hold an object; the error names the file.
-std::variant<json, std::string> readJsonObject(const std::filesystem::path& path) {
+api::Parsed<json> readJsonObject(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return path.string() + ": cannot read";
   auto parsed = api::parseJsonText(std::string(std::istreambuf_iterator<char>(in), {}), path.string());
-  if (std::holds_alternative<std::string>(parsed)) return std::get<std::string>(parsed);
-  if (!std::get<json>(parsed).is_object()) return path.string() + ": expected a JSON object";
-  return std::get<json>(std::move(parsed));
+  if (parsed && !parsed->is_object()) return path.string() + ": expected a JSON object";
+  return parsed;
 }
 
 // Shows job progress on stderr: a redrawn bar on a terminal, otherwise a log
@@ -121,7 +119,7 @@ class ProgressDisplay {
 };
 
 // Waits for a job with the progress display; the final state (any status).
-RemoteResult<api::JobInfo> waitWithProgress(RemoteClient& client, const std::string& id, double timeout_s) {
+api::Result<api::JobInfo> waitWithProgress(RemoteClient& client, const std::string& id, double timeout_s) {
   ProgressDisplay display;
   auto job = client.waitJob(
       id, [&display](const api::JobInfo& j) { display.update(j); }, std::chrono::milliseconds(250),
@@ -144,35 +142,35 @@ int runRemoteTransfer(const TransferArgs& args, const Connection& connection) {
   json options = json::object();
   if (!args.options.empty()) {
     auto parsed = readJsonObject(args.options);
-    if (std::holds_alternative<std::string>(parsed)) return failText(std::get<std::string>(parsed));
-    options = std::get<json>(std::move(parsed));
+    if (!parsed) return failText(parsed.error());
+    options = std::move(*parsed);
   }
   if (args.strict) options["strict"] = true;
   RemoteClient client(remoteOptions(connection));
 
   auto rig = client.uploadRig({args.source, args.source_landmarks, {}});
-  if (!rig) return fail(rig.problem());
+  if (!rig) return fail(rig.error());
   spdlog::info("rig {} {} ({} vertices, {} joints, {} shapes)", rig->rig.id,
                rig->uploaded ? "uploaded" : "already on the service", rig->rig.vertices, rig->rig.joints,
                rig->rig.morph_targets);
 
   const json spec = {{"kind", "transfer"}, {"rig", rig->rig.id}, {"options", options}};
   auto submitted = client.submitJob(spec, {{"target", args.target}, {"target_landmarks", args.target_landmarks}});
-  if (!submitted) return fail(submitted.problem());
+  if (!submitted) return fail(submitted.error());
   const std::string id = submitted->job.id;
   spdlog::info("job {} {}{}", id, api::jobStatusName(submitted->job.status),
                submitted->queue_retries ? " after " + std::to_string(submitted->queue_retries) + " queue-full retries" : "");
 
   auto job = waitWithProgress(client, id, 0.0);
-  if (!job) return fail(job.problem());
+  if (!job) return fail(job.error());
   if (job->status != api::JobStatus::kSucceeded) return failJob(*job);
 
   auto written = client.downloadResult(id, args.output);
-  if (!written) return fail(written.problem());
+  if (!written) return fail(written.error());
   auto diagnostics = client.fetchDiagnostics(id);
   if (!diagnostics) {
-    if (!args.diagnostics.empty() || args.print_diagnostics) return fail(diagnostics.problem());
-    spdlog::warn("diagnostics: {}", describeProblem(diagnostics.problem()));
+    if (!args.diagnostics.empty() || args.print_diagnostics) return fail(diagnostics.error());
+    spdlog::warn("diagnostics: {}", describeProblem(diagnostics.error()));
   } else {
     if (!args.diagnostics.empty()) {
       std::ofstream out(args.diagnostics, std::ios::binary | std::ios::trunc);
@@ -353,25 +351,25 @@ int RemoteCommands::State::runRigs() const {
   RemoteClient client(remoteOptions(connection));
   if (*rigs_upload) {
     auto rig = client.uploadRig(rig_files);
-    if (!rig) return fail(rig.problem());
+    if (!rig) return fail(rig.error());
     spdlog::info("rig {} {}", rig->rig.id, rig->uploaded ? "uploaded" : "already on the service (upload skipped)");
     printJson(api::toJson(rig->rig));
     return 0;
   }
   if (*rigs_list) {
     auto page = client.listRigs();
-    if (!page) return fail(page.problem());
+    if (!page) return fail(page.error());
     printJson(api::toJson(*page));
     return 0;
   }
   if (*rigs_get) {
     auto rig = client.getRig(rig_id);
-    if (!rig) return fail(rig.problem());
+    if (!rig) return fail(rig.error());
     printJson(api::toJson(*rig));
     return 0;
   }
   auto deleted = client.deleteRig(rig_id);
-  if (!deleted) return fail(deleted.problem());
+  if (!deleted) return fail(deleted.error());
   printJson({{"id", rig_id}, {"deleted", true}});
   return 0;
 }
@@ -380,7 +378,7 @@ int RemoteCommands::State::runJobs() const {
   RemoteClient client(remoteOptions(connection));
   if (*jobs_submit) {
     auto spec = readJsonObject(spec_file);
-    if (std::holds_alternative<std::string>(spec)) return failText(std::get<std::string>(spec));
+    if (!spec) return failText(spec.error());
     std::map<std::string, std::filesystem::path> files;
     for (const std::string& field : file_fields) {
       const auto eq = field.find('=');
@@ -391,48 +389,48 @@ int RemoteCommands::State::runJobs() const {
       if (!std::filesystem::is_regular_file(path)) return failText("--file " + field + ": no such file");
       if (!files.emplace(field.substr(0, eq), path).second) return failText("--file " + field + ": field given twice");
     }
-    auto submitted = client.submitJob(std::get<json>(spec), files, idempotency_key);
-    if (!submitted) return fail(submitted.problem());
+    auto submitted = client.submitJob(*spec, files, idempotency_key);
+    if (!submitted) return fail(submitted.error());
     if (!submitted->created) spdlog::info("job {}: existing job for this Idempotency-Key", submitted->job.id);
     printJson(api::toJson(submitted->job));
     return 0;
   }
   if (*jobs_get) {
     auto job = client.getJob(job_id);
-    if (!job) return fail(job.problem());
+    if (!job) return fail(job.error());
     printJson(api::toJson(*job));
     return 0;
   }
   if (*jobs_wait) {
     auto job = waitWithProgress(client, job_id, wait_timeout_s);
-    if (!job) return fail(job.problem());
+    if (!job) return fail(job.error());
     printJson(api::toJson(*job));
     return job->status == api::JobStatus::kSucceeded ? 0 : failJob(*job);
   }
   if (*jobs_list) {
     auto page = client.listJobs(query);
-    if (!page) return fail(page.problem());
+    if (!page) return fail(page.error());
     printJson(api::toJson(*page));
     return 0;
   }
   if (*jobs_cancel) {
     auto job = client.cancelJob(job_id);
-    if (!job) return fail(job.problem());
+    if (!job) return fail(job.error());
     printJson(api::toJson(*job));
     return 0;
   }
   if (*jobs_delete) {
     auto deleted = client.deleteJob(job_id);
-    if (!deleted) return fail(deleted.problem());
+    if (!deleted) return fail(deleted.error());
     printJson({{"id", job_id}, {"deleted", true}});
     return 0;
   }
   auto bytes = client.downloadResult(job_id, result_output);
-  if (!bytes) return fail(bytes.problem());
+  if (!bytes) return fail(bytes.error());
   json out = {{"id", job_id}, {"result", result_output.string()}, {"bytes", *bytes}};
   if (!result_diagnostics.empty()) {
     auto diagnostics = client.downloadDiagnostics(job_id, result_diagnostics);
-    if (!diagnostics) return fail(diagnostics.problem());
+    if (!diagnostics) return fail(diagnostics.error());
     out["diagnostics"] = result_diagnostics.string();
   }
   printJson(out);

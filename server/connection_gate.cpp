@@ -46,7 +46,7 @@ struct Head {
 };
 
 // The head's request line and framing headers, or the problem with it.
-std::variant<Head, api::Problem> parseHead(std::string_view head) {
+api::Result<Head> parseHead(std::string_view head) {
   const auto bad = [](const std::string& detail, const std::string& path) {
     return api::makeProblem(api::WireError::kMalformedRequest, detail, path.empty() ? "/" : path);
   };
@@ -305,8 +305,8 @@ void ConnectionGate::inspect(int fd) {
     return;                            // not complete yet: wait for more
   }
   auto parsed = parseHead(bytes.substr(0, end + 4));
-  if (auto* problem = std::get_if<api::Problem>(&parsed)) return answer(fd, *problem);
-  const Head& head = std::get<Head>(parsed);
+  if (!parsed) return answer(fd, parsed.error());
+  const Head& head = *parsed;
   ReadyConnection ready;
   ready.client = w.client;
   ready.client_port = w.client_port;

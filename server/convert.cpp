@@ -84,7 +84,7 @@ api::Problem problemFromCoreError(const core::Error& error, const std::string& i
   return api::makeProblem(wireErrorOf(error.code), error.message, instance);
 }
 
-std::variant<api::RigInfo, api::Problem> checkRigUpload(Bytes rig_bytes, const std::string& rig_name, Bytes landmark_bytes,
+api::Result<api::RigInfo> checkRigUpload(Bytes rig_bytes, const std::string& rig_name, Bytes landmark_bytes,
                                                         const std::optional<Bytes>& components,
                                                         const ServerConfig& limits) {
   auto rig = readRigBytes(rig_bytes, "rig '" + rig_name + "'");
@@ -102,10 +102,10 @@ std::variant<api::RigInfo, api::Problem> checkRigUpload(Bytes rig_bytes, const s
   if (auto ok = core::checkTpsCentres(*positions, {}, names); !ok) return problemFromCoreError(ok.error(), "/v1/rigs");
   if (components) {
     auto json = api::parseJsonText(std::string(asText(*components)), "components");
-    if (std::holds_alternative<std::string>(json)) {
-      return api::makeProblem(api::WireError::kMalformedFile, std::get<std::string>(json), "/v1/rigs");
+    if (!json) {
+      return api::makeProblem(api::WireError::kMalformedFile, json.error(), "/v1/rigs");
     }
-    if (!std::get<nlohmann::json>(json).is_object()) {
+    if (!json->is_object()) {
       return api::makeProblem(api::WireError::kMalformedFile, "components: expected a JSON object", "/v1/rigs");
     }
   }

@@ -10,7 +10,6 @@
 #include <span>
 #include <string>
 #include <string_view>
-#include <variant>
 #include <vector>
 
 #include "api/error_codes.h"
@@ -33,7 +32,7 @@ using Bytes = std::span<const std::uint8_t>;
 // An uploaded rig: the GLB reads as a rig, the landmarks parse, lie on its
 // mesh and make a well-conditioned TPS; counts within the limits. On success
 // the rig's summary (id and created_at left to the caller).
-std::variant<api::RigInfo, api::Problem> checkRigUpload(Bytes rig, const std::string& rig_name, Bytes landmarks,
+api::Result<api::RigInfo> checkRigUpload(Bytes rig, const std::string& rig_name, Bytes landmarks,
                                                         const std::optional<Bytes>& components,
                                                         const ServerConfig& limits);
 

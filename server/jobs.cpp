@@ -45,7 +45,7 @@ api::JobInfo jobInfoOf(const JobRecord& job, const std::optional<LiveProgress>& 
   if (!job.error_json.empty()) {
     const auto error = nlohmann::json::parse(job.error_json, nullptr, false);
     auto problem = api::problemFromJson(error);
-    if (std::holds_alternative<api::Problem>(problem)) info.error = std::get<api::Problem>(std::move(problem));
+    if (problem) info.error = std::move(*problem);
   }
   return info;
 }
@@ -78,7 +78,7 @@ void JobManager::start() {
   for (int i = 0; i < n; ++i) workers_.emplace_back([this] { workerLoop(); });
 }
 
-std::variant<std::pair<JobRecord, bool>, api::Problem> JobManager::submit(const JobRecord& job) {
+api::Result<std::pair<JobRecord, bool>> JobManager::submit(const JobRecord& job) {
   {
     std::lock_guard lock(mutex_);
     if (stopping_) return api::makeProblem(api::WireError::kNotReady, "the service is shutting down", "/v1/jobs");
@@ -105,7 +105,7 @@ std::variant<std::pair<JobRecord, bool>, api::Problem> JobManager::submit(const 
   return std::move(*inserted);
 }
 
-std::variant<JobRecord, api::Problem> JobManager::cancel(const std::string& tenant, const std::string& id) {
+api::Result<JobRecord> JobManager::cancel(const std::string& tenant, const std::string& id) {
   const std::string instance = "/v1/jobs/" + id;
   std::unique_lock lock(mutex_);  // excludes a worker starting this job meanwhile
   auto job = store_.getJob(tenant, id);

@@ -19,7 +19,6 @@
 #include <string>
 #include <thread>
 #include <utility>
-#include <variant>
 #include <vector>
 
 #include "api/types.h"
@@ -60,10 +59,10 @@ class JobManager {
 
   // Commits the job (or finds the earlier one with its Idempotency-Key) and
   // queues it. A full queue is a 429 problem; nothing is stored then.
-  std::variant<std::pair<JobRecord, bool>, api::Problem> submit(const JobRecord& job);
+  api::Result<std::pair<JobRecord, bool>> submit(const JobRecord& job);
 
   // Queued: cancelled now. Running: stops at its next stage boundary. Final: 409.
-  std::variant<JobRecord, api::Problem> cancel(const std::string& tenant, const std::string& id);
+  api::Result<JobRecord> cancel(const std::string& tenant, const std::string& id);
 
   // Stage and progress of a running job (the store has the rest).
   std::optional<LiveProgress> live(const std::string& id) const;

@@ -129,7 +129,7 @@ bool isBulkPart(const std::string& field) {
   return field == "rig" || field == "target" || field == "mesh" || field == "mocap";
 }
 
-std::variant<LoadedParts, api::Problem> loadParts(const SpooledUpload& upload, const std::set<std::string>& required,
+api::Result<LoadedParts> loadParts(const SpooledUpload& upload, const std::set<std::string>& required,
                                                   const std::set<std::string>& optional, const std::string& path,
                                                   std::uint64_t max_document_bytes) {
   for (const auto& name : required) {
@@ -177,18 +177,18 @@ std::optional<ReceivedUpload> receiveUpload(const Request& req, Response& res, c
   auto tenant = authenticate(req, res, ctx);
   if (!tenant || !storageWritable(req, res, ctx)) return std::nullopt;
   auto slot = ctx.uploads.acquire(*tenant, req.remote_addr);
-  if (auto* refusal = std::get_if<std::string>(&slot)) {
+  if (!slot) {
     res.set_header("Connection", "close");  // the body is left unread
-    sendProblem(res, api::makeProblem(api::WireError::kTooManyUploads, *refusal + "; retry later", req.path), ctx);
+    sendProblem(res, api::makeProblem(api::WireError::kTooManyUploads, slot.error() + "; retry later", req.path), ctx);
     return std::nullopt;
   }
   auto spooled = spoolMultipart(req, reader, ctx.config.data_dir / "uploads", ctx.config.max_body_bytes);
-  if (auto* p = std::get_if<api::Problem>(&spooled)) {
-    if (p->status == 503) ctx.storage.reportFault("upload_spool", p->detail);
-    sendProblem(res, *p, ctx);
+  if (!spooled) {
+    if (spooled.error().status == 503) ctx.storage.reportFault("upload_spool", spooled.error().detail);
+    sendProblem(res, spooled.error(), ctx);
     return std::nullopt;
   }
-  return ReceivedUpload{std::move(*tenant), std::get<SpooledUpload>(std::move(spooled))};
+  return ReceivedUpload{std::move(*tenant), std::move(*spooled)};
 }
 
 // ---------------------------------------------------------------- rigs
@@ -199,8 +199,8 @@ void postRig(const Request& req, Response& res, const httplib::ContentReader& re
   const std::string* tenant = &received->tenant;
   const SpooledUpload& upload = received->upload;
   auto loaded = loadParts(upload, {"rig", "landmarks"}, {"components"}, req.path, ctx.config.max_document_part_bytes);
-  if (auto* p = std::get_if<api::Problem>(&loaded)) return sendProblem(res, *p, ctx);
-  const auto& bytes = std::get<LoadedParts>(loaded).bytes;
+  if (!loaded) return sendProblem(res, loaded.error(), ctx);
+  const auto& bytes = loaded->bytes;
   const bool has_components = bytes.count("components") > 0;
   const std::vector<std::uint8_t> no_components;
   const std::string id =
@@ -213,11 +213,11 @@ void postRig(const Request& req, Response& res, const httplib::ContentReader& re
   const std::string rig_name = upload.parts.at("rig").filename.empty() ? "rig.glb" : upload.parts.at("rig").filename;
   auto checked = checkRigUpload(bytes.at("rig"), rig_name, bytes.at("landmarks"),
                                 has_components ? std::optional<Bytes>(bytes.at("components")) : std::nullopt, ctx.config);
-  if (auto* p = std::get_if<api::Problem>(&checked)) return sendProblem(res, *p, ctx);
+  if (!checked) return sendProblem(res, checked.error(), ctx);
 
   RigRecord record;
   record.tenant = *tenant;
-  record.info = std::get<api::RigInfo>(checked);
+  record.info = *checked;
   record.info.id = id;
   record.info.created_at = formatTimestamp(nowMs());
   std::shared_lock collection(ctx.blob_collection);
@@ -281,14 +281,12 @@ void postJob(const Request& req, Response& res, const httplib::ContentReader& re
   auto spec_bytes = core::readFileBytes(upload.parts.at("spec").path);
   if (!spec_bytes) return sendProblem(res, api::makeProblem(api::WireError::kInternal, "reading the spooled upload failed", req.path), ctx);
   auto spec_json = api::parseJsonText(std::string(asText(*spec_bytes)), "spec");
-  if (auto* e = std::get_if<std::string>(&spec_json)) {
-    return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest, *e, req.path), ctx);
+  if (!spec_json) return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest, spec_json.error(), req.path), ctx);
+  auto parsed_spec = api::jobSpecFromJson(*spec_json);
+  if (!parsed_spec) {
+    return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest, parsed_spec.error(), req.path), ctx);
   }
-  auto parsed_spec = api::jobSpecFromJson(std::get<json>(spec_json));
-  if (auto* e = std::get_if<std::string>(&parsed_spec)) {
-    return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest, *e, req.path), ctx);
-  }
-  api::JobSpec& spec = std::get<api::JobSpec>(parsed_spec);
+  api::JobSpec& spec = *parsed_spec;
   const api::JobKindInfo& kind = api::jobKindInfo(spec.kind);
   std::optional<core::LandmarkSet> rig_landmarks;
   if (kind.needs_rig) {
@@ -314,8 +312,8 @@ void postJob(const Request& req, Response& res, const httplib::ContentReader& re
   required.insert("spec");
   auto loaded = loadParts(upload, required, {kind.optional_files.begin(), kind.optional_files.end()}, req.path,
                           ctx.config.max_document_part_bytes);
-  if (auto* p = std::get_if<api::Problem>(&loaded)) return sendProblem(res, *p, ctx);
-  const auto& bytes = std::get<LoadedParts>(loaded).bytes;
+  if (!loaded) return sendProblem(res, loaded.error(), ctx);
+  const auto& bytes = loaded->bytes;
   std::map<std::string, std::pair<std::string, Bytes>> files;
   for (const auto& [field, data] : bytes) {
     const std::string& filename = upload.parts.at(field).filename;
@@ -344,8 +342,8 @@ void postJob(const Request& req, Response& res, const httplib::ContentReader& re
     job.input_names[field] = files.at(field).first;
   }
   auto submitted = ctx.jobs.submit(job);
-  if (auto* p = std::get_if<api::Problem>(&submitted)) return sendProblem(res, *p, ctx);
-  const auto& [record, created] = std::get<std::pair<JobRecord, bool>>(submitted);
+  if (!submitted) return sendProblem(res, submitted.error(), ctx);
+  const auto& [record, created] = *submitted;
   if (!created && (record.spec_json != job.spec_json || record.inputs != job.inputs)) {
     // The key names another request: a retry must be the same request (as
     // Stripe answers). What this one stored alone is removed, under the
@@ -434,8 +432,8 @@ void cancelJob(const Request& req, Response& res, RouteContext& ctx) {
   if (!tenant || !storageWritable(req, res, ctx)) return;
   const std::string id = req.matches[1];
   auto cancelled = ctx.jobs.cancel(*tenant, id);
-  if (auto* p = std::get_if<api::Problem>(&cancelled)) return sendProblem(res, *p, ctx);
-  sendJson(res, 202, api::toJson(jobInfoOf(std::get<JobRecord>(cancelled), ctx.jobs.live(id))));
+  if (!cancelled) return sendProblem(res, cancelled.error(), ctx);
+  sendJson(res, 202, api::toJson(jobInfoOf(*cancelled, ctx.jobs.live(id))));
 }
 
 // GET result / diagnostics: the stored blob, verified against its hash.

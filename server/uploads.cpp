@@ -17,7 +17,7 @@ SpooledUpload::~SpooledUpload() {
   }
 }
 
-std::variant<SpooledUpload, api::Problem> spoolMultipart(const httplib::Request& request,
+api::Result<SpooledUpload> spoolMultipart(const httplib::Request& request,
                                                          const httplib::ContentReader& reader,
                                                          const std::filesystem::path& spool_dir,
                                                          std::uint64_t max_body_bytes) {
@@ -114,7 +114,7 @@ UploadSlots::Ticket::~Ticket() {
   if (slots_) slots_->release(tenant_, client_);
 }
 
-std::variant<UploadSlots::Ticket, std::string> UploadSlots::acquire(const std::string& tenant, const std::string& client) {
+rigport::Result<UploadSlots::Ticket, std::string> UploadSlots::acquire(const std::string& tenant, const std::string& client) {
   std::lock_guard lock(mutex_);
   if (by_tenant_[tenant] >= per_tenant_) {
     return "this tenant already has " + std::to_string(per_tenant_) + " uploads in progress (the limit per tenant)";

@@ -8,7 +8,6 @@
 #include <map>
 #include <mutex>
 #include <string>
-#include <variant>
 
 #include "api/http.h"
 
@@ -36,7 +35,7 @@ class SpooledUpload {
 // Reads a multipart/form-data body into spool files. Problems: 415 when the
 // body is not multipart, 413 over `max_body_bytes`, 400 for a field given
 // twice or a broken body.
-std::variant<SpooledUpload, api::Problem> spoolMultipart(const httplib::Request& request,
+api::Result<SpooledUpload> spoolMultipart(const httplib::Request& request,
                                                          const httplib::ContentReader& reader,
                                                          const std::filesystem::path& spool_dir,
                                                          std::uint64_t max_body_bytes);
@@ -61,7 +60,7 @@ class UploadSlots {
     std::string tenant_, client_;
   };
   // A ticket, or which limit is reached (a sentence for the 429).
-  std::variant<Ticket, std::string> acquire(const std::string& tenant, const std::string& client);
+  rigport::Result<Ticket, std::string> acquire(const std::string& tenant, const std::string& client);
 
  private:
   void release(const std::string& tenant, const std::string& client);

@@ -1,16 +1,16 @@
 // core::Error and core::Result<T>: how core reports bad user data.
 // Programmer errors are asserts; bad input (files, landmarks, geometry) is an
 // Error with a closed code and a message naming the file, field or element at
-// fault. Modelled on cpp-httplib's Result/Error pair; no exceptions cross the
-// core API.
+// fault (common/result.h, the one value-or-error of every layer); no
+// exceptions cross the core API.
 #pragma once
 
-#include <cassert>
 #include <optional>
 #include <string>
 #include <utility>
-#include <variant>
 #include <vector>
+
+#include "common/result.h"
 
 namespace core {
 
@@ -35,31 +35,10 @@ struct Error {
 };
 
 template <typename T>
-class Result {
- public:
-  Result(T value) : state_(std::move(value)) {}              // NOLINT: implicit by design
-  Result(Error error) : state_(std::move(error)) {}          // NOLINT: implicit by design
-
-  bool ok() const { return std::holds_alternative<T>(state_); }
-  explicit operator bool() const { return ok(); }
-
-  const T& value() const& { assert(ok()); return std::get<T>(state_); }
-  T& value() & { assert(ok()); return std::get<T>(state_); }
-  T&& value() && { assert(ok()); return std::get<T>(std::move(state_)); }
-  const T& operator*() const& { return value(); }
-  T& operator*() & { return value(); }
-  T&& operator*() && { return std::move(*this).value(); }
-  const T* operator->() const { return &value(); }
-  T* operator->() { return &value(); }
-
-  const Error& error() const { assert(!ok()); return std::get<Error>(state_); }
-
- private:
-  std::variant<T, Error> state_;
-};
+using Result = rigport::Result<T, Error>;
 
 // For operations that return nothing on success.
-struct Ok {};
+using Ok = rigport::Ok;
 using Status = Result<Ok>;
 
 inline Error makeError(ErrorCode code, std::string message) { return Error{code, std::move(message)}; }
