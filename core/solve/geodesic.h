@@ -53,8 +53,9 @@ class GeodesicSolver {
   GeodesicSolver& operator=(GeodesicSolver&&) noexcept;
   ~GeodesicSolver();
 
+  struct Data;  // the factorised systems and per-vertex tables (geodesic.cpp, read by its stages)
+
  private:
-  struct Data;
   explicit GeodesicSolver(std::unique_ptr<Data> data);
   std::unique_ptr<Data> data_;
 };
