@@ -1,6 +1,6 @@
 // Building glTF/GLB bytes by hand in tests (tests never include tinygltf): the
 // GLB container, base64 data URIs and a small document builder over one buffer.
-// Shared by tests/core/io/mesh_io_test.cpp and rig_io_test.cpp.
+// Shared by the mesh and rig I/O tests in tests/core/io/.
 #pragma once
 
 #include <cstdint>

@@ -1,0 +1,54 @@
+// Tests core/jobs/transfer_options.cpp: a mistyped key named with the key
+// meant, and the warp's switches read from the options JSON.
+#include "core/jobs/transfer_options.h"
+
+#include <string>
+
+#include <gtest/gtest.h>
+
+namespace {
+
+// A warp switch in the options JSON: on by default, off with false, and a
+// value of another type is an error that names the key.
+void expectWarpSwitch(const std::string& key, bool core::WarpOptions::*member, const std::string& bad_value) {
+  auto defaults = core::parseTransferOptions("{}", "opts.json");
+  ASSERT_TRUE(defaults) << defaults.error().message;
+  EXPECT_TRUE(defaults->transfer.warp.*member) << key;
+  auto off = core::parseTransferOptions("{\"" + key + "\": false}", "opts.json");
+  ASSERT_TRUE(off) << off.error().message;
+  EXPECT_FALSE(off->transfer.warp.*member) << key;
+  auto bad = core::parseTransferOptions("{\"" + key + "\": " + bad_value + "}", "opts.json");
+  ASSERT_FALSE(bad) << key;
+  EXPECT_NE(bad.error().message.find(key), std::string::npos) << bad.error().message;
+}
+
+TEST(TransferOptions, AMistypedKeyIsNamedWithTheKeyMeant) {
+  auto typo = core::parseTransferOptions(R"({"max_infuences": 4})", "opts.json");
+  ASSERT_FALSE(typo);
+  EXPECT_EQ(typo.error().message, "opts.json: 'max_infuences' is not a known option (did you mean 'max_influences'?)");
+  auto switched = core::parseTransferOptions(R"({"strcit": true})", "opts.json");
+  ASSERT_FALSE(switched);
+  EXPECT_EQ(switched.error().message, "opts.json: 'strcit' is not a known option (did you mean 'strict'?)");
+  auto unknown = core::parseTransferOptions(R"({"colour": 1})", "opts.json");
+  ASSERT_FALSE(unknown);
+  EXPECT_EQ(unknown.error().message, "opts.json: 'colour' is not a known option");
+}
+
+TEST(TransferOptions, SlidingCentresCanBeSwitchedOff) {
+  expectWarpSwitch("slide_centres", &core::WarpOptions::slide_centres, "1");
+}
+
+TEST(TransferOptions, RimMatchingCanBeSwitchedOff) {
+  expectWarpSwitch("rim_matching", &core::WarpOptions::rim_matching, "\"no\"");
+}
+
+TEST(TransferOptions, TargetPullsAndTheSmoothedGuideCanBeSwitchedOff) {
+  expectWarpSwitch("target_pulls", &core::WarpOptions::target_pulls, "0");
+  expectWarpSwitch("smooth_guide", &core::WarpOptions::smooth_guide, "null");
+}
+
+TEST(TransferOptions, RimLocationCanBeSwitchedOff) {
+  expectWarpSwitch("rim_location", &core::WarpOptions::rim_location, "\"off\"");
+}
+
+}  // namespace

@@ -1,0 +1,81 @@
+// Helpers the store tests share (tests/server/blob_store_test.cpp,
+// metadata_store_test.cpp, store_durability_test.cpp): bytes to store, a
+// metadata store opened with the error in the failure, and rig and job
+// records as the service writes them.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <random>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "server/store.h"
+
+namespace rigport_test::store {
+
+inline std::vector<std::uint8_t> bytesOf(const std::string& s) { return {s.begin(), s.end()}; }
+
+inline std::vector<std::uint8_t> randomBytes(std::size_t n, std::mt19937& rng) {
+  std::vector<std::uint8_t> out(n);
+  for (auto& b : out) b = static_cast<std::uint8_t>(rng());
+  return out;
+}
+
+inline std::unique_ptr<server::MetadataStore> openStore(const std::filesystem::path& file) {
+  auto store = server::MetadataStore::open(file);
+  EXPECT_TRUE(store.ok()) << (store.ok() ? "" : store.error().message);
+  return store.ok() ? std::move(*store) : nullptr;
+}
+
+inline server::RigRecord makeRig(const std::string& tenant, const std::string& id,
+                                 const std::string& name = "head.glb") {
+  server::RigRecord rig;
+  rig.tenant = tenant;
+  rig.info.id = id;
+  rig.info.name = name;
+  rig.info.size_bytes = 1234;
+  rig.info.vertices = 100;
+  rig.info.joints = 3;
+  rig.info.morph_targets = 52;
+  rig.info.landmarks = 68;
+  rig.info.has_components = true;
+  rig.rig_blob = std::string(64, 'a');
+  rig.landmarks_blob = std::string(64, 'b');
+  rig.components_blob = std::string(64, 'c');
+  return rig;
+}
+
+inline server::JobRecord makeJob(const std::string& tenant, const std::string& id, const std::string& key = "") {
+  server::JobRecord job;
+  job.tenant = tenant;
+  job.id = id;
+  job.kind = api::JobKind::kTransfer;
+  job.rig = "rig1";
+  job.spec_json = R"({"kind":"transfer","rig":"rig1"})";
+  job.inputs = {{"target", std::string(64, 'd')}, {"target_landmarks", std::string(64, 'e')}};
+  job.input_names = {{"target", "target.glb"}, {"target_landmarks", "target.json"}};
+  job.idempotency_key = key;
+  job.created_ms = 1700000000000;
+  return job;
+}
+
+inline server::JobRecord finished(server::JobRecord job, api::JobStatus status) {
+  job.status = status;
+  job.stage = "done";
+  job.finished_ms = 1700000005000;
+  if (status == api::JobStatus::kSucceeded) {
+    job.result_blob = std::string(64, '1');
+    job.diagnostics_blob = std::string(64, '2');
+    job.timings_json = R"({"warp":12.5})";
+  } else {
+    job.error_json = R"({"title":"stopped"})";
+  }
+  return job;
+}
+
+}  // namespace rigport_test::store
