@@ -1,5 +1,6 @@
 #include "client/local_jobs.h"
 
+#include "core/base/parallel.h"
 #include "core/base/timing.h"
 
 #include <chrono>
@@ -83,9 +84,8 @@ int runWarp(const WarpArgs& args) {
   spdlog::info("read source {} ({} vertices), target {} ({} vertices)", args.source.filename().string(),
                source->mesh.vertexCount(), args.target.filename().string(), target->mesh.vertexCount());
 
-  core::PrepareOptions prepare_options;
-  prepare_options.threads = args.threads;
-  auto prepared = core::prepareSource(source->mesh, *source_landmarks, args.source.filename().string(), prepare_options);
+  const core::ScopedThreadCount threads(args.threads);
+  auto prepared = core::prepareSource(source->mesh, *source_landmarks, args.source.filename().string());
   if (!prepared) return fail(prepared.error());
 
   core::WarpOptions options = args.plain ? core::plainWarpOptions() : args.light ? core::lightWarpOptions() : core::WarpOptions{};
@@ -94,7 +94,6 @@ int runWarp(const WarpArgs& args) {
     options.local_rounds = args.local_rounds;
   }
   options.landmark_tps.regularization = args.landmark_regularization;
-  options.threads = args.threads;
   auto result = core::runWarp(*prepared, target->mesh, *target_landmarks, args.target.filename().string(), options);
   if (!result) return fail(result.error());
   result->report.prepare_ms = prepared->prepare_ms;
@@ -156,10 +155,7 @@ int runTransfer(const TransferArgs& args) {
   input.target_label = args.target.filename().string();
 
   const core::PrepareRigSource prepare = [&]() -> core::Result<core::PreparedRigSource> {
-    core::PrepareOptions prepare_options;
-    prepare_options.threads = args.threads;
-    auto prepared = core::prepareRig(std::move(source->rig), *source_landmarks, args.source.filename().string(),
-                                     prepare_options);
+    auto prepared = core::prepareRig(std::move(source->rig), *source_landmarks, args.source.filename().string());
     if (!prepared) return prepared.error();
     return core::PreparedRigSource{std::make_shared<const core::PreparedRig>(std::move(*prepared)), &source->report, false};
   };
@@ -250,7 +246,7 @@ int runRetarget(const RetargetArgs& args) {
   input.markers = std::move(*markers);
   input.clip = std::move(*clip);
 
-  auto job = core::runRetargetJob(core::computeMarkerDistancesFor(input, args.mesh.filename().string(), args.threads),
+  auto job = core::runRetargetJob(core::computeMarkerDistancesFor(input, args.mesh.filename().string()),
                                   input, run);
   if (!job) return fail(job.error());
   if (auto ok = core::writeFileBytes(args.output, job->output.glb); !ok) return fail(ok.error());

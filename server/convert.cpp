@@ -246,7 +246,7 @@ core::Result<core::JobOutput> runRetargetJob(const JobFiles& in, DistanceCache& 
       std::to_string(d.geodesic.time_factor) + "|" + std::to_string(d.geodesic.average_boundary_conditions) + "|" +
       std::to_string(d.geodesic.clamp_heat_weights) + "|" + std::to_string(d.hybrid.region_factor) + "|" +
       std::to_string(d.hybrid.blend_gamma) + "|" + std::to_string(d.hybrid.regions.size()));
-  const core::ComputeMarkerDistances compute = core::computeMarkerDistancesFor(input, in.name("mesh"), run.threads);
+  const core::ComputeMarkerDistances compute = core::computeMarkerDistancesFor(input, in.name("mesh"));
   const core::ComputeMarkerDistances cached = [&]() -> core::Result<core::MarkerDistancesSource> {
     auto distances = cache.get(tenantCacheKey(in.job.tenant, key), [&]() -> core::Result<core::MarkerDistances> {
       auto computed = compute();
@@ -297,9 +297,7 @@ core::Result<core::JobOutput> runTransferJob(const JobFiles& in, const RigRecord
       if (!source_landmark_bytes) return source_landmark_bytes.error();
       auto source_landmarks = core::parseLandmarks(asText(*source_landmark_bytes), "landmarks");
       if (!source_landmarks) return source_landmarks.error();
-      core::PrepareOptions prepare_options;
-      prepare_options.threads = run.threads;
-      return core::prepareRig(std::move(rig->rig), std::move(*source_landmarks), rig_record.info.name, prepare_options);
+      return core::prepareRig(std::move(rig->rig), std::move(*source_landmarks), rig_record.info.name);
     });
     if (!prepared) return prepared.error();
     return core::PreparedRigSource{prepared->value, &source_read, prepared->hit};

@@ -32,7 +32,6 @@ GuideModel projectToTarget(const Eigen::MatrixX3d& warped_positions, const Eigen
   ClosestPointOptions cp;
   cp.max_normal_angle_deg = options.max_normal_angle_deg;
   cp.max_distance = options.max_distance * target_diagonal;
-  cp.threads = options.threads;
   ClosestPointFilters filters;
   filters.normals = warped_normals;
   filters.label_masks = std::move(region_masks);
@@ -136,7 +135,6 @@ TargetLocations locateOnGuide(const Mesh& target, const Eigen::MatrixX3d& guide_
   }
   ClosestPointOptions cp;
   cp.max_normal_angle_deg = options.max_normal_angle_deg;
-  cp.threads = options.threads;
   ClosestPointFilters filters;
   filters.normals = normals;
   if (labelled) filters.label_masks = target_masks;

@@ -21,7 +21,6 @@ struct ProjectionOptions {
   double max_normal_angle_deg = 160.0;
   // Candidates beyond this fraction of the target bbox diagonal are ignored (the vertex stays warped, unmatched).
   double max_distance = 0.1;
-  int threads = 0;  // 0 = hardware threads
 };
 
 // The source surface lying on the target.
@@ -93,7 +92,6 @@ struct LocateOptions {
   double max_relative_distance = 0.5;
   // Near an opening (target_sides): a location whose normal differs more yields to one within an edge that agrees.
   double opening_normal_angle_deg = 45.0;
-  int threads = 0;  // 0 = hardware threads
 };
 
 // Every target vertex located on the guide = on the source surface.

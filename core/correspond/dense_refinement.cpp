@@ -152,7 +152,6 @@ TargetPulls matchTargetPulls(const PreparedSource& source, const Eigen::MatrixX3
   ClosestPointOptions cp;
   cp.max_normal_angle_deg = options.target_pull_max_angle_deg;
   cp.max_distance = options.target_pull_max_distance * report.target_diagonal;
-  cp.threads = options.threads;
   ClosestPointFilters filters;
   filters.normals = selectRows(target.normals, out.vertices);
   if (!target_masks.empty()) filters.label_masks = selectMasks(target_masks, out.vertices);
@@ -501,7 +500,6 @@ LocatedTarget locateTarget(const PreparedSource& source, const Mesh& target, con
     located_on = surface.positions + smoothedPulls(source, std::move(pulls), options.smoothing_passes);
   }
   LocateOptions locate = options.locate;
-  locate.threads = options.threads;
   out.locations = locateOnGuide(matched, located_on, *source.guide_index, locate, openings.source_face_labels, openings.target_masks,
                                    openings.sides_filter ? openings.target_sides : std::vector<int>(),
                                    &prepared.representative);

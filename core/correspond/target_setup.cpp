@@ -247,7 +247,6 @@ Result<LandmarkFit> fitLandmarkWarp(const PreparedSource& source, const Landmark
   fit.pairs = std::move(*pairs);
   TpsOptions& tps_options = fit.tps_options;
   tps_options = options.landmark_tps;
-  tps_options.threads = options.threads;
   tps_options.leave_one_out = true;
   auto factorization = TpsFactorization::create(fit.pairs.source, tps_options, fit.pairs.names);
   if (!factorization) return Error{factorization.error().code, target_label + ": " + factorization.error().message};

@@ -105,7 +105,6 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
     TpsOptions dense;
     dense.regularization = options.dense_regularization * prepared.diagonal;
     dense.leave_one_out = false;
-    dense.threads = options.threads;
     auto f = TpsFactorization::create(prepared.dense_centres, dense);
     if (!f) return Error{f.error().code, label + ": dense map: " + f.error().message};
     prepared.dense_factorization = std::move(*f);
@@ -166,7 +165,6 @@ Result<WarpResult> runWarp(const PreparedSource& source, PreparedTarget target_p
   // --- correspond: refine through the dense map, project, locate
   t0 = Clock::now();
   ProjectionOptions projection = options.projection;
-  projection.threads = options.threads;
   orientTarget(source, fit->warp, target, target_label, *prepared, report);
   const Mesh& matched = prepared->matched();
   OpeningMatch openings = matchOpenings(source, fit->warp, target, *prepared, options, report);

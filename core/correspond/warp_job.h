@@ -26,7 +26,6 @@ struct PrepareOptions {
   int dense_centres = 400;
   // Dense-map regularisation, a fraction of the source bbox diagonal (smooths projection noise; 0 interpolates).
   double dense_regularization = 0.002;
-  int threads = 0;  // 0 = hardware threads
 };
 
 // Everything that depends only on the source: immutable, shared between jobs.
@@ -138,7 +137,6 @@ struct WarpOptions {
   double rim_location_max_ratio = 2.0;
   ProjectionOptions projection;        // the warped source projected onto the target (the guide)
   LocateOptions locate;                // the target's vertices located on the guide
-  int threads = 0;                     // 0 = hardware threads (stages that run in parallel)
 };
 
 // The papers' pipeline as written: landmark TPS, projection (the guide),

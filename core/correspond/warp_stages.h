@@ -39,7 +39,7 @@ struct WarpTarget : PreparedTarget {
 
 struct LandmarkFit {
   LandmarkPairs pairs;      // source and target landmarks by shared name
-  TpsOptions tps_options;   // the landmark TPS's (threads set), for the rims' points too
+  TpsOptions tps_options;   // the landmark TPS's, for the rims' points too
   TpsWarp warp;             // landmarks (and, after addRimPointsToWarp, rim points) -> target
 };
 

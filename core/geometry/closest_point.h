@@ -27,7 +27,6 @@ struct ClosestPointOptions {
   // Faces farther than this (model units) are never returned; infinity = no limit.
   double max_distance = std::numeric_limits<double>::infinity();
   // Threads for batch queries; 0 = hardware threads. Results do not depend on it.
-  int threads = 0;
 };
 
 // Per-query filters for batch queries; empty members mean "no filter".

@@ -218,7 +218,7 @@ std::vector<SurfacePoint> queryRows(const Eigen::MatrixX3d& queries, const Close
   const bool use_masks = static_cast<Eigen::Index>(filters.label_masks.size()) == nq;
   std::vector<SurfacePoint> out(static_cast<std::size_t>(nq));
   const Limits limits(options);
-  parallelFor(nq, options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
+  parallelFor(nq, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     for (std::ptrdiff_t i = begin; i < end; ++i) {
       const Vec3 q = row(queries, i);
       Vec3 n;

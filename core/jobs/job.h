@@ -23,7 +23,7 @@ namespace core {
 using StageHook = std::function<bool(std::string_view stage, double progress)>;
 
 struct JobRun {
-  int threads = 0;                     // 0 = hardware threads; results do not depend on it
+  int threads = 0;                     // the job's ScopedThreadCount (0 = hardware threads); results do not depend on it
   StageHook on_stage;                  // empty = run to the end
   Clock::time_point started = Clock::now();  // the job's total is measured from here (reading included)
   double read_ms = 0.0;                // the caller's reading of the inputs

@@ -1,15 +1,13 @@
 #include "core/jobs/retarget_job.h"
 
+#include "core/base/parallel.h"
 #include "core/io/rig_io.h"
 
 namespace core {
 
-ComputeMarkerDistances computeMarkerDistancesFor(const RetargetJobInput& input, const std::string& mesh_label,
-                                                 int threads) {
-  return [&input, mesh_label, threads]() -> Result<MarkerDistancesSource> {
-    MarkerDistanceOptions options = input.settings.distances;
-    options.threads = threads;
-    auto distances = computeMarkerDistances(input.mesh.mesh, input.markers, mesh_label, options);
+ComputeMarkerDistances computeMarkerDistancesFor(const RetargetJobInput& input, const std::string& mesh_label) {
+  return [&input, mesh_label]() -> Result<MarkerDistancesSource> {
+    auto distances = computeMarkerDistances(input.mesh.mesh, input.markers, mesh_label, input.settings.distances);
     if (!distances) return distances.error();
     return MarkerDistancesSource{std::make_shared<const MarkerDistances>(std::move(*distances)), false};
   };
@@ -17,15 +15,14 @@ ComputeMarkerDistances computeMarkerDistancesFor(const RetargetJobInput& input, 
 
 Result<RetargetJobOutput> runRetargetJob(const ComputeMarkerDistances& distances, const RetargetJobInput& input,
                                          const JobRun& run) {
+  const ScopedThreadCount threads(run.threads);
   // Distance fields depend only on (mesh, markers, distance options): cacheable.
   if (!run.stage("distances", 0.05)) return run.stoppedBefore("distances");
   auto source = distances();
   if (!source) return source.error();
 
   if (!run.stage("retarget", 0.3)) return run.stoppedBefore("retarget");
-  RetargetOptions options = input.settings.retarget;
-  options.threads = run.threads;
-  auto result = retargetMocap(input.mesh.mesh, *source->distances, input.clip, options);
+  auto result = retargetMocap(input.mesh.mesh, *source->distances, input.clip, input.settings.retarget);
   if (!result) return result.error();
   RetargetReport& r = result->report;
   const double distances_ms = source->cache_hit ? 0.0 : source->distances->compute_ms;

@@ -37,7 +37,6 @@ struct RetargetJobOutput {
 // gives the uncached one.
 Result<RetargetJobOutput> runRetargetJob(const ComputeMarkerDistances& distances, const RetargetJobInput& input,
                                          const JobRun& run);
-ComputeMarkerDistances computeMarkerDistancesFor(const RetargetJobInput& input, const std::string& mesh_label,
-                                                 int threads);
+ComputeMarkerDistances computeMarkerDistancesFor(const RetargetJobInput& input, const std::string& mesh_label);
 
 }  // namespace core

@@ -1,11 +1,13 @@
 #include "core/jobs/transfer_job.h"
 
+#include "core/base/parallel.h"
 #include "core/io/rig_io.h"
 #include "core/jobs/diagnostics_json.h"
 
 namespace core {
 
 Result<TransferJobOutput> runTransferJob(const PrepareRigSource& prepare, TransferJobInput input, const JobRun& run) {
+  const ScopedThreadCount threads(run.threads);
   // --- prepare (a cache hit skips all source-only work)
   if (!run.stage("prepare", 0.05)) return run.stoppedBefore("prepare");
   auto t0 = Clock::now();
@@ -15,7 +17,6 @@ Result<TransferJobOutput> runTransferJob(const PrepareRigSource& prepare, Transf
 
   // --- transfer (core reports its own stages; progress 0.1 .. 0.9)
   TransferSettings& settings = input.settings;
-  settings.transfer.threads = run.threads;
   if (run.on_stage) {
     settings.transfer.on_stage = [&run](std::string_view stage, double fraction) {
       return run.on_stage(stage, 0.1 + 0.8 * fraction);

@@ -123,12 +123,12 @@ Modes compressModes(const Eigen::MatrixXd& weights, const Eigen::MatrixXd& basis
 }
 
 // Max over vertices and frames of the residual displacement's length.
-double measureMaxError(const Eigen::MatrixXd& basis, const Eigen::MatrixXd& residual_coefficients, int threads) {
+double measureMaxError(const Eigen::MatrixXd& basis, const Eigen::MatrixXd& residual_coefficients) {
   const Eigen::Index nv = basis.rows(), nf = residual_coefficients.cols() / 3;
   constexpr Eigen::Index kChunk = 256;
   const Eigen::Index chunks = (nv + kChunk - 1) / kChunk;
   std::vector<double> chunk_max(static_cast<std::size_t>(chunks), 0.0);
-  parallelFor(chunks, threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
+  parallelFor(chunks, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     for (std::ptrdiff_t ch = begin; ch < end; ++ch) {
       const Eigen::Index v0 = ch * kChunk, rows = std::min(kChunk, nv - v0);
       const Eigen::MatrixXd e = basis.middleRows(v0, rows) * residual_coefficients;  // rows by 3F
@@ -164,8 +164,7 @@ BakedMotion bakeFrames(const Eigen::MatrixXd& basis, const Eigen::MatrixXd& weig
 }
 
 // Compressed: the leading modes of the displacement field (compressModes).
-BakedMotion bakeModes(const Eigen::MatrixXd& basis, const Eigen::MatrixXd& weights, const BakeOptions& bake,
-                      int threads) {
+BakedMotion bakeModes(const Eigen::MatrixXd& basis, const Eigen::MatrixXd& weights, const BakeOptions& bake) {
   BakedMotion out;
   auto t0 = Clock::now();
   const Modes modes = compressModes(weights, basis, bake, bake.measure_max_error);
@@ -173,7 +172,7 @@ BakedMotion bakeModes(const Eigen::MatrixXd& basis, const Eigen::MatrixXd& weigh
   t0 = Clock::now();
   const Eigen::MatrixXd deltas = RbfFactorization::evaluate(basis, modes.coefficients);  // #V by 3 rank
   if (bake.measure_max_error) {
-    out.report.max_error = measureMaxError(basis, modes.residual_coefficients, threads);
+    out.report.max_error = measureMaxError(basis, modes.residual_coefficients);
     out.report.max_error_measured = true;
   } else {
     out.report.max_error = modes.max_error_bound;

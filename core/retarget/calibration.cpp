@@ -31,7 +31,6 @@ Result<Calibration> calibrate(const Eigen::MatrixX3d& rest, const Eigen::MatrixX
     TpsOptions tps;
     tps.regularization = options.calibration_regularization * boundingBoxDiagonal(placed);
     tps.leave_one_out = false;
-    tps.threads = 1;
     auto warp = fitTps(aligned, placed, tps);
     if (!warp) return warp.error();
     jacobians = warp->jacobians(aligned);

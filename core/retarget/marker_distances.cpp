@@ -62,9 +62,9 @@ Result<std::vector<SurfacePoint>> markerSurfacePoints(const Mesh& mesh, const La
 }
 
 // #V by #M Euclidean vertex-to-marker distances.
-Eigen::MatrixXd euclideanVertexMarker(const Eigen::MatrixX3d& vertices, const Eigen::MatrixX3d& markers, int threads) {
+Eigen::MatrixXd euclideanVertexMarker(const Eigen::MatrixX3d& vertices, const Eigen::MatrixX3d& markers) {
   Eigen::MatrixXd d(vertices.rows(), markers.rows());
-  parallelFor(vertices.rows(), threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
+  parallelFor(vertices.rows(), [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     for (Eigen::Index m = 0; m < markers.rows(); ++m) {
       const Eigen::RowVector3d p = markers.row(m);
       for (std::ptrdiff_t v = begin; v < end; ++v) d(v, m) = (vertices.row(v) - p).norm();
@@ -89,9 +89,9 @@ double atPoint(const Eigen::Ref<const Eigen::VectorXd>& values, const Mesh& mesh
 
 // Minimum distance from every vertex to a vertex subset (brute force; the
 // subsets are hole loops or user regions, small next to #V).
-Eigen::VectorXd distanceToSet(const Eigen::MatrixX3d& positions, const std::vector<int>& set, int threads) {
+Eigen::VectorXd distanceToSet(const Eigen::MatrixX3d& positions, const std::vector<int>& set) {
   Eigen::VectorXd d(positions.rows());
-  parallelFor(positions.rows(), threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
+  parallelFor(positions.rows(), [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     for (std::ptrdiff_t v = begin; v < end; ++v) {
       double best = std::numeric_limits<double>::infinity();
       for (int s : set) best = std::min(best, (positions.row(v) - positions.row(s)).squaredNorm());
@@ -109,7 +109,7 @@ struct HybridWeights {
 
 // Algorithm 5.3 with regions around the feature holes (or the given ones).
 Result<HybridWeights> hybridWeights(const Mesh& mesh, const Eigen::MatrixX3d& markers, const HybridOptions& options,
-                                    double diagonal, const std::string& label, int threads) {
+                                    double diagonal, const std::string& label) {
   const Eigen::Index nv = mesh.vertexCount();
   HybridWeights out;
   // Distance of each vertex to the nearest region (0 inside).
@@ -124,7 +124,7 @@ Result<HybridWeights> hybridWeights(const Mesh& mesh, const Eigen::MatrixX3d& ma
         }
       }
       if (region.empty()) continue;
-      to_region = to_region.cwiseMin(distanceToSet(mesh.positions, region, threads));
+      to_region = to_region.cwiseMin(distanceToSet(mesh.positions, region));
       GeodesicRegion info;
       info.region_vertices = static_cast<int>(region.size());
       for (int v : region) info.centroid += mesh.positions.row(v).transpose();
@@ -150,7 +150,7 @@ Result<HybridWeights> hybridWeights(const Mesh& mesh, const Eigen::MatrixX3d& ma
           info.extent = std::max(info.extent, (mesh.positions.row(loop[a]) - mesh.positions.row(loop[b])).norm());
         }
       }
-      const Eigen::VectorXd d = (distanceToSet(mesh.positions, loop, threads).array() -
+      const Eigen::VectorXd d = (distanceToSet(mesh.positions, loop).array() -
                                  options.region_factor * info.extent).cwiseMax(0.0);
       info.region_vertices = static_cast<int>((d.array() == 0.0).count());
       to_region = to_region.cwiseMin(d);
@@ -210,7 +210,7 @@ Result<MarkerDistances> computeMarkerDistances(const Mesh& mesh, const LandmarkS
   const Eigen::Index nm = out.marker_positions.rows();
 
   const Eigen::MatrixXd euclidean_mm = euclideanMarkerMarker(out.marker_positions);
-  Eigen::MatrixXd euclidean_vm = euclideanVertexMarker(mesh.positions, out.marker_positions, options.threads);
+  Eigen::MatrixXd euclidean_vm = euclideanVertexMarker(mesh.positions, out.marker_positions);
   if (options.method == DistanceMethod::kEuclidean) {
     out.marker_marker = euclidean_mm;
     out.vertex_marker = std::move(euclidean_vm);
@@ -222,7 +222,7 @@ Result<MarkerDistances> computeMarkerDistances(const Mesh& mesh, const LandmarkS
   if (!points) return points.error();
   auto solver = GeodesicSolver::create(mesh, label, options.geodesic);
   if (!solver) return solver.error();
-  const Eigen::MatrixXd geodesic_vm = solver->distances(*points, options.threads).transpose();  // #V by #M
+  const Eigen::MatrixXd geodesic_vm = solver->distances(*points).transpose();  // #V by #M
   // Marker to marker: the distance field of marker i read at marker j's point,
   // symmetrised (the heat method is not exactly symmetric), zero diagonal.
   Eigen::MatrixXd geodesic_mm(nm, nm);
@@ -250,7 +250,7 @@ Result<MarkerDistances> computeMarkerDistances(const Mesh& mesh, const LandmarkS
     return out;
   }
 
-  auto hybrid = hybridWeights(mesh, out.marker_positions, options.hybrid, out.mesh_diagonal, label, options.threads);
+  auto hybrid = hybridWeights(mesh, out.marker_positions, options.hybrid, out.mesh_diagonal, label);
   if (!hybrid) return hybrid.error();
   out.geodesic_weight = std::move(hybrid->weight);
   out.regions = std::move(hybrid->regions);
@@ -264,7 +264,7 @@ Result<MarkerDistances> computeMarkerDistances(const Mesh& mesh, const LandmarkS
     }
   }
   out.vertex_marker = std::move(euclidean_vm);
-  parallelFor(mesh.vertexCount(), options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
+  parallelFor(mesh.vertexCount(), [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     for (Eigen::Index m = 0; m < nm; ++m) {
       for (std::ptrdiff_t v = begin; v < end; ++v) {
         out.vertex_marker(v, m) = blendDistance(out.geodesic_weight(v), geodesic_vm(v, m), out.vertex_marker(v, m));

@@ -314,7 +314,7 @@ Result<RetargetOutput> retargetMocap(const Mesh& mesh, const MarkerDistances& di
   const double residuals_ms = msSince(t0);
   Rig rig = meshRig(mesh, options.mesh_name);
   BakedMotion baked = options.bake.exact ? bakeFrames(system->basis, weights)
-                                         : bakeModes(system->basis, weights, options.bake, options.threads);
+                                         : bakeModes(system->basis, weights, options.bake);
   t0 = Clock::now();
   rig = addMocapAnimation(std::move(rig), std::move(baked.targets), std::move(baked.frame_weights), clip.frameCount(),
                           clip.data_rate, options.animation_name);

@@ -59,7 +59,6 @@ struct MarkerDistanceOptions {
   DistanceMethod method = DistanceMethod::kHybrid;  // marker-to-vertex distance
   HybridOptions hybrid;      // kHybrid: the geodesic regions and the blend
   GeodesicOptions geodesic;  // heat-method solver (geodesic and hybrid)
-  int threads = 0;  // 0 = hardware threads; results do not depend on it
 };
 
 // A hole loop made a geodesic region (hybrid).
@@ -131,7 +130,6 @@ struct RetargetOptions {
   BakeOptions bake;                  // the morph-target compression
   std::string mesh_name = "face";    // the output mesh's name
   std::string animation_name = "mocap";  // the output animation's name
-  int threads = 0;                   // 0 = hardware threads
 };
 
 inline constexpr double kDefaultGammaFactor = 0.1;

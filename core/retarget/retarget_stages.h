@@ -77,7 +77,6 @@ BakedMotion bakeFrames(const Eigen::MatrixXd& basis, const Eigen::MatrixXd& weig
 
 // Compressed: the leading modes of the displacement field, as many as
 // `bake` asks (BakeOptions).
-BakedMotion bakeModes(const Eigen::MatrixXd& basis, const Eigen::MatrixXd& weights, const BakeOptions& bake,
-                      int threads);
+BakedMotion bakeModes(const Eigen::MatrixXd& basis, const Eigen::MatrixXd& weights, const BakeOptions& bake);
 
 }  // namespace core

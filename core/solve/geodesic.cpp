@@ -30,7 +30,6 @@
 #include <limits>
 #include <numeric>
 #include <span>
-#include <thread>
 #include <unordered_map>
 
 #include <Eigen/OrderingMethods>
@@ -502,9 +501,8 @@ struct SourceBlocks {
   Eigen::Index start(std::ptrdiff_t b) const { return b * base_width + std::min(b, wider); }
 };
 
-SourceBlocks sourceBlocks(Eigen::Index ns, int threads) {
-  const int hardware = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  const std::ptrdiff_t thread_count = threads > 0 ? threads : hardware;
+SourceBlocks sourceBlocks(Eigen::Index ns) {
+  const std::ptrdiff_t thread_count = ScopedThreadCount::resolved();
   SourceBlocks out;
   out.count = (ns + kMaxBlock - 1) / kMaxBlock;
   out.count = std::max(out.count, std::min<std::ptrdiff_t>(thread_count, (ns + 3) / 4));
@@ -721,12 +719,12 @@ void writeDistances(const GeodesicSolver::Data& d, const Block& phi, const Sourc
 
 }  // namespace
 
-Eigen::MatrixXd GeodesicSolver::distances(const std::vector<SurfacePoint>& sources, int threads) const {
+Eigen::MatrixXd GeodesicSolver::distances(const std::vector<SurfacePoint>& sources) const {
   const Data& d = *data_;
   const auto ns = static_cast<Eigen::Index>(sources.size());
   Eigen::MatrixXd out(ns, d.vertex_count);
-  const SourceBlocks blocks = sourceBlocks(ns, threads);
-  parallelFor(blocks.count, threads, [&](std::ptrdiff_t block_begin, std::ptrdiff_t block_end) {
+  const SourceBlocks blocks = sourceBlocks(ns);
+  parallelFor(blocks.count, [&](std::ptrdiff_t block_begin, std::ptrdiff_t block_end) {
     for (std::ptrdiff_t b = block_begin; b < block_end; ++b) {
       const Eigen::Index s0 = blocks.start(b);
       const std::span<const SurfacePoint> block_sources(sources.data() + s0,

@@ -45,7 +45,7 @@ class GeodesicSolver {
   // on the source's two vertex rings (see geodesic.cpp).
   // A source face out of range is a programmer error (asserted; its row is NaN
   // in release builds).
-  Eigen::MatrixXd distances(const std::vector<SurfacePoint>& sources, int threads = 0) const;
+  Eigen::MatrixXd distances(const std::vector<SurfacePoint>& sources) const;
 
   Eigen::Index vertexCount() const;
 

@@ -49,9 +49,8 @@ double median(std::vector<double> v) {
 // ---------------------------------------------------------------------------
 // TpsWarp
 
-TpsWarp::TpsWarp(Eigen::MatrixX3d centres, Eigen::MatrixX3d kernel_weights, Eigen::Matrix<double, 4, 3> affine,
-                 int threads)
-    : centres_(std::move(centres)), kernel_weights_(std::move(kernel_weights)), affine_(affine), threads_(threads) {}
+TpsWarp::TpsWarp(Eigen::MatrixX3d centres, Eigen::MatrixX3d kernel_weights, Eigen::Matrix<double, 4, 3> affine)
+    : centres_(std::move(centres)), kernel_weights_(std::move(kernel_weights)), affine_(affine) {}
 
 namespace {
 
@@ -160,7 +159,7 @@ void kernelGradientSums(const Eigen::MatrixX3d& centres, const Eigen::MatrixX3d&
 
 Eigen::MatrixX3d TpsWarp::apply(const Eigen::MatrixX3d& points) const {
   Eigen::MatrixX3d out(points.rows(), 3);
-  parallelFor(points.rows(), threads_, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
+  parallelFor(points.rows(), [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     kernelSums(centres_, kernel_weights_, points, begin, end, out);
     for (std::ptrdiff_t p = begin; p < end; ++p) {
       const double x = points(p, 0), y = points(p, 1), z = points(p, 2);
@@ -194,7 +193,7 @@ Eigen::Matrix3d TpsWarp::jacobian(const Eigen::Vector3d& point) const {
 
 std::vector<Eigen::Matrix3d> TpsWarp::jacobians(const Eigen::MatrixX3d& points) const {
   std::vector<Eigen::Matrix3d> out(static_cast<std::size_t>(points.rows()));
-  parallelFor(points.rows(), threads_, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
+  parallelFor(points.rows(), [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     kernelGradientSums(centres_, kernel_weights_, points, begin, end, out);
     for (std::ptrdiff_t p = begin; p < end; ++p) {
       out[static_cast<std::size_t>(p)] += affine_.topRows<3>().transpose();
@@ -227,7 +226,6 @@ struct TpsFactorization::Data {
   Eigen::HouseholderQR<Eigen::MatrixXd> qr;  // of P (#n by 4)
   Eigen::LLT<Eigen::MatrixXd> llt;   // of M ((n-4) by (n-4))
   Eigen::VectorXd loo_diagonal;      // diag of the top-left block of L^-1 (empty if not computed)
-  int threads = 0;
   double outlier_spacing_ratio = 1.0;
   TpsOptions options;
 };
@@ -374,7 +372,6 @@ Result<TpsFactorization> TpsFactorization::create(const Eigen::MatrixX3d& centre
 
   auto data = std::make_shared<Data>();
   data->centres = centres;
-  data->threads = options.threads;
   data->outlier_spacing_ratio = options.outlier_spacing_ratio;
   data->options = options;
   data->centroid = centres.colwise().mean();
@@ -479,7 +476,7 @@ TpsWarp TpsFactorization::fit(const Eigen::MatrixX3d& targets) const {
   Eigen::Matrix<double, 4, 3> affine;
   affine.topRows<3>() = a.topRows<3>() / d.scale;
   affine.row(3) = a.row(3) - d.centroid * affine.topRows<3>();
-  return TpsWarp(d.centres, w / d.scale, affine, d.threads);
+  return TpsWarp(d.centres, w / d.scale, affine);
 }
 
 namespace {

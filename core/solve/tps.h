@@ -22,7 +22,6 @@ struct TpsOptions {
   double regularization = 0.0;
   // Compute leave-one-out residuals (O(n^3) once per factorisation); off for large dense centre sets.
   bool leave_one_out = true;
-  int threads = 0;  // batch evaluation; 0 = hardware threads
   // Centres closer than this fraction of their bounding-box diagonal are duplicates.
   double duplicate_tolerance = 1e-6;
   // The system is rejected when the centres' thinnest extent (smallest principal axis / largest) is below this.
@@ -35,7 +34,7 @@ struct TpsOptions {
 class TpsWarp {
  public:
   TpsWarp() = default;
-  TpsWarp(Eigen::MatrixX3d centres, Eigen::MatrixX3d kernel_weights, Eigen::Matrix<double, 4, 3> affine, int threads);
+  TpsWarp(Eigen::MatrixX3d centres, Eigen::MatrixX3d kernel_weights, Eigen::Matrix<double, 4, 3> affine);
 
   // #P by 3 points -> #P by 3 warped points.
   Eigen::MatrixX3d apply(const Eigen::MatrixX3d& points) const;
@@ -56,7 +55,6 @@ class TpsWarp {
   Eigen::MatrixX3d centres_;
   Eigen::MatrixX3d kernel_weights_;
   Eigen::Matrix<double, 4, 3> affine_ = Eigen::Matrix<double, 4, 3>::Zero();
-  int threads_ = 0;
 };
 
 // Leave-one-out diagnostics of one fit: how well each landmark is predicted by

@@ -141,7 +141,7 @@ std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& so
   const Eigen::Index nt = target.vertexCount();
   std::vector<MorphTarget> out(source.size());
   const std::vector<Corners> corners = cornerTable(source_triangles, locations);
-  parallelFor(static_cast<std::ptrdiff_t>(source.size()), options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
+  parallelFor(static_cast<std::ptrdiff_t>(source.size()), [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     std::vector<unsigned char> moving;
     for (std::ptrdiff_t k = begin; k < end; ++k) {
       const MorphTarget& s = source[static_cast<std::size_t>(k)];
@@ -157,7 +157,7 @@ std::vector<MorphTarget> transferMorphTargets(const std::vector<MorphTarget>& so
   for (std::size_t k = 0; k < source.size(); ++k) {
     if (source[k].normal_deltas.rows() > 0) out[k].normal_deltas.resize(nt, 3);
   }
-  updateNormalDeltas(target, out, options.threads);
+  updateNormalDeltas(target, out);
   return out;
 }
 
@@ -187,7 +187,7 @@ void inpaintShapeDeltas(const HarmonicInpainting& inpainting, std::vector<MorphT
   }
 }
 
-void updateNormalDeltas(const Mesh& target, std::vector<MorphTarget>& shapes, int threads) {
+void updateNormalDeltas(const Mesh& target, std::vector<MorphTarget>& shapes) {
   const Eigen::Index nt = target.vertexCount();
   const bool any_normal_deltas =
       std::any_of(shapes.begin(), shapes.end(), [](const MorphTarget& s) { return s.normal_deltas.rows() > 0; });
@@ -196,7 +196,7 @@ void updateNormalDeltas(const Mesh& target, std::vector<MorphTarget>& shapes, in
                                       ? smoothVertexRepresentatives(target.positions, target.normals)
                                       : std::vector<int>();
   const Eigen::MatrixX3d rest_normals = computeSharedVertexNormals(target.positions, target.triangles, shared);
-  parallelFor(static_cast<std::ptrdiff_t>(shapes.size()), threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
+  parallelFor(static_cast<std::ptrdiff_t>(shapes.size()), [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     for (std::ptrdiff_t k = begin; k < end; ++k) {
       MorphTarget& t = shapes[static_cast<std::size_t>(k)];
       if (t.normal_deltas.rows() == 0) continue;

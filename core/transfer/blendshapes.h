@@ -17,7 +17,6 @@ namespace core {
 
 struct ShapeTransferOptions {
   Exaggeration exaggeration;  // gain on every delta, by morph target name
-  int threads = 0;            // shapes in parallel; 0 = hardware threads
 };
 
 // adaptation: #Vt matrices (one per target vertex) or a single one for all.
@@ -46,6 +45,6 @@ void inpaintShapeDeltas(const HarmonicInpainting& inpainting, std::vector<MorphT
 
 // Recomputes the normal deltas of every shape that has them (rows > 0) from
 // its position deltas, as transferMorphTargets makes them.
-void updateNormalDeltas(const Mesh& target, std::vector<MorphTarget>& shapes, int threads = 0);
+void updateNormalDeltas(const Mesh& target, std::vector<MorphTarget>& shapes);
 
 }  // namespace core

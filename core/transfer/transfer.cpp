@@ -263,7 +263,6 @@ Result<DenseMapAdaptation> adaptToDenseMap(const PreparedRig& source, const Warp
   TpsOptions smooth;
   smooth.regularization = options.local_smoothing * source.surface.diagonal;
   smooth.leave_one_out = false;
-  smooth.threads = options.threads;
   auto fitted = fitTps(source.surface.dense_centres, adaptation.dense_map.apply(source.surface.dense_centres), smooth);
   if (!fitted) return fitted.error();
   adaptation.smooth_map = std::move(*fitted);
@@ -326,7 +325,7 @@ void transferShapes(const PreparedRig& source, const TargetLocations& locations,
                     const TransferOptions& options, Rig& out) {
   const Rig& src = source.rig;
   if (options.shapes) {
-    const ShapeTransferOptions shape_options{{options.exaggeration, options.shape_exaggeration}, options.threads};
+    const ShapeTransferOptions shape_options{{options.exaggeration, options.shape_exaggeration}};
     out.morph_targets = transferMorphTargets(src.morph_targets, source.surface.mesh.triangles, locations,
                                              vertex_adaptation, out.mesh, mismatched, shape_options);
     out.morph_default_weights = src.morph_default_weights;
@@ -351,7 +350,6 @@ Status checkAndRepairShapes(const PreparedRig& source, const WarpResult& warp,
   const TargetLocations& locations = warp.locations;
   const std::string& target_label = warp.target.label;
   QualityOptions quality_options = options.quality;
-  quality_options.threads = options.threads;
   const QualitySource quality_source{source.surface.mesh.triangles, source.surface.adjacency,
                                      source.surface.vertex_sides, source.rig.morph_targets};
   report.quality = checkTransferQuality(target, warp.target.adjacency, out.morph_targets, locations,
@@ -368,7 +366,7 @@ Status checkAndRepairShapes(const PreparedRig& source, const WarpResult& warp,
       auto repair = HarmonicInpainting::create(laplacian, known);
       if (!repair) return Error{repair.error().code, target_label + ": inpainting unsure vertices: " + repair.error().message};
       inpaintShapeDeltas(*repair, out.morph_targets);
-      updateNormalDeltas(out.mesh, out.morph_targets, options.threads);
+      updateNormalDeltas(out.mesh, out.morph_targets);
       report.quality = checkTransferQuality(target, warp.target.adjacency, out.morph_targets, locations,
                                             warp.target_sides, quality_source, quality_options);
       report.quality.repaired_vertices = repaired;
@@ -506,7 +504,6 @@ Result<TransferResult> transferRig(const PreparedRig& source, PreparedTarget pre
   // --- warp + correspond (+ the dense map)
   if (stopBefore("warp", 0.0)) return stopped("warp");
   WarpOptions warp_options = options.warp;
-  warp_options.threads = options.threads;
   // The output is the target rigged, not the guide: project only what the
   // transfer reads from it.
   warp_options.full_guide = false;

@@ -70,7 +70,6 @@ struct TransferOptions {
   bool strict = false;
   // Low-confidence vertices the check flags get deltas inpainted from neighbours, then rechecked; false: reported.
   bool repair_unsure = true;
-  int threads = 0;                 // 0 = hardware threads
   // Before each stage ("warp", "dense_map", "weights", "joints", "animations", "shapes", "attributes"): false cancels.
   std::function<bool(std::string_view stage, double fraction)> on_stage;
 };

@@ -141,7 +141,7 @@ QualityReport checkTransferQuality(const Mesh& target, const VertexAdjacency& ta
   report.per_vertex = Eigen::VectorXd::Zero(nv);
   const bool located = locations.on_source.size() == static_cast<std::size_t>(nv);
   std::vector<std::vector<std::pair<int, double>>> found(shapes.size());
-  parallelFor(static_cast<std::ptrdiff_t>(shapes.size()), options.threads, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
+  parallelFor(static_cast<std::ptrdiff_t>(shapes.size()), [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
     OutlierScratch scratch;
     for (std::ptrdiff_t k = begin; k < end; ++k) {
       const Eigen::MatrixX3d& deltas = shapes[static_cast<std::size_t>(k)].position_deltas;

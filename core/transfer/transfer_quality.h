@@ -25,7 +25,6 @@ struct QualityOptions {
   // Rings moving less than this fraction of the shape's largest |delta| are not judged.
   double min_motion = 0.25;
   int worst_count = 10;  // how many of the worst vertices the report lists
-  int threads = 0;       // 0 = hardware threads
 };
 
 struct QualityVertex {

@@ -19,6 +19,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include "core/base/parallel.h"
 #include "core/geometry/closest_point.h"
 #include "core/geometry/mesh.h"
 #include "core/geometry/moving_mesh_index.h"
@@ -196,7 +197,7 @@ void BM_MovedBatch(benchmark::State& state) {
   }
   core::ClosestPointOptions options;
   options.max_normal_angle_deg = 60.0;
-  options.threads = 1;
+  const core::ScopedThreadCount options_threads(1);
   const core::ClosestPointIndex index(target.positions, target.triangles);
   const core::MovingMeshIndex hierarchy(m.positions, m.triangles);
   const auto fitted = hierarchy.fit(target.positions);

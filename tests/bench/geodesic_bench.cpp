@@ -10,6 +10,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include "core/base/parallel.h"
 #include "core/solve/geodesic.h"
 #include "core/io/landmarks.h"
 #include "core/io/mesh_io.h"
@@ -118,8 +119,9 @@ void BM_GeodesicDistances41(benchmark::State& state) {
     state.SkipWithError(solver.error().message.c_str());
     return;
   }
+  const core::ScopedThreadCount one_thread(1);
   for (auto _ : state) {
-    Eigen::MatrixXd d = solver->distances(c.sources, /*threads=*/1);
+    Eigen::MatrixXd d = solver->distances(c.sources);
     benchmark::DoNotOptimize(d.data());
   }
   setLabel(state, c);
@@ -132,13 +134,14 @@ void BM_GeodesicFactoriseAnd41(benchmark::State& state) {
     state.SkipWithError(c.error.c_str());
     return;
   }
+  const core::ScopedThreadCount one_thread(1);
   for (auto _ : state) {
     auto solver = core::GeodesicSolver::create(c.mesh, "bench", optionsFor(state));
     if (!solver) {
       state.SkipWithError(solver.error().message.c_str());
       return;
     }
-    Eigen::MatrixXd d = solver->distances(c.sources, /*threads=*/1);
+    Eigen::MatrixXd d = solver->distances(c.sources);
     benchmark::DoNotOptimize(d.data());
   }
   setLabel(state, c);

@@ -12,6 +12,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include "core/base/parallel.h"
 #include "core/io/mesh_io.h"
 #include "core/retarget/retarget.h"
 #include "core/io/rig_io.h"
@@ -33,7 +34,7 @@ struct Case {
 core::MarkerDistanceOptions distanceOptions(core::DistanceMethod method) {
   core::MarkerDistanceOptions o;
   o.method = method;
-  o.threads = 1;
+  const core::ScopedThreadCount o_threads(1);
   return o;
 }
 
@@ -89,7 +90,7 @@ void runRetarget(benchmark::State& state, bool one_off) {
   Case& c = benchCase();
   if (!c.error.empty()) return state.SkipWithError(c.error.c_str());
   core::RetargetOptions options;
-  options.threads = 1;
+  const core::ScopedThreadCount options_threads(1);
   std::map<std::string, double> stage;
   int rank = 0;
   std::size_t bytes = 0;

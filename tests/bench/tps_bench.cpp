@@ -4,6 +4,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include "core/base/parallel.h"
 #include "core/solve/tps.h"
 
 namespace {
@@ -40,7 +41,7 @@ void BM_TpsApply(benchmark::State& state) {
   const Eigen::MatrixX3d centres = randomPoints(state.range(1), 1);
   core::TpsOptions options;
   options.leave_one_out = false;
-  options.threads = static_cast<int>(state.range(2));
+  const core::ScopedThreadCount options_threads(static_cast<int>(state.range(2)));
   auto warp = core::fitTps(centres, 1.1 * centres + 0.01 * randomPoints(state.range(1), 2), options);
   const Eigen::MatrixX3d points = randomPoints(state.range(0), 3);
   for (auto _ : state) benchmark::DoNotOptimize(warp->apply(points));

@@ -10,6 +10,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include "core/base/parallel.h"
 #include "core/io/landmarks.h"
 #include "core/geometry/mesh.h"
 #include "core/io/mesh_io.h"
@@ -64,7 +65,7 @@ const Case& benchCase() {
       out.name = "generated rigs (../shared/data absent)";
     }
     core::PrepareOptions prepare;
-    prepare.threads = 1;
+    const core::ScopedThreadCount prepare_threads(1);
     out.prepared = std::move(*core::prepareRig(out.rig, out.landmarks, "source", prepare));
     return out;
   }();
@@ -74,7 +75,7 @@ const Case& benchCase() {
 void BM_PrepareRig(benchmark::State& state) {
   const Case& c = benchCase();
   core::PrepareOptions prepare;
-  prepare.threads = 1;
+  const core::ScopedThreadCount prepare_threads(1);
   for (auto _ : state) benchmark::DoNotOptimize(core::prepareRig(c.rig, c.landmarks, "source", prepare));
   state.SetLabel(c.name);
 }
@@ -83,7 +84,7 @@ BENCHMARK(BM_PrepareRig)->Unit(benchmark::kMillisecond);
 void BM_TransferPrepared(benchmark::State& state) {
   const Case& c = benchCase();
   core::TransferOptions options;
-  options.threads = static_cast<int>(state.range(0));
+  const core::ScopedThreadCount options_threads(static_cast<int>(state.range(0)));
   std::map<std::string, double> stage;
   for (auto _ : state) {
     auto r = core::transferRig(c.prepared, c.target, c.target_landmarks, "target", options);
@@ -188,7 +189,7 @@ const LargeCase& largeCase() {
 void BM_TransferLargeTargetAndWrite(benchmark::State& state) {
   const LargeCase& c = largeCase();
   core::TransferOptions options;
-  options.threads = 2;
+  const core::ScopedThreadCount options_threads(2);
   double transfer = 0, write = 0;
   for (auto _ : state) {
     const auto t0 = std::chrono::steady_clock::now();
@@ -218,9 +219,9 @@ BENCHMARK(BM_TransferLargeTargetAndWrite)->Unit(benchmark::kMillisecond)->UseRea
 void BM_TransferEndToEnd(benchmark::State& state) {
   const Case& c = benchCase();
   core::PrepareOptions prepare;
-  prepare.threads = 1;
+  const core::ScopedThreadCount prepare_threads(1);
   core::TransferOptions options;
-  options.threads = 1;
+  const core::ScopedThreadCount options_threads(1);
   std::size_t bytes = 0;
   for (auto _ : state) {
     state.PauseTiming();

@@ -6,6 +6,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include "core/base/parallel.h"
 #include "core/io/mesh_io.h"
 #include "core/synthetic/synthetic_head.h"
 #include "core/correspond/warp_job.h"
@@ -25,7 +26,7 @@ const Case& ictCase() {
     Case out;
     const std::filesystem::path data = rigport_test::sharedDataDir().value_or(std::filesystem::path()) / "ict";
     core::PrepareOptions prepare;
-    prepare.threads = 1;
+    const core::ScopedThreadCount prepare_threads(1);
     auto mesh = core::readMesh(data / "source_face.glb");
     auto landmarks = core::readLandmarks(data / "source_face.landmarks.json");
     auto target = core::readMesh(data / "targets" / "id_s01_remesh.glb");
@@ -50,7 +51,7 @@ const Case& ictCase() {
 
 void runCase(benchmark::State& state, core::WarpOptions options) {
   const Case& c = ictCase();
-  options.threads = 1;
+  const core::ScopedThreadCount options_threads(1);
   double warp = 0, correspond = 0;
   for (auto _ : state) {
     auto r = core::runWarp(c.source, c.target, c.target_landmarks, "target", options);
@@ -80,7 +81,7 @@ BENCHMARK(BM_WarpCorrespondDefault)->Unit(benchmark::kMillisecond);
 void BM_PrepareSource(benchmark::State& state) {
   const Case& c = ictCase();
   core::PrepareOptions prepare;
-  prepare.threads = 1;
+  const core::ScopedThreadCount prepare_threads(1);
   for (auto _ : state) {
     benchmark::DoNotOptimize(core::prepareSource(c.source.mesh, c.source.landmarks, "source", prepare));
   }

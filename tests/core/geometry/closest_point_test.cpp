@@ -2,6 +2,7 @@
 // point-triangle routine against the projection optimality condition, and
 // both indices against a brute-force scan over all triangles (with and
 // without filters) on meshes built here.
+#include "core/base/parallel.h"
 #include "core/geometry/closest_point.h"
 
 #include <algorithm>
@@ -503,10 +504,12 @@ TEST(ClosestPointIndex, BatchIsIdenticalForOneAndTwoThreads) {
   ClosestPointOptions options;
   options.max_normal_angle_deg = 80.0;
   for (const bool filtered : {false, true}) {
-    options.threads = 1;
-    const auto one = index.closestPoints(queries, options, filtered ? filters : core::ClosestPointFilters{});
-    options.threads = 2;
-    const auto two = index.closestPoints(queries, options, filtered ? filters : core::ClosestPointFilters{});
+    auto onThreads = [&](int threads) {
+      const core::ScopedThreadCount scope(threads);
+      return index.closestPoints(queries, options, filtered ? filters : core::ClosestPointFilters{});
+    };
+    const auto one = onThreads(1);
+    const auto two = onThreads(2);
     ASSERT_EQ(one.size(), list.size());
     ASSERT_EQ(two.size(), list.size());
     for (std::size_t i = 0; i < list.size(); ++i) {
@@ -651,7 +654,7 @@ TEST(MovingMeshIndex, EqualsClosestPointIndexWithFiltersAndDegenerateFaces) {
     ClosestPointOptions options;
     options.max_normal_angle_deg = 75.0;
     options.max_distance = max_distance;
-    options.threads = 2;
+    const core::ScopedThreadCount threads(2);
     for (const bool filtered : {false, true}) {
       const auto got = fitted.closestPoints(rowsOf(list), options, filtered ? filters : core::ClosestPointFilters{});
       const auto ref = index.closestPoints(rowsOf(list), options, filtered ? filters : core::ClosestPointFilters{});

@@ -1,3 +1,4 @@
+#include "core/base/parallel.h"
 #include "core/retarget/retarget.h"
 
 #include <cmath>
@@ -372,11 +373,10 @@ TEST(Retarget, OutputIsAValidGlbWithDeterministicBytes) {
   // (Geodesic distances are computed once here: their own determinism is
   // core/solve/geodesic.cpp's to test.)
   auto bytesFor = [&](int threads, bool one_off) -> std::vector<std::uint8_t> {
+    const core::ScopedThreadCount scope(threads);
     core::RetargetOptions o = jawOptions();
-    o.threads = threads;
     core::MarkerDistanceOptions dopt;
     dopt.method = core::DistanceMethod::kEuclidean;
-    dopt.threads = threads;
     auto out = one_off ? core::retargetMocap(head().mesh, markers, clip, "head", dopt, o)
                        : core::retargetMocap(head().mesh, distancesFor(core::DistanceMethod::kHybrid), clip, o);
     EXPECT_TRUE(out) << out.error().message;

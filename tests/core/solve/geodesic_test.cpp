@@ -1,3 +1,4 @@
+#include "core/base/parallel.h"
 #include "core/solve/geodesic.h"
 
 #include <cmath>
@@ -350,13 +351,17 @@ TEST(Geodesic, ResultsDoNotDependOnThreadCount) {
     p.barycentric << 0.2, 0.5, 0.3;
     sources.push_back(p);
   }
-  const Eigen::MatrixXd one = solver->distances(sources, 1);
+  auto onThreads = [&](const std::vector<core::SurfacePoint>& points, int threads) {
+    const core::ScopedThreadCount scope(threads);
+    return solver->distances(points);
+  };
+  const Eigen::MatrixXd one = onThreads(sources, 1);
   for (int threads : {2, 3, 0}) {
-    const Eigen::MatrixXd many = solver->distances(sources, threads);
+    const Eigen::MatrixXd many = onThreads(sources, threads);
     EXPECT_TRUE((one.array() == many.array()).all()) << threads << " threads";
   }
   // A source alone gives the same row as within a block.
-  const Eigen::MatrixXd single = solver->distances({sources[17]}, 1);
+  const Eigen::MatrixXd single = onThreads({sources[17]}, 1);
   EXPECT_TRUE((single.row(0).array() == one.row(17).array()).all());
 }
 

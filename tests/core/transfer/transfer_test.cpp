@@ -2,6 +2,7 @@
 // output bytes independent of the thread count, exaggeration of shapes and
 // joint keys, clear errors for bad inputs, and the animation's strain
 // following the source's.
+#include "core/base/parallel.h"
 #include "core/transfer/transfer.h"
 
 #include <algorithm>
@@ -60,8 +61,8 @@ TEST(TransferRig, OutputBytesDoNotDependOnTheThreadCount) {
   const core::SyntheticRig& target = otherHead();
   std::vector<std::vector<std::uint8_t>> glbs;
   for (const int threads : {1, 2, 3}) {
+    const core::ScopedThreadCount scope(threads);
     core::TransferOptions options;
-    options.threads = threads;
     options.diagnostic_attributes = true;
     auto result = core::transferRig(preparedSource(), target.rig.mesh, target.landmarks, "other", options);
     ASSERT_TRUE(result) << result.error().message;
