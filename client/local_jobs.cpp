@@ -67,6 +67,29 @@ core::DiagnosticsContext diagnosticsContext(const core::MeshReadReport& source, 
   return context;
 }
 
+// What the warp and transfer commands read besides the source itself.
+struct LandmarkedInputs {
+  core::LandmarkSet source_landmarks;
+  core::LoadedMesh target;
+  core::LandmarkSet target_landmarks;
+};
+
+core::Result<LandmarkedInputs> readLandmarkedInputs(const std::filesystem::path& source_landmarks,
+                                                    const std::filesystem::path& target,
+                                                    const std::filesystem::path& target_landmarks) {
+  LandmarkedInputs in;
+  auto source_set = core::readLandmarks(source_landmarks);
+  if (!source_set) return source_set.error();
+  in.source_landmarks = std::move(*source_set);
+  auto mesh = core::readMesh(target);
+  if (!mesh) return mesh.error();
+  in.target = std::move(*mesh);
+  auto target_set = core::readLandmarks(target_landmarks);
+  if (!target_set) return target_set.error();
+  in.target_landmarks = std::move(*target_set);
+  return in;
+}
+
 }  // namespace
 
 int runWarp(const WarpArgs& args) {
@@ -74,18 +97,14 @@ int runWarp(const WarpArgs& args) {
   auto t0 = Clock::now();
   auto source = core::readMesh(args.source);
   if (!source) return fail(source.error());
-  auto source_landmarks = core::readLandmarks(args.source_landmarks);
-  if (!source_landmarks) return fail(source_landmarks.error());
-  auto target = core::readMesh(args.target);
-  if (!target) return fail(target.error());
-  auto target_landmarks = core::readLandmarks(args.target_landmarks);
-  if (!target_landmarks) return fail(target_landmarks.error());
+  auto in = readLandmarkedInputs(args.source_landmarks, args.target, args.target_landmarks);
+  if (!in) return fail(in.error());
   const double read_ms = msSince(t0);
   spdlog::info("read source {} ({} vertices), target {} ({} vertices)", args.source.filename().string(),
-               source->mesh.vertexCount(), args.target.filename().string(), target->mesh.vertexCount());
+               source->mesh.vertexCount(), args.target.filename().string(), in->target.mesh.vertexCount());
 
   const core::ScopedThreadCount threads(args.threads);
-  auto prepared = core::prepareSource(source->mesh, *source_landmarks, args.source.filename().string());
+  auto prepared = core::prepareSource(source->mesh, in->source_landmarks, args.source.filename().string());
   if (!prepared) return fail(prepared.error());
 
   core::WarpOptions options = args.plain ? core::plainWarpOptions() : args.light ? core::lightWarpOptions() : core::WarpOptions{};
@@ -94,7 +113,7 @@ int runWarp(const WarpArgs& args) {
     options.local_rounds = args.local_rounds;
   }
   options.landmark_tps.regularization = args.landmark_regularization;
-  auto result = core::runWarp(*prepared, target->mesh, *target_landmarks, args.target.filename().string(), options);
+  auto result = core::runWarp(*prepared, in->target.mesh, in->target_landmarks, args.target.filename().string(), options);
   if (!result) return fail(result.error());
   result->report.prepare_ms = prepared->prepare_ms;
 
@@ -107,7 +126,7 @@ int runWarp(const WarpArgs& args) {
   if (auto ok = core::writeMeshGlb(guide, args.output); !ok) return fail(ok.error());
   const double write_ms = msSince(t0);
 
-  const core::DiagnosticsContext context = diagnosticsContext(source->report, target->report, read_ms, write_ms, t_start);
+  const core::DiagnosticsContext context = diagnosticsContext(source->report, in->target.report, read_ms, write_ms, t_start);
   const auto& r = result->report;
   if (auto ok = emitDiagnostics(core::formatWarpDiagnostics(r, context), args.diagnostics, args.print_diagnostics, r);
       !ok) {
@@ -139,23 +158,19 @@ int runTransfer(const TransferArgs& args) {
   auto t0 = Clock::now();
   auto source = core::readRig(args.source);
   if (!source) return fail(source.error());
-  auto source_landmarks = core::readLandmarks(args.source_landmarks);
-  if (!source_landmarks) return fail(source_landmarks.error());
-  auto target = core::readMesh(args.target);
-  if (!target) return fail(target.error());
-  auto target_landmarks = core::readLandmarks(args.target_landmarks);
-  if (!target_landmarks) return fail(target_landmarks.error());
+  auto in = readLandmarkedInputs(args.source_landmarks, args.target, args.target_landmarks);
+  if (!in) return fail(in.error());
   run.read_ms = msSince(t0);
   spdlog::info("read rig {} ({} vertices, {} joints, {} shapes, {} animations), target {} ({} vertices)",
                args.source.filename().string(), source->rig.mesh.vertexCount(),
                source->rig.skin ? source->rig.skin->joints.size() : 0, source->rig.morph_targets.size(),
-               source->rig.animations.size(), args.target.filename().string(), target->mesh.vertexCount());
-  input.target = std::move(*target);
-  input.target_landmarks = std::move(*target_landmarks);
+               source->rig.animations.size(), args.target.filename().string(), in->target.mesh.vertexCount());
+  input.target = std::move(in->target);
+  input.target_landmarks = std::move(in->target_landmarks);
   input.target_label = args.target.filename().string();
 
   const core::PrepareRigSource prepare = [&]() -> core::Result<core::PreparedRigSource> {
-    auto prepared = core::prepareRig(std::move(source->rig), *source_landmarks, args.source.filename().string());
+    auto prepared = core::prepareRig(std::move(source->rig), in->source_landmarks, args.source.filename().string());
     if (!prepared) return prepared.error();
     return core::PreparedRigSource{std::make_shared<const core::PreparedRig>(std::move(*prepared)), &source->report, false};
   };

@@ -203,6 +203,16 @@ struct JobFiles {
     const auto it = job.input_names.find(field);
     return it == job.input_names.end() ? field : it->second;
   }
+  core::Result<core::LoadedMesh> mesh(const std::string& field) const {
+    auto stored = bytes(field);
+    if (!stored) return stored.error();
+    return core::readMeshFromMemory(*stored, name(field), name(field));
+  }
+  core::Result<core::LandmarkSet> landmarks(const std::string& field) const {
+    auto stored = bytes(field);
+    if (!stored) return stored.error();
+    return core::parseLandmarks(asText(*stored), name(field));
+  }
   std::string optionsText() const {
     const auto spec = nlohmann::json::parse(job.spec_json, nullptr, false);
     return spec.is_object() && spec.contains("options") ? spec["options"].dump() : "{}";
@@ -215,13 +225,9 @@ core::Result<core::JobOutput> runRetargetJob(const JobFiles& in, DistanceCache& 
   auto settings = core::parseRetargetOptions(in.optionsText(), "spec.options");
   if (!settings) return settings.error();
   input.settings = std::move(*settings);
-  auto mesh_bytes = in.bytes("mesh");
-  if (!mesh_bytes) return mesh_bytes.error();
-  auto mesh = core::readMeshFromMemory(*mesh_bytes, in.name("mesh"), in.name("mesh"));
+  auto mesh = in.mesh("mesh");
   if (!mesh) return mesh.error();
-  auto marker_bytes = in.bytes("markers");
-  if (!marker_bytes) return marker_bytes.error();
-  auto markers = core::parseLandmarks(asText(*marker_bytes), in.name("markers"));
+  auto markers = in.landmarks("markers");
   if (!markers) return markers.error();
   auto clip_bytes = in.bytes("mocap");
   if (!clip_bytes) return clip_bytes.error();
@@ -268,13 +274,9 @@ core::Result<core::JobOutput> runTransferJob(const JobFiles& in, const RigRecord
   auto settings = core::parseTransferOptions(in.optionsText(), "spec.options");
   if (!settings) return settings.error();
   input.settings = std::move(*settings);
-  auto target_bytes = in.bytes("target");
-  if (!target_bytes) return target_bytes.error();
-  auto target = core::readMeshFromMemory(*target_bytes, in.name("target"), in.name("target"));
+  auto target = in.mesh("target");
   if (!target) return target.error();
-  auto landmark_bytes = in.bytes("target_landmarks");
-  if (!landmark_bytes) return landmark_bytes.error();
-  auto target_landmarks = core::parseLandmarks(asText(*landmark_bytes), in.name("target_landmarks"));
+  auto target_landmarks = in.landmarks("target_landmarks");
   if (!target_landmarks) return target_landmarks.error();
   input.target = std::move(*target);
   input.target_landmarks = std::move(*target_landmarks);
