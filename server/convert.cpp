@@ -252,12 +252,9 @@ core::Result<core::JobOutput> runRetargetJob(const JobFiles& in, DistanceCache& 
       std::to_string(d.geodesic.time_factor) + "|" + std::to_string(d.geodesic.average_boundary_conditions) + "|" +
       std::to_string(d.geodesic.clamp_heat_weights) + "|" + std::to_string(d.hybrid.region_factor) + "|" +
       std::to_string(d.hybrid.blend_gamma) + "|" + std::to_string(d.hybrid.regions.size()));
-  const core::ComputeMarkerDistances compute = core::computeMarkerDistancesFor(input, in.name("mesh"));
   const core::ComputeMarkerDistances cached = [&]() -> core::Result<core::MarkerDistancesSource> {
-    auto distances = cache.get(tenantCacheKey(in.job.tenant, key), [&]() -> core::Result<core::MarkerDistances> {
-      auto computed = compute();
-      if (!computed) return computed.error();
-      return *computed->distances;
+    auto distances = cache.get(tenantCacheKey(in.job.tenant, key), [&] {
+      return core::computeMarkerDistances(input.mesh.mesh, input.markers, in.name("mesh"), input.settings.distances);
     });
     if (!distances) return distances.error();
     return core::MarkerDistancesSource{distances->value, distances->hit};

@@ -499,10 +499,9 @@ LocatedTarget locateTarget(const PreparedSource& source, const Mesh& target, con
     addProjectionPulls(pulls, surface.positions, rows, selectGuideRows(guide, rows), trust);
     located_on = surface.positions + smoothedPulls(source, std::move(pulls), options.smoothing_passes);
   }
-  LocateOptions locate = options.locate;
-  out.locations = locateOnGuide(matched, located_on, *source.guide_index, locate, openings.source_face_labels, openings.target_masks,
-                                   openings.sides_filter ? openings.target_sides : std::vector<int>(),
-                                   &prepared.representative);
+  out.locations = locateOnGuide(matched, located_on, *source.guide_index, options.locate, openings.source_face_labels,
+                                openings.target_masks, openings.sides_filter ? openings.target_sides : std::vector<int>(),
+                                &prepared.representative);
   if (options.rim_location && !openings.target_rims.empty()) {
     report.rim_located_vertices = locateRimVertices(
         out.locations, matched, openings.target_rims, prepared.representative, source, located_on, openings.source_face_labels,

@@ -188,8 +188,12 @@ Result<PreparedTarget> prepareTarget(Mesh mesh, LandmarkSet landmarks, const std
   ClosestPointIndex index(mesh.positions, mesh.triangles);
   auto landmark_positions = resolveLandmarks(landmarks, mesh, label, &index);
   if (!landmark_positions) return landmark_positions.error();
-  PreparedTarget target{std::move(mesh), label, std::move(landmarks), std::move(*landmark_positions), {}, {}, {}, {}, 0, 0,
-                        std::move(index), 0.0, 0.0};
+  PreparedTarget target;
+  target.mesh = std::move(mesh);
+  target.label = label;
+  target.landmarks = std::move(landmarks);
+  target.landmark_positions = std::move(*landmark_positions);
+  target.index = std::move(index);
   const Mesh& m = target.mesh;
   target.normals = m.normals.rows() == m.vertexCount() ? m.normals : computeSeamlessVertexNormals(m.positions, m.triangles);
   target.representative = coincidentVertexRepresentatives(m.positions);
