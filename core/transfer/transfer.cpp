@@ -558,6 +558,8 @@ Result<TransferResult> transferRig(const PreparedRig& source, PreparedTarget pre
     out.nodes = std::move(skeleton.nodes);
     out.skin = std::move(skeleton.skin);
     report.joints = static_cast<int>(out.skin->joints.size());
+  } else if (options.weights && src.skin) {
+    out.skin = src.skin;  // joints left as they are: the transferred weights still name them
   }
   report.joints_ms = msSince(t0);
 

@@ -107,6 +107,22 @@ TEST(TransferRig, ExaggerationScalesShapesAndAnimatedDeltas) {
   EXPECT_TRUE(matricesNear(result->rig.animations[0].channels[2].values, src.animations[0].channels[2].values, 1e-12));
 }
 
+// Joints off, weights on: the target is skinned to the source's joints as
+// they are (same skin, same inverse binds), and the GLB writes.
+TEST(TransferRig, WeightsWithoutMovingJointsKeepTheSourceSkin) {
+  const core::SyntheticRig& target = otherHead();
+  core::TransferOptions options;
+  options.joints = false;
+  auto result = core::transferRig(preparedSource(), target.rig.mesh, target.landmarks, "other", options);
+  ASSERT_TRUE(result) << result.error().message;
+  const core::Rig& src = sourceRig().rig;
+  ASSERT_TRUE(result->rig.skin.has_value());
+  EXPECT_EQ(result->rig.skin->joints, src.skin->joints);
+  EXPECT_EQ(result->rig.weights.rows(), target.rig.mesh.vertexCount());
+  auto glb = core::encodeRigGlb(result->rig);
+  EXPECT_TRUE(glb) << glb.error().message;
+}
+
 // With joints left as they are (joints off), the clips still come with the
 // asked exaggeration: on the source's own skeleton, keys move twice as far
 // from rest (translation and rotation alike); nothing else changes.
