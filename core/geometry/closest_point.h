@@ -26,7 +26,6 @@ struct ClosestPointOptions {
   double max_normal_angle_deg = 180.0;
   // Faces farther than this (model units) are never returned; infinity = no limit.
   double max_distance = std::numeric_limits<double>::infinity();
-  // Threads for batch queries; 0 = hardware threads. Results do not depend on it.
 };
 
 // Per-query filters for batch queries; empty members mean "no filter".

@@ -34,7 +34,7 @@ class GeodesicSolver {
 
   // Distance from each source point to every vertex: #sources by #V, model
   // units, >= 0; vertices in a component not containing a source get +Inf.
-  // Sources are independent: runs on `threads` threads (0 = hardware) with
+  // Sources are independent: runs on the ScopedThreadCount's threads with
   // results that do not depend on the thread count (bitwise).
   // Accuracy (tests/core/solve/geodesic_test.cpp, default options): relative error
   // beyond 5 mean edge lengths from the source, mean < 0.5%, max < 2% on a
