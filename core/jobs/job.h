@@ -14,13 +14,10 @@
 #include <vector>
 
 #include "core/base/error.h"
+#include "core/base/stage_hook.h"
 #include "core/base/timing.h"
 
 namespace core {
-
-// Called at stage boundaries with the stage about to run and the job's
-// progress (0-1); false stops the job there (ErrorCode::kCancelled).
-using StageHook = std::function<bool(std::string_view stage, double progress)>;
 
 struct JobRun {
   int threads = 0;                     // the job's ScopedThreadCount (0 = hardware threads); results do not depend on it

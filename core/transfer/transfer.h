@@ -10,6 +10,7 @@
 #include <string_view>
 #include <vector>
 
+#include "core/base/stage_hook.h"
 #include "core/transfer/attributes.h"
 #include "core/transfer/blendshapes.h"
 #include "core/rig/rig.h"
@@ -71,7 +72,7 @@ struct TransferOptions {
   // Low-confidence vertices the check flags get deltas inpainted from neighbours, then rechecked; false: reported.
   bool repair_unsure = true;
   // Before each stage ("warp", "dense_map", "weights", "joints", "animations", "shapes", "attributes"): false cancels.
-  std::function<bool(std::string_view stage, double fraction)> on_stage;
+  StageHook on_stage;
 };
 
 struct PreparedRig {
