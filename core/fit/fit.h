@@ -1,0 +1,124 @@
+// fitScan: the reference face fitted to a head scan and its rig rebuilt on the
+// fitted copy by vertex index (paper 001 ch. 5 and 4.3), read top to bottom:
+// prepare (cacheable, per reference rig) -> scan -> units -> align -> prior ->
+// non-rigid fit -> gate -> rebuild. docs/FIT.md has the method and its numbers.
+#pragma once
+
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include "core/base/stage_hook.h"
+#include "core/fit/align.h"
+#include "core/fit/scan.h"
+#include "core/transfer/transfer.h"
+
+namespace core {
+
+// Everything the fit needs that depends only on the reference rig: immutable,
+// shared between jobs (the service caches it per rig, as a transfer's PreparedRig).
+struct FitReference {
+  std::shared_ptr<const PreparedRig> rig;  // the rig and its PreparedSource (normals, landmarks, dense map centres)
+  Eigen::SparseMatrix<double> laplacian;   // uniform graph Laplacian, split points welded (membrane on displacement)
+  // Pairs of vertices of opposite lips that touch at rest (non-adjacent, closer
+  // than 0.002 of the diagonal): bound so both lips move together (paper 5.7a).
+  std::vector<std::array<int, 2>> lip_pairs;
+  std::vector<int> rim_vertices;           // on an open boundary of the reference (mouth, eyes, neck)
+  std::vector<char> expressive;            // #V: within 3 cm-equivalent (0.063 d) of an inner landmark
+  std::vector<char> on_skin;               // #V: on a triangle (an isolated vertex is carried, never fitted)
+  std::vector<int> representative;         // coincidentVertexRepresentatives of the reference
+  double rms_radius = 0.0;                 // about the centroid, reference units
+  SearchReference search;                  // what the landmark-free alignment needs (align.h)
+  double prepare_ms = 0.0;
+  std::size_t memoryBytes() const;
+};
+
+Result<FitReference> prepareFitReference(std::shared_ptr<const PreparedRig> rig);
+
+enum class FitAlignmentMode { kAuto, kLandmarks, kSearch };  // auto: landmarks when >= 4 are given, else search
+enum class FitFrame { kScan, kReference };                   // the output's frame and units
+
+// One stage of the non-rigid fit's schedule (docs/FIT.md 2.4).
+struct FitStage {
+  double stiffness = 1.0;         // membrane weight on the displacement from the prior
+  int iterations = 4;             // at most (a stage stops when the largest step is under 0.0002 d)
+  double max_distance = 0.006;    // correspondences farther are rejected, fraction of the reference diagonal
+  double max_normal_angle_deg = 45.0;  // correspondences whose normals differ more are rejected
+  double landmark_weight = 1.0;   // per landmark
+};
+std::vector<FitStage> defaultFitSchedule();
+
+struct FitOptions {
+  FitAlignmentMode alignment = FitAlignmentMode::kAuto;
+  std::string units = "auto";          // the scan's units: auto (by size), mm, cm, m, in
+  SearchOptions search;                // the landmark-free alignment
+  std::vector<FitStage> schedule = defaultFitSchedule();
+  double binding_weight = 10.0;        // lip pairs kept together
+  double rim_stiffness = 10.0;         // membrane weight multiplier on the eye and mouth rims' own edges
+  double point_weight = 0.1;           // point-to-point share of the data term (the rest point-to-plane)
+  bool reject_borders = true;          // correspondences on the scan's borders and holes are rejected
+  bool reject_spikes = true;           // ... and on its spikes
+  FitFrame frame = FitFrame::kScan;
+  TransferOptions rebuild;             // components, adaptation, max influences (its warp options are unused)
+  bool diagnostic_attributes = false;  // add _FIT_DISTANCE and _FIT_COVERAGE to the output
+  bool strict = false;                 // a warn verdict fails the fit
+  StageHook on_stage;                  // "scan", "align", "fit", "gate", "rebuild"
+};
+
+struct DistanceStats {
+  double median = 0.0, p95 = 0.0, max = 0.0;
+};
+
+struct FitStageReport {
+  double stiffness = 0.0;
+  int iterations = 0;
+  int accepted = 0;                     // correspondences used in the last iteration
+  int rejected_distance = 0, rejected_normal = 0, rejected_border = 0, rejected_spike = 0;
+  double energy_data = 0.0, energy_smooth = 0.0, energy_landmarks = 0.0;
+  double max_step = 0.0;                // reference units
+};
+
+struct FitLandmarkResidual {
+  std::string name;
+  double aligned = 0.0;  // after the similarity alone, scan units
+  double fitted = 0.0;   // after the fit
+};
+
+struct FitReport {
+  ScanReport scan;
+  AlignmentReport alignment;
+  std::vector<FitLandmarkResidual> landmarks;
+  std::vector<FitStageReport> stages;
+  DistanceStats face_distance;    // fitted expressive-face vertex to the scan, covered vertices, scan units
+  DistanceStats skin_distance;    // the same over all covered vertices
+  double face_coverage = 0.0;     // fraction of expressive-face vertices with a scan correspondence
+  double skin_coverage = 0.0;
+  int uncovered_vertices = 0;
+  int flipped_triangles = 0;      // against the reference (turned by the alignment)
+  int collapsed_triangles = 0;
+  double unit_scale = 1.0;        // scan units per reference unit (the units' ratio, not the face's size)
+  std::string verdict = "ok";     // ok | warn | fail
+  std::vector<std::string> reasons;   // why not ok
+  std::vector<std::string> warnings;
+  int shapes = 0, joints = 0, animations = 0;
+  // milliseconds
+  double scan_ms = 0.0, align_ms = 0.0, fit_ms = 0.0, gate_ms = 0.0, rebuild_ms = 0.0, total_ms = 0.0;
+};
+
+struct FitResult {
+  Rig rig;             // the reference rig rebuilt on the fitted mesh (reference topology and vertex order)
+  FitReport report;
+};
+
+// `scan_landmarks` may be empty (then the alignment searches). Errors are for
+// input that cannot be fitted at all (no points, NaN, unknown landmark names);
+// a fit that ran but fails its gate comes back with verdict "fail" and its
+// reasons, and the job body (core/jobs/fit_job.h) refuses to write it.
+Result<FitResult> fitScan(const FitReference& reference, const Mesh& scan, const LandmarkSet& scan_landmarks,
+                          const std::string& scan_label, const FitOptions& options = {});
+
+}  // namespace core

@@ -1,0 +1,71 @@
+// The scan as the fit reads it (docs/FIT.md 2.1): a mesh or a point cloud with
+// unit normals, flags on what must not attract the reference (borders and
+// holes, spikes, detached pieces such as eyeball caps), and an index that
+// answers "the nearest scan surface point to here, with its normal".
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "core/base/error.h"
+#include "core/geometry/closest_point.h"
+#include "core/geometry/mesh.h"
+#include "core/geometry/point_cloud_index.h"
+
+namespace core {
+
+// Per scan point (vertex) flags.
+enum ScanPointFlag : std::uint8_t {
+  kScanBorder = 1,    // on (or next to) an open boundary: a crop, a hole
+  kScanSpike = 2,     // off its neighbours' plane by far more than the noise
+  kScanDetached = 4,  // on a small separate piece (eyeball caps, debris)
+};
+
+struct ScanReport {
+  std::string file;
+  int points = 0;
+  int triangles = 0;
+  bool point_cloud = false;
+  bool normals_computed = false;   // a cloud without normals: estimated from neighbours
+  int pieces = 0;                  // connected pieces of a mesh
+  int detached_points = 0;
+  int border_points = 0;
+  int spikes = 0;
+  int holes = 0;                   // open boundaries besides the longest (the crop)
+  std::string units;               // mm, cm, m, in (as found or as given)
+  double unit_scale = 1.0;         // scan units per reference unit
+  double size_ratio = 1.0;         // the head's size against the reference's, units removed
+};
+
+// A scan correspondence: the nearest usable surface point and its normal.
+struct ScanMatch {
+  bool found = false;
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  double distance = 0.0;
+  std::uint8_t flags = 0;          // of the scan point(s) it lies on (any corner's)
+};
+
+struct ScanSurface {
+  Mesh mesh;                       // positions (and triangles of a mesh), in the scan's units and frame
+  Eigen::MatrixX3d normals;        // #V unit normals (a cloud's may be re-oriented after alignment)
+  std::vector<std::uint8_t> flags; // #V ScanPointFlag bits
+  double diagonal = 0.0;
+  ClosestPointIndex surface_index; // a mesh: its skin faces (detached pieces skipped)
+  PointCloudIndex point_index;     // every point (a cloud's only index)
+  ScanReport report;
+
+  bool isCloud() const { return mesh.triangleCount() == 0; }
+  // The nearest scan surface point of each query row (mesh: on a face, with the
+  // barycentric normal; cloud: the nearest point and its normal).
+  std::vector<ScanMatch> nearest(const Eigen::MatrixX3d& queries) const;
+};
+
+// Checks (finite, enough points: at least 100) and prepares the scan.
+Result<ScanSurface> prepareScan(Mesh scan, const std::string& label);
+
+}  // namespace core
