@@ -4,7 +4,7 @@ namespace api {
 
 namespace {
 constexpr const char* kStatusNames[] = {"queued", "running", "succeeded", "failed", "cancelled"};
-constexpr const char* kKindNames[] = {"transfer", "retarget"};
+constexpr const char* kKindNames[] = {"transfer", "retarget", "fit"};
 
 // The enum value whose name (its index in `names`) is `name`.
 template <typename Enum, std::size_t N>
@@ -32,6 +32,7 @@ const std::vector<JobKindInfo>& jobKinds() {
   static const std::vector<JobKindInfo> kinds = {
       {JobKind::kTransfer, true, {"target", "target_landmarks"}, {}},
       {JobKind::kRetarget, false, {"mesh", "markers", "mocap"}, {"stiffness"}},
+      {JobKind::kFit, true, {"scan"}, {"scan_landmarks"}},
   };
   return kinds;
 }

@@ -22,7 +22,7 @@ const char* jobStatusName(JobStatus status);            // "queued", "running", 
 std::optional<JobStatus> parseJobStatus(std::string_view name);
 bool isFinal(JobStatus status);                          // succeeded, failed or cancelled
 
-enum class JobKind { kTransfer, kRetarget };
+enum class JobKind { kTransfer, kRetarget, kFit };
 const char* jobKindName(JobKind kind);                   // "transfer", "retarget": the spec's "kind"
 std::optional<JobKind> parseJobKind(std::string_view name);
 

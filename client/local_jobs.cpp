@@ -22,6 +22,7 @@
 #include "core/io/trc_io.h"
 #include "core/correspond/warp_job.h"
 #include "core/jobs/retarget_job.h"
+#include "core/jobs/fit_job.h"
 #include "core/jobs/transfer_job.h"
 
 namespace client {
@@ -193,6 +194,69 @@ int runTransfer(const TransferArgs& args) {
     spdlog::info("UVs: {} vertices added where the rig's UV seams cross the target (after its {} own)",
                  r.uv_seam_vertices, target_vertices);
   }
+  spdlog::info("wrote {}{}", args.output.string(), args.diagnostics.empty() ? "" : " and " + args.diagnostics.string());
+  return 0;
+}
+
+int runFit(const FitArgs& args) {
+  core::JobRun run;
+  run.threads = args.threads;
+  run.output_label = args.output.filename().string();
+  core::FitJobInput input;
+  if (!args.options.empty()) {
+    auto text = core::readFileBytes(args.options);
+    if (!text) return fail(text.error());
+    auto parsed = core::parseFitOptions(std::string(text->begin(), text->end()), args.options.filename().string());
+    if (!parsed) return fail(parsed.error());
+    input.settings = std::move(*parsed);
+  }
+  if (args.strict) input.settings.fit.strict = true;
+
+  auto t0 = Clock::now();
+  auto reference = core::readRig(args.reference);
+  if (!reference) return fail(reference.error());
+  auto reference_landmarks = core::readLandmarks(args.reference_landmarks);
+  if (!reference_landmarks) return fail(reference_landmarks.error());
+  auto scan = core::readMesh(args.scan);
+  if (!scan) return fail(scan.error());
+  if (!args.scan_landmarks.empty()) {
+    auto scan_landmarks = core::readLandmarks(args.scan_landmarks);
+    if (!scan_landmarks) return fail(scan_landmarks.error());
+    input.scan_landmarks = std::move(*scan_landmarks);
+  }
+  run.read_ms = msSince(t0);
+  spdlog::info("read reference {} ({} vertices, {} shapes), scan {} ({} points, {} triangles)",
+               args.reference.filename().string(), reference->rig.mesh.vertexCount(),
+               reference->rig.morph_targets.size(), args.scan.filename().string(), scan->mesh.vertexCount(),
+               scan->mesh.triangleCount());
+  input.scan = std::move(*scan);
+  input.scan_label = args.scan.filename().string();
+
+  const core::PrepareFitSource prepare = [&]() -> core::Result<core::PreparedFitSource> {
+    const std::string label = args.reference.filename().string();
+    auto rig = core::prepareRig(std::move(reference->rig), std::move(*reference_landmarks), label);
+    if (!rig) return rig.error();
+    auto fit_reference = core::prepareFitReference(std::make_shared<const core::PreparedRig>(std::move(*rig)));
+    if (!fit_reference) return fit_reference.error();
+    return core::PreparedFitSource{std::make_shared<const core::FitReference>(std::move(*fit_reference)),
+                                   &reference->report, false};
+  };
+  auto job = core::runFitJob(prepare, std::move(input), run);
+  if (!job) return fail(job.error());
+  if (auto ok = emitDiagnostics(job->output.diagnostics, args.diagnostics, args.print_diagnostics, core::WarpReport{},
+                                job->report.warnings);
+      !ok) {
+    return fail(ok.error());
+  }
+  const core::FitReport& r = job->report;
+  spdlog::info("fit: {} ({} alignment, scan in {}, head {:.3f}x the reference); face to scan median {:.3g} / p95 {:.3g} / "
+               "max {:.3g} {}, face coverage {:.1f}%, {} flipped; {:.1f} ms",
+               r.verdict, r.alignment.method, r.scan.units, r.scan.size_ratio, r.face_distance.median,
+               r.face_distance.p95, r.face_distance.max, r.scan.units, 100.0 * r.face_coverage, r.flipped_triangles,
+               job->output.timings_ms.at("total"));
+  for (const std::string& reason : r.reasons) spdlog::warn("{}", reason);
+  if (job->refused) return fail(*job->refused);
+  if (auto ok = core::writeFileBytes(args.output, job->output.glb); !ok) return fail(ok.error());
   spdlog::info("wrote {}{}", args.output.string(), args.diagnostics.empty() ? "" : " and " + args.diagnostics.string());
   return 0;
 }

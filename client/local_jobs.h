@@ -32,6 +32,17 @@ struct TransferArgs {
 };
 int runTransfer(const TransferArgs& args);
 
+struct FitArgs {
+  std::filesystem::path reference, reference_landmarks, scan, scan_landmarks;  // scan_landmarks empty: searched
+  std::filesystem::path output;       // rigged fitted GLB
+  std::filesystem::path diagnostics;  // JSON; empty = none
+  std::filesystem::path options;      // fit options JSON; empty = defaults
+  int threads = 0;
+  bool print_diagnostics = false;
+  bool strict = false;                // a fit the gate warns about fails (options "strict": true)
+};
+int runFit(const FitArgs& args);
+
 struct GenerateHeadArgs {
   std::filesystem::path output;       // GLB
   std::filesystem::path landmarks;    // landmarks JSON

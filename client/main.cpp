@@ -70,6 +70,20 @@ int main(int argc, char** argv) {
                          "Fail when the output fails its quality check (a vertex moving as none of its ring does, or "
                          "located across the mouth or an eye), instead of warning");
 
+  client::FitArgs fit;
+  auto* fit_cmd = app.add_subcommand("fit", "Fit the reference face to a head scan and rebuild its rig on the fitted mesh");
+  fit_cmd->add_option("--reference", fit.reference, "Reference rig (GLB/glTF)")->required()->check(CLI::ExistingFile);
+  fit_cmd->add_option("--reference-landmarks", fit.reference_landmarks, "Reference landmarks JSON")->required()->check(CLI::ExistingFile);
+  fit_cmd->add_option("--scan", fit.scan, "Head scan: mesh or point cloud (PLY/OBJ/GLB)")->required()->check(CLI::ExistingFile);
+  fit_cmd->add_option("--scan-landmarks", fit.scan_landmarks, "Scan landmarks JSON (>= 4 of the reference's names); "
+                      "without them the alignment is searched (head roughly upright)")->check(CLI::ExistingFile);
+  fit_cmd->add_option("-o,--output", fit.output, "Rigged fitted GLB")->required()->check(client::kGlbPath);
+  fit_cmd->add_option("--diagnostics", fit.diagnostics, "Diagnostics JSON (written also when the gate refuses the fit)");
+  fit_cmd->add_option("--options", fit.options, "Fit options JSON (see core/jobs/fit_options.h)")->check(CLI::ExistingFile);
+  fit_cmd->add_option("--threads", fit.threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
+  fit_cmd->add_flag("--print-diagnostics", fit.print_diagnostics, "Also print the diagnostics JSON on stdout");
+  fit_cmd->add_flag("--strict", fit.strict, "Fail when the fit's gate warns, not only when it fails");
+
   client::GenerateHeadArgs head;
   auto* head_cmd = app.add_subcommand("generate-head", "Write a procedural head mesh with 68 landmarks");
   head_cmd->add_option("-o,--output", head.output, "GLB to write")->required()->check(client::kGlbPath);
@@ -134,6 +148,7 @@ int main(int argc, char** argv) {
   if (auto rc = remote.run(transfer)) return *rc;  // remote commands, transfer --server
   if (*warp_cmd) return client::runWarp(warp);
   if (*transfer_cmd) return client::runTransfer(transfer);
+  if (*fit_cmd) return client::runFit(fit);
   if (*head_cmd) return client::runGenerateHead(head);
   if (*retarget_cmd) return client::runRetarget(retarget);
   if (*demo_cmd) return client::runDemo(demo_dir, demo_threads, demo_inputs_only);

@@ -7,6 +7,9 @@
 
 #include "api/content_id.h"
 #include "api/json.h"
+#include "core/fit/scan.h"
+#include "core/jobs/fit_job.h"
+#include "core/jobs/fit_options.h"
 #include "core/jobs/retarget_job.h"
 #include "core/jobs/transfer_job.h"
 #include "core/io/landmarks.h"
@@ -183,6 +186,37 @@ std::optional<api::Problem> checkJobInputs(api::JobSpec& spec,
     }
     return std::nullopt;
   }
+  if (spec.kind == api::JobKind::kFit) {
+    auto settings = core::parseFitOptions(spec.options.dump(), "spec.options");
+    if (!settings) return problemFromCoreError(settings.error(), instance);
+    spec.options = nlohmann::json::parse(core::fitOptionsJson(*settings));
+    const auto& [scan_name, scan_bytes] = files.at("scan");
+    auto scan = core::readMeshFromMemory(scan_bytes, scan_name, "scan '" + scan_name + "'");
+    if (!scan) return problemFromCoreError(scan.error(), instance);
+    const auto landmark_file = files.find("scan_landmarks");
+    core::LandmarkSet landmarks;
+    if (landmark_file != files.end()) {
+      auto parsed = core::parseLandmarks(asText(landmark_file->second.second), "scan_landmarks");
+      if (!parsed) return problemFromCoreError(parsed.error(), instance);
+      landmarks = std::move(*parsed);
+    }
+    if (auto p = checkCounts(scan->mesh, landmarks.landmarks.size(), "scan '" + scan_name + "'", limits, instance)) return p;
+    if (auto ok = core::checkScan(scan->mesh, scan_name); !ok) return problemFromCoreError(ok.error(), instance);
+    if (landmark_file != files.end()) {
+      if (rig_landmarks) {
+        if (auto ok = core::checkSharedLandmarkNames(*rig_landmarks, landmarks, scan_name); !ok) {
+          return problemFromCoreError(ok.error(), instance);
+        }
+      }
+      if (auto positions = core::resolveLandmarks(landmarks, scan->mesh, "scan_landmarks"); !positions) {
+        return problemFromCoreError(positions.error(), instance);
+      }
+    } else if (settings->fit.alignment == core::FitAlignmentMode::kLandmarks) {
+      return api::makeProblem(api::WireError::kInvalidOption,
+                              "spec.options: 'alignment' is \"landmarks\" but no scan_landmarks file was sent", instance);
+    }
+    return std::nullopt;
+  }
   return api::makeProblem(api::WireError::kMalformedRequest,
                           "spec.kind: '" + std::string(api::jobKindName(spec.kind)) + "' is not served yet", instance);
 }
@@ -264,6 +298,64 @@ core::Result<core::JobOutput> runRetargetJob(const JobFiles& in, DistanceCache& 
   return std::move(out->output);
 }
 
+// The rig prepared for transfers and fits: cached per tenant and rig content
+// id, so a hit skips all source-only work. `read` receives how the rig file
+// was read when it was read for this call.
+core::Result<RigCache::Lookup> preparedRig(const RigRecord& rig_record, const BlobStore& blobs, RigCache& cache,
+                                           core::MeshReadReport& read) {
+  return cache.get(tenantCacheKey(rig_record.tenant, rig_record.info.id), [&]() -> core::Result<core::PreparedRig> {
+    auto rig_bytes = blobs.read(rig_record.rig_blob);
+    if (!rig_bytes) return rig_bytes.error();
+    auto rig = readRigBytes(*rig_bytes, rig_record.info.name);
+    if (!rig) return rig.error();
+    read = rig->report;
+    auto source_landmark_bytes = blobs.read(rig_record.landmarks_blob);
+    if (!source_landmark_bytes) return source_landmark_bytes.error();
+    auto source_landmarks = core::parseLandmarks(asText(*source_landmark_bytes), "landmarks");
+    if (!source_landmarks) return source_landmarks.error();
+    return core::prepareRig(std::move(rig->rig), std::move(*source_landmarks), rig_record.info.name);
+  });
+}
+
+core::Result<core::JobOutput> runFitJob(const JobFiles& in, const RigRecord& rig_record, const BlobStore& blobs,
+                                        Caches& caches, core::JobRun run) {
+  if (!run.stage("read", 0.02)) return run.stoppedBefore("reading inputs");
+  core::FitJobInput input;
+  auto settings = core::parseFitOptions(in.optionsText(), "spec.options");
+  if (!settings) return settings.error();
+  input.settings = std::move(*settings);
+  auto scan = in.mesh("scan");
+  if (!scan) return scan.error();
+  input.scan = std::move(*scan);
+  input.scan_label = in.name("scan");
+  if (in.has("scan_landmarks")) {
+    auto landmarks = in.landmarks("scan_landmarks");
+    if (!landmarks) return landmarks.error();
+    input.scan_landmarks = std::move(*landmarks);
+  }
+  run.read_ms = msSince(run.started);
+
+  // The fit reference, cached per tenant and rig beside the prepared rig it
+  // is built on (a transfer's cache entry serves it too).
+  core::MeshReadReport source_read;
+  bool read_now = false;
+  const core::PrepareFitSource prepare = [&]() -> core::Result<core::PreparedFitSource> {
+    auto fitted = caches.fits.get(tenantCacheKey(rig_record.tenant, rig_record.info.id),
+                                  [&]() -> core::Result<core::FitReference> {
+                                    auto rig = preparedRig(rig_record, blobs, caches.rigs, source_read);
+                                    if (!rig) return rig.error();
+                                    read_now = !rig->hit;
+                                    return core::prepareFitReference(rig->value);
+                                  });
+    if (!fitted) return fitted.error();
+    return core::PreparedFitSource{fitted->value, read_now ? &source_read : nullptr, fitted->hit};
+  };
+  auto out = core::runFitJob(prepare, std::move(input), run);
+  if (!out) return out.error();
+  if (out->refused) return *out->refused;
+  return std::move(out->output);
+}
+
 core::Result<core::JobOutput> runTransferJob(const JobFiles& in, const RigRecord& rig_record, const BlobStore& blobs,
                                              RigCache& cache, core::JobRun run) {
   if (!run.stage("read", 0.02)) return run.stoppedBefore("reading inputs");
@@ -286,18 +378,7 @@ core::Result<core::JobOutput> runTransferJob(const JobFiles& in, const RigRecord
   // Cached per tenant and rig content id: a hit skips all source-only work.
   core::MeshReadReport source_read;
   const core::PrepareRigSource prepare = [&]() -> core::Result<core::PreparedRigSource> {
-    auto prepared = cache.get(tenantCacheKey(rig_record.tenant, rig_record.info.id), [&]() -> core::Result<core::PreparedRig> {
-      auto rig_bytes = blobs.read(rig_record.rig_blob);
-      if (!rig_bytes) return rig_bytes.error();
-      auto rig = readRigBytes(*rig_bytes, rig_record.info.name);
-      if (!rig) return rig.error();
-      source_read = rig->report;
-      auto source_landmark_bytes = blobs.read(rig_record.landmarks_blob);
-      if (!source_landmark_bytes) return source_landmark_bytes.error();
-      auto source_landmarks = core::parseLandmarks(asText(*source_landmark_bytes), "landmarks");
-      if (!source_landmarks) return source_landmarks.error();
-      return core::prepareRig(std::move(rig->rig), std::move(*source_landmarks), rig_record.info.name);
-    });
+    auto prepared = preparedRig(rig_record, blobs, cache, source_read);
     if (!prepared) return prepared.error();
     return core::PreparedRigSource{prepared->value, &source_read, prepared->hit};
   };
@@ -320,8 +401,12 @@ core::Result<core::JobOutput> runJob(const JobRecord& job, const RigRecord* rig,
       if (rig == nullptr) break;
       return runTransferJob(files, *rig, blobs, caches.rigs, std::move(run));
     case api::JobKind::kRetarget: return runRetargetJob(files, caches.distances, std::move(run));
+    case api::JobKind::kFit:
+      if (rig == nullptr) break;
+      return runFitJob(files, *rig, blobs, caches, std::move(run));
   }
-  return core::makeError(core::ErrorCode::kInvalidArgument, "job " + job.id + ": a transfer job without its rig cannot run");
+  return core::makeError(core::ErrorCode::kInvalidArgument,
+                         "job " + job.id + ": a " + api::jobKindName(job.kind) + " job without its rig cannot run");
 }
 
 }  // namespace server

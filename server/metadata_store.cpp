@@ -27,7 +27,7 @@ using core::makeError;
 
 namespace {
 
-constexpr int kSchemaVersion = 3;
+constexpr int kSchemaVersion = 4;
 constexpr int kBusyTimeoutMs = 5000;
 
 // Schema version 1. Rig created_at is stored as RFC 3339 UTC text (the wire
@@ -427,6 +427,9 @@ core::Result<std::unique_ptr<MetadataStore>> MetadataStore::open(const std::file
       }
       now_version = 3;
     }
+    // 3 -> 4: no table changes; jobs of kind "fit" may be stored, which
+    // builds of schema 3 could not read (see readJob).
+    if (now_version == 3) now_version = 4;
     if (auto st = c->exec(("PRAGMA user_version=" + std::to_string(now_version)).c_str()); !st) return st.error();
     if (auto st = tx.commit(); !st) return st.error();
   }

@@ -46,7 +46,7 @@ std::string Metrics::render(const GaugeSnapshot& g) const {
       << "# TYPE rigport_storage_ok gauge\nrigport_storage_ok " << (g.storage_ok ? 1 : 0) << "\n"
       << "# HELP rigport_storage_faults_total Failed store or blob reads and writes since start.\n"
       << "# TYPE rigport_storage_faults_total counter\nrigport_storage_faults_total " << g.storage_faults << "\n";
-  // One family per statistic, one series per cache ("rig", "distances").
+  // One family per statistic, one series per cache ("rig", "fit", "distances").
   const std::pair<const char*, std::int64_t CacheStats::*> families[] = {
       {"bytes", &CacheStats::bytes},   {"capacity_bytes", &CacheStats::capacity_bytes},
       {"entries", &CacheStats::entries}, {"hits_total", &CacheStats::hits},
@@ -54,7 +54,7 @@ std::string Metrics::render(const GaugeSnapshot& g) const {
   for (const auto& [name, field] : families) {
     const std::string family = std::string("rigport_cache_") + name;
     const bool counter = family.size() > 6 && family.compare(family.size() - 6, 6, "_total") == 0;
-    out << "# HELP " << family << " Prepared-product cache (rig: prepared rigs; distances: marker distance fields).\n"
+    out << "# HELP " << family << " Prepared-product cache (rig: prepared rigs; fit: fit references; distances: marker distance fields).\n"
         << "# TYPE " << family << (counter ? " counter\n" : " gauge\n");
     for (const auto& [cache, stats] : g.caches) out << family << "{cache=\"" << cache << "\"} " << stats.*field << "\n";
   }

@@ -21,7 +21,7 @@ struct GaugeSnapshot {
   std::map<std::string, std::int64_t> jobs_by_state;  // state name -> count (store)
   std::int64_t queue_depth = 0;
   std::int64_t running_jobs = 0;
-  std::map<std::string, CacheStats> caches;           // "rig", "distances"
+  std::map<std::string, CacheStats> caches;           // "rig", "fit", "distances"
   bool storage_ok = true;                              // StorageHealth
   std::int64_t storage_faults = 0;
 };

@@ -20,6 +20,7 @@
 #include <string>
 
 #include "core/base/error.h"
+#include "core/fit/fit.h"
 #include "core/retarget/retarget.h"
 #include "core/transfer/transfer.h"
 #include "server/metrics.h"
@@ -128,12 +129,17 @@ class PreparedCache {
 
 using RigCache = PreparedCache<core::PreparedRig>;
 using DistanceCache = PreparedCache<core::MarkerDistances>;
+using FitCache = PreparedCache<core::FitReference>;
 
-// The service's caches share one byte budget: 3/4 for prepared rigs (the hot
-// path of transfer jobs), 1/4 for marker distance fields (retarget jobs).
+// The service's caches share one byte budget: 5/8 for prepared rigs (the hot
+// path of transfer jobs, and what a fit reference is built on), 1/8 for fit
+// references (their own part: Laplacians, lip pairs, the search's index),
+// 1/4 for marker distance fields (retarget jobs).
 struct Caches {
-  explicit Caches(std::size_t capacity_bytes) : rigs(capacity_bytes / 4 * 3), distances(capacity_bytes / 4) {}
+  explicit Caches(std::size_t capacity_bytes)
+      : rigs(capacity_bytes / 8 * 5), fits(capacity_bytes / 8), distances(capacity_bytes / 4) {}
   RigCache rigs;
+  FitCache fits;
   DistanceCache distances;
 };
 

@@ -503,7 +503,7 @@ void registerRoutes(httplib::Server& http, RouteContext& ctx) {
     g.running_jobs = ctx.jobs.runningJobs();
     g.storage_ok = ctx.storage.ok();
     g.storage_faults = ctx.storage.faults();
-    g.caches = {{"rig", ctx.caches.rigs.stats()}, {"distances", ctx.caches.distances.stats()}};
+    g.caches = {{"rig", ctx.caches.rigs.stats()}, {"fit", ctx.caches.fits.stats()}, {"distances", ctx.caches.distances.stats()}};
     res.set_content(ctx.metrics.render(g), "text/plain; version=0.0.4");
   });
   http.Get("/openapi.json", [](const Request&, Response& res) {

@@ -81,7 +81,10 @@ FoldReport countFolds(const Eigen::MatrixX3d& warped_positions, const Eigen::Mat
     }
     const Eigen::Vector3d a0 = warped_positions.row(t(0)), a1 = warped_positions.row(t(1)), a2 = warped_positions.row(t(2));
     const Eigen::Vector3d b0 = guide_positions.row(t(0)), b1 = guide_positions.row(t(1)), b2 = guide_positions.row(t(2));
-    if ((a1 - a0).cross(a2 - a0).dot((b1 - b0).cross(b2 - b0)) < 0.0) ++report.flipped;
+    if ((a1 - a0).cross(a2 - a0).dot((b1 - b0).cross(b2 - b0)) < 0.0) {
+      ++report.flipped;
+      report.flipped_faces.push_back(static_cast<int>(f));
+    }
   }
   return report;
 }

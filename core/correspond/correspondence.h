@@ -77,6 +77,7 @@ Eigen::MatrixX3d slideInTangentPlanes(const Eigen::MatrixXd& bending, const Eige
 struct FoldReport {
   int flipped = 0;
   int collapsed = 0;
+  std::vector<int> flipped_faces;  // ascending
 };
 FoldReport countFolds(const Eigen::MatrixX3d& warped_positions, const Eigen::MatrixX3d& guide_positions,
                       const Eigen::MatrixX3i& triangles);

@@ -37,6 +37,19 @@ struct LandmarkAlignment {
 };
 Result<LandmarkAlignment> alignByLandmarks(const LandmarkPairs& pairs, double drop_distance, AlignmentReport& report);
 
+// The scan's units from the alignment's scale (scan units per reference
+// unit): the reference's own unit from a head's size (its RMS radius about
+// the centroid is 6-16 cm), the scan's the one of mm, cm, m, in whose ratio
+// is log-nearest to the scale; what is left is the head's size against the
+// reference's. `given`: "auto" or one of those names (then only the size is
+// measured). Error: an unknown name, or a reference no head's size in any unit.
+struct ScanUnits {
+  std::string name;          // mm, cm, m, in
+  double unit_scale = 1.0;   // scan units per reference unit
+  double size_ratio = 1.0;   // scale / unit_scale
+};
+Result<ScanUnits> scanUnits(double scale, double reference_rms_radius, const std::string& given);
+
 // Yaw, pitch and roll of a rotation (as AlignmentReport), degrees.
 Eigen::Vector3d yawPitchRollDeg(const Eigen::Matrix3d& rotation);
 

@@ -24,11 +24,12 @@ namespace core {
 struct FitReference {
   std::shared_ptr<const PreparedRig> rig;  // the rig and its PreparedSource (normals, landmarks, dense map centres)
   Eigen::SparseMatrix<double> laplacian;   // uniform graph Laplacian, split points welded (membrane on displacement)
+  Eigen::SparseMatrix<double> rim_laplacian;      // of the eye and mouth rims' own edges (stiffer: lids stay whole)
+  Eigen::SparseMatrix<double> binding_laplacian;  // of the lip pairs below
   // Pairs of vertices of opposite lips that touch at rest (non-adjacent, closer
   // than 0.002 of the diagonal): bound so both lips move together (paper 5.7a).
   std::vector<std::array<int, 2>> lip_pairs;
-  std::vector<int> rim_vertices;           // on an open boundary of the reference (mouth, eyes, neck)
-  std::vector<char> expressive;            // #V: within 3 cm-equivalent (0.063 d) of an inner landmark
+  std::vector<char> expressive;            // #V: within 0.063 d (3 cm on a head) of a landmark not named jaw_*
   std::vector<char> on_skin;               // #V: on a triangle (an isolated vertex is carried, never fitted)
   std::vector<int> representative;         // coincidentVertexRepresentatives of the reference
   double rms_radius = 0.0;                 // about the centroid, reference units
@@ -49,6 +50,10 @@ struct FitStage {
   double max_distance = 0.006;    // correspondences farther are rejected, fraction of the reference diagonal
   double max_normal_angle_deg = 45.0;  // correspondences whose normals differ more are rejected
   double landmark_weight = 1.0;   // per landmark
+  // Share of the data term that pulls to the scan point itself (the rest to
+  // its tangent plane): stiff stages drag whole regions, along the surface
+  // too; the last ones let the surface slide (point-to-plane).
+  double point_share = 0.1;
 };
 std::vector<FitStage> defaultFitSchedule();
 
@@ -59,9 +64,9 @@ struct FitOptions {
   std::vector<FitStage> schedule = defaultFitSchedule();
   double binding_weight = 10.0;        // lip pairs kept together
   double rim_stiffness = 10.0;         // membrane weight multiplier on the eye and mouth rims' own edges
-  double point_weight = 0.1;           // point-to-point share of the data term (the rest point-to-plane)
   bool reject_borders = true;          // correspondences on the scan's borders and holes are rejected
   bool reject_spikes = true;           // ... and on its spikes
+  int fold_repair_rounds = 2;          // triangles flipped after the schedule: their neighbourhood stiffened, refitted
   FitFrame frame = FitFrame::kScan;
   TransferOptions rebuild;             // components, adaptation, max influences (its warp options are unused)
   bool diagnostic_attributes = false;  // add _FIT_DISTANCE and _FIT_COVERAGE to the output

@@ -56,7 +56,7 @@ struct ScanSurface {
   std::vector<std::uint8_t> flags; // #V ScanPointFlag bits
   double diagonal = 0.0;
   ClosestPointIndex surface_index; // a mesh: its skin faces (detached pieces skipped)
-  PointCloudIndex point_index;     // every point (a cloud's only index)
+  PointCloudIndex point_index;     // a cloud: its points
   ScanReport report;
 
   bool isCloud() const { return mesh.triangleCount() == 0; }
@@ -65,7 +65,11 @@ struct ScanSurface {
   std::vector<ScanMatch> nearest(const Eigen::MatrixX3d& queries) const;
 };
 
-// Checks (finite, enough points: at least 100) and prepares the scan.
+// What a fit needs of a scan, checked alone (a service answers at
+// submission): finite values, at least 100 points, not all at one position.
+Status checkScan(const Mesh& scan, const std::string& label);
+
+// checkScan, then the scan prepared.
 Result<ScanSurface> prepareScan(Mesh scan, const std::string& label);
 
 }  // namespace core

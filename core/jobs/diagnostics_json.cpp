@@ -1,5 +1,8 @@
 #include "core/jobs/diagnostics_json.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include <nlohmann/json.hpp>
 
 namespace core {
@@ -153,6 +156,80 @@ std::string formatTransferDiagnostics(const TransferReport& r, const Diagnostics
   t["animations"] = r.animations_ms;
   t["attributes"] = r.attributes_ms;
   t["quality"] = r.quality_ms;
+  for (const auto& [name, ms] : context.extra_timings_ms) t[name] = ms;
+  t["total"] = context.total_ms >= 0.0 ? context.total_ms : r.total_ms;
+  return dumpDocument(doc);
+}
+
+namespace {
+
+Json distanceJson(const DistanceStats& d) { return {{"median", d.median}, {"p95", d.p95}, {"max", d.max}}; }
+
+Json vectorJson(const Eigen::Vector3d& v) { return Json::array({v(0), v(1), v(2)}); }
+
+}  // namespace
+
+std::string formatFitDiagnostics(const FitReport& r, const DiagnosticsContext& context) {
+  Json doc;
+  doc["verdict"] = r.verdict;
+  doc["reasons"] = r.reasons;
+  doc["warnings"] = r.warnings;
+  const ScanReport& s = r.scan;
+  Json& scan = doc["scan"];
+  scan["file"] = s.file;
+  scan["points"] = s.points;
+  scan["triangles"] = s.triangles;
+  scan["point_cloud"] = s.point_cloud;
+  scan["normals_computed"] = s.normals_computed;
+  scan["pieces"] = s.pieces;
+  scan["detached_points"] = s.detached_points;
+  scan["border_points"] = s.border_points;
+  scan["spikes"] = s.spikes;
+  scan["holes"] = s.holes;
+  scan["units"] = s.units;
+  scan["unit_scale"] = s.unit_scale;
+  scan["size_ratio"] = s.size_ratio;
+  if (context.target_read) scan["read"] = readReportJson(*context.target_read);
+  const AlignmentReport& a = r.alignment;
+  doc["alignment"] = {{"method", a.method},           {"rotation_deg", a.rotation_deg},
+                      {"yaw_deg", a.yaw_deg},         {"pitch_deg", a.pitch_deg},
+                      {"roll_deg", a.roll_deg},       {"scale", a.scale},
+                      {"translation", vectorJson(a.translation)}, {"rms_residual", a.rms_residual},
+                      {"inlier_fraction", a.inlier_fraction}, {"hypotheses", a.hypotheses},
+                      {"runner_up_ratio", a.runner_up_ratio}, {"landmarks_dropped", a.landmarks_dropped}};
+  Json& lm = doc["landmarks"];
+  lm["count"] = r.landmarks.size();
+  double rms = 0.0, worst = 0.0;
+  lm["residuals"] = Json::array();
+  for (const FitLandmarkResidual& l : r.landmarks) {
+    rms += l.fitted * l.fitted;
+    worst = std::max(worst, l.fitted);
+    lm["residuals"].push_back({{"name", l.name}, {"aligned", l.aligned}, {"fitted", l.fitted}});
+  }
+  lm["rms_residual"] = r.landmarks.empty() ? 0.0 : std::sqrt(rms / static_cast<double>(r.landmarks.size()));
+  lm["max_residual"] = worst;
+  Json stages = Json::array();
+  for (const FitStageReport& st : r.stages) {
+    stages.push_back({{"stiffness", st.stiffness},
+                      {"iterations", st.iterations},
+                      {"accepted", st.accepted},
+                      {"rejected", {{"distance", st.rejected_distance}, {"normal", st.rejected_normal},
+                                    {"border", st.rejected_border}, {"spike", st.rejected_spike}}},
+                      {"energy", {{"data", st.energy_data}, {"smooth", st.energy_smooth}, {"landmarks", st.energy_landmarks}}},
+                      {"max_step", st.max_step}});
+  }
+  doc["fit"] = {{"stages", stages}};
+  doc["distance"] = {{"face", distanceJson(r.face_distance)}, {"skin", distanceJson(r.skin_distance)}};
+  doc["coverage"] = {{"face", r.face_coverage}, {"skin", r.skin_coverage}, {"uncovered_vertices", r.uncovered_vertices}};
+  doc["folds"] = {{"flipped", r.flipped_triangles}, {"collapsed", r.collapsed_triangles}};
+  doc["rebuild"] = {{"shapes", r.shapes}, {"joints", r.joints}, {"animations", r.animations}};
+  doc["cache"] = {{"hit", context.cache_hit}};
+  Json& t = doc["timings_ms"];
+  t["scan"] = r.scan_ms;
+  t["align"] = r.align_ms;
+  t["fit"] = r.fit_ms;
+  t["gate"] = r.gate_ms;
+  t["rebuild"] = r.rebuild_ms;
   for (const auto& [name, ms] : context.extra_timings_ms) t[name] = ms;
   t["total"] = context.total_ms >= 0.0 ? context.total_ms : r.total_ms;
   return dumpDocument(doc);

@@ -9,6 +9,7 @@
 #include "core/io/mesh_io.h"
 #include "core/transfer/transfer.h"
 #include "core/correspond/warp_job.h"
+#include "core/fit/fit.h"
 
 namespace core {
 
@@ -27,5 +28,11 @@ std::string formatWarpDiagnostics(const WarpReport& report, const DiagnosticsCon
 // timings (prepare, warp, correspond, dense_map, weights, joints, shapes,
 // animations, attributes, write, total), lined up with the papers' Tables 5.1-5.2.
 std::string formatTransferDiagnostics(const TransferReport& report, const DiagnosticsContext& context = {});
+
+// The fit's report (docs/DIAGNOSTICS.md "Fit"): scan, alignment, landmarks,
+// stages, distances, coverage, folds, rebuild, verdict and the stages'
+// timings (read, prepare, scan, align, fit, gate, rebuild, write, total).
+// `context.target_read` is the scan's read report.
+std::string formatFitDiagnostics(const FitReport& report, const DiagnosticsContext& context = {});
 
 }  // namespace core

@@ -1,0 +1,74 @@
+// (internal) fitScan's stages in the order they run, each plain data in and
+// out. Everything between align and rebuild works in the reference's frame
+// and units: the scan is reached through the alignment (queries mapped to the
+// scan, answers mapped back), so nothing of the scan is copied or re-indexed.
+#pragma once
+
+#include <array>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "core/fit/fit.h"
+
+namespace core {
+
+// The alignment as the stages use it: reference frame <-> scan frame.
+struct FrameMap {
+  Similarity reference_to_scan;
+  Eigen::Vector3d toScan(const Eigen::Vector3d& p) const { return reference_to_scan.apply(p); }
+  Eigen::Vector3d toReference(const Eigen::Vector3d& p) const {
+    return reference_to_scan.rotation.transpose() * (p - reference_to_scan.translation) / reference_to_scan.scale;
+  }
+  Eigen::Vector3d directionToReference(const Eigen::Vector3d& n) const { return reference_to_scan.rotation.transpose() * n; }
+};
+
+// The graph Laplacian of the given edges alone (#n by #n; weight 1 each).
+Eigen::SparseMatrix<double> edgeLaplacian(Eigen::Index n, const std::vector<std::array<int, 2>>& edges);
+
+// Scan correspondences of reference-frame positions, in the reference frame.
+struct FrameMatches {
+  std::vector<ScanMatch> matches;  // point, normal and distance in reference units and frame
+};
+FrameMatches matchInReferenceFrame(const ScanSurface& scan, const FrameMap& frame, const Eigen::MatrixX3d& positions);
+
+// Soft landmark constraints of the non-rigid fit: reference vertex -> target (reference frame).
+struct LandmarkTargets {
+  std::vector<int> vertices;
+  Eigen::MatrixX3d targets;
+};
+
+// The fit's start (docs/FIT.md 2.3), reference frame: the reference under
+// the affine map that best lays it on the scan (trimmed ICP from the
+// alignment, the landmarks as heavy pairs: a head wider, deeper or smaller
+// than the reference). Where the scan has no data the fit keeps this shape.
+// Not the landmarks' thin-plate spline (the plain warp's start): its affine
+// part is fitted to points on the face alone and sends the scalp, ears and
+// neck centimetres astray (whole-skin p95 19-24 mm against 5-12 mm).
+Eigen::MatrixX3d fitPrior(const FitReference& reference, const ScanSurface& scan, const FrameMap& frame,
+                          const LandmarkTargets& landmarks);
+
+struct NonRigidFit {
+  Eigen::MatrixX3d positions;      // #V fitted, reference frame
+  std::vector<char> covered;       // #V: had an accepted scan correspondence in the last iteration
+  std::vector<double> distance;    // #V: to that correspondence, reference units (-1: uncovered)
+  std::vector<FitStageReport> stages;
+  int fold_repairs = 0;            // rounds of fold repair run
+  int repaired_vertices = 0;       // vertices stiffened by them
+};
+
+// The schedule of FitOptions::schedule from `prior` (reference frame).
+Result<NonRigidFit> fitNonRigid(const FitReference& reference, const ScanSurface& scan, const FrameMap& frame,
+                                const Eigen::MatrixX3d& prior, const LandmarkTargets& landmarks,
+                                const FitOptions& options);
+
+// The gate (docs/FIT.md 2.9): distances, coverage, folds, verdict into `report`.
+void gateFit(const FitReference& reference, const FrameMap& frame, const NonRigidFit& fit, const FitOptions& options,
+             FitReport& report);
+
+// The rig rebuilt by vertex index (paper 001 4.3) on `fitted` (reference
+// frame).
+Result<Rig> rebuildRig(const FitReference& reference, const FrameMap& frame, const Eigen::MatrixX3d& fitted,
+                       double unit_scale, const FitOptions& options, FitReport& report);
+
+}  // namespace core

@@ -1,0 +1,218 @@
+#include "core/fit/scan.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
+
+#include "core/base/parallel.h"
+
+namespace core {
+
+namespace {
+
+constexpr int kMinScanPoints = 100;
+// Pieces under this share of the largest piece's area are not skin: eyeball
+// caps, teeth, debris a scanner leaves (docs/FIT.md 2.1: caps are ~2%).
+constexpr double kDetachedAreaShare = 0.05;
+// A vertex off its 1-ring's plane by more than this many times the ring's
+// mean edge length is a spike: noise is a small fraction of an edge, and a
+// fold or crease of the skin sits within about one.
+constexpr double kSpikeEdgeFactor = 1.0;
+// A closest point with a barycentric weight at most this lies on an edge.
+constexpr double kOnEdge = 1e-9;
+
+// Pieces of a mesh scan: flags the vertices of small pieces as detached.
+int flagDetachedPieces(const Mesh& mesh, const std::vector<int>& representative, std::vector<std::uint8_t>& flags,
+                       int& piece_count) {
+  const MeshPieces pieces = meshPieces(mesh, representative);
+  piece_count = pieces.count;
+  if (pieces.count < 2) return 0;
+  const Eigen::VectorXd areas = computeDoubleAreas(mesh.positions, mesh.triangles);
+  std::vector<double> piece_area(static_cast<std::size_t>(pieces.count), 0.0);
+  for (Eigen::Index f = 0; f < mesh.triangleCount(); ++f) {
+    piece_area[static_cast<std::size_t>(pieces.face_piece[static_cast<std::size_t>(f)])] += areas(f);
+  }
+  const double largest = *std::max_element(piece_area.begin(), piece_area.end());
+  int detached = 0;
+  for (Eigen::Index v = 0; v < mesh.vertexCount(); ++v) {
+    const int piece = pieces.vertex_piece[static_cast<std::size_t>(v)];
+    if (piece >= 0 && piece_area[static_cast<std::size_t>(piece)] < kDetachedAreaShare * largest) {
+      flags[static_cast<std::size_t>(v)] |= kScanDetached;
+      ++detached;
+    }
+  }
+  return detached;
+}
+
+// Vertices on an open boundary of the skin: a crop or a hole. A match that
+// lands on such an edge (ScanSurface::nearest) is a point beyond the scan's
+// data, not the surface under the query.
+void flagMeshBorders(const Mesh& mesh, const std::vector<int>& representative, std::vector<std::uint8_t>& flags,
+                     ScanReport& report) {
+  int skin_loops = 0;
+  for (const BoundaryLoop& loop : boundaryLoops(weldedTopology(mesh, representative))) {
+    if (loop.vertices.empty() || (flags[static_cast<std::size_t>(loop.vertices.front())] & kScanDetached)) continue;
+    ++skin_loops;
+    for (const int v : loop.vertices) flags[static_cast<std::size_t>(v)] |= kScanBorder;
+  }
+  report.holes = std::max(0, skin_loops - 1);
+}
+
+// Spikes of a mesh scan: a vertex far off the least-squares plane of its
+// 1-ring (relative to the ring's size).
+void flagMeshSpikes(const Mesh& mesh, const VertexAdjacency& adjacency, std::vector<std::uint8_t>& flags) {
+  const Eigen::Index nv = mesh.vertexCount();
+  parallelFor(nv, [&](std::ptrdiff_t begin, std::ptrdiff_t end) {
+    for (std::ptrdiff_t v = begin; v < end; ++v) {
+      const int first = adjacency.offsets[static_cast<std::size_t>(v)];
+      const int count = adjacency.offsets[static_cast<std::size_t>(v) + 1] - first;
+      if (count < 3) continue;
+      Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+      for (int i = 0; i < count; ++i) {
+        centroid += mesh.positions.row(adjacency.indices[static_cast<std::size_t>(first + i)]).transpose();
+      }
+      centroid /= count;
+      Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+      double edge = 0.0;
+      for (int i = 0; i < count; ++i) {
+        const Eigen::Vector3d p = mesh.positions.row(adjacency.indices[static_cast<std::size_t>(first + i)]).transpose();
+        covariance += (p - centroid) * (p - centroid).transpose();
+        edge += (p - mesh.positions.row(v).transpose()).norm();
+      }
+      edge /= count;
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);
+      const Eigen::Vector3d normal = solver.eigenvectors().col(0);
+      const double offset = std::abs(normal.dot(mesh.positions.row(v).transpose() - centroid));
+      if (offset > kSpikeEdgeFactor * edge) flags[static_cast<std::size_t>(v)] |= kScanSpike;
+    }
+  });
+}
+
+// The faces matched to: those of detached pieces and around spikes made
+// degenerate, which the index skips.
+Eigen::MatrixX3i usableTriangles(Eigen::MatrixX3i triangles, const std::vector<std::uint8_t>& flags) {
+  for (Eigen::Index f = 0; f < triangles.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      if (flags[static_cast<std::size_t>(triangles(f, k))] & (kScanDetached | kScanSpike)) {
+        triangles.row(f).setConstant(triangles(f, 0));
+        break;
+      }
+    }
+  }
+  return triangles;
+}
+
+Status prepareMeshScan(ScanSurface& scan) {
+  Mesh& mesh = scan.mesh;
+  const std::vector<int> representative = coincidentVertexRepresentatives(mesh.positions);
+  if (mesh.normals.rows() == mesh.vertexCount()) {
+    scan.normals = normalsAgreeingWithWinding(mesh.normals, mesh.positions, mesh.triangles).normals;
+  } else {
+    scan.normals = computeSeamlessVertexNormals(mesh.positions, mesh.triangles);
+  }
+  const VertexAdjacency adjacency = vertexAdjacency(weldedTopology(mesh, representative).triangles, mesh.vertexCount());
+  scan.report.detached_points = flagDetachedPieces(mesh, representative, scan.flags, scan.report.pieces);
+  flagMeshBorders(mesh, representative, scan.flags, scan.report);
+  flagMeshSpikes(mesh, adjacency, scan.flags);
+  scan.surface_index = ClosestPointIndex(mesh.positions, usableTriangles(mesh.triangles, scan.flags));
+  if (scan.surface_index.faceCount() == 0) {
+    return Error{ErrorCode::kInvalidMesh, scan.report.file + ": no usable triangle (all degenerate, detached or spikes)"};
+  }
+  return Ok{};
+}
+
+void prepareCloudScan(ScanSurface& scan) {
+  const Mesh& mesh = scan.mesh;
+  scan.point_index = PointCloudIndex(mesh.positions);
+  if (mesh.normals.rows() == mesh.vertexCount()) {
+    scan.normals = mesh.normals;
+  } else {
+    scan.normals = estimateCloudNormals(mesh.positions, scan.point_index);
+    scan.report.normals_computed = true;
+  }
+  const std::vector<char> border = cloudBorderPoints(mesh.positions, scan.normals, scan.point_index);
+  const std::vector<char> spikes = cloudSpikes(mesh.positions, scan.point_index);
+  for (std::size_t v = 0; v < scan.flags.size(); ++v) {
+    if (border[v]) scan.flags[v] |= kScanBorder;
+    if (spikes[v]) scan.flags[v] |= kScanSpike;
+  }
+}
+
+}  // namespace
+
+std::vector<ScanMatch> ScanSurface::nearest(const Eigen::MatrixX3d& queries) const {
+  std::vector<ScanMatch> out(static_cast<std::size_t>(queries.rows()));
+  if (!isCloud()) {
+    const std::vector<SurfacePoint> points = surface_index.closestPoints(queries);
+    for (std::size_t i = 0; i < out.size(); ++i) {
+      const SurfacePoint& sp = points[i];
+      if (!sp.found()) continue;
+      ScanMatch& m = out[i];
+      m.found = true;
+      m.point = sp.point;
+      m.distance = std::sqrt(sp.sq_distance);
+      const Eigen::Vector3d n = interpolateOnFace(normals, mesh.triangles, sp.face, sp.barycentric).transpose();
+      m.normal = n.norm() > 0.0 ? Eigen::Vector3d(n.normalized()) : n;
+      // Spike and detached flags from any corner; border only when the point
+      // lies on the border itself (every corner it weighs is a border vertex,
+      // and it is on an edge or a corner): the query is beyond the data.
+      bool on_edge = false, weighs_border_only = true;
+      for (int k = 0; k < 3; ++k) {
+        const std::uint8_t corner = flags[static_cast<std::size_t>(mesh.triangles(sp.face, k))];
+        m.flags |= corner & static_cast<std::uint8_t>(~kScanBorder);
+        if (sp.barycentric(k) <= kOnEdge) on_edge = true;
+        else if (!(corner & kScanBorder)) weighs_border_only = false;
+      }
+      if (on_edge && weighs_border_only) m.flags |= kScanBorder;
+    }
+    return out;
+  }
+  const std::vector<PointCloudIndex::Neighbour> points = point_index.nearest(queries);
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    if (points[i].index < 0) continue;
+    ScanMatch& m = out[i];
+    m.found = true;
+    m.point = mesh.positions.row(points[i].index).transpose();
+    m.normal = normals.row(points[i].index).transpose();
+    m.distance = std::sqrt(points[i].sq_distance);
+    m.flags = flags[static_cast<std::size_t>(points[i].index)];
+  }
+  return out;
+}
+
+Status checkScan(const Mesh& mesh, const std::string& label) {
+  if (auto valid = validateMesh(mesh, label); !valid) return valid.error();
+  if (mesh.vertexCount() < kMinScanPoints) {
+    return Error{ErrorCode::kInvalidMesh, label + ": " + std::to_string(mesh.vertexCount()) +
+                                              " points; a head scan needs at least " + std::to_string(kMinScanPoints)};
+  }
+  if (!(boundingBoxDiagonal(mesh.positions) > 0.0)) return Error{ErrorCode::kInvalidMesh, label + ": every point at one position"};
+  return Ok{};
+}
+
+Result<ScanSurface> prepareScan(Mesh mesh, const std::string& label) {
+  if (auto valid = checkScan(mesh, label); !valid) return valid.error();
+  ScanSurface scan;
+  scan.mesh = std::move(mesh);
+  scan.report.file = label;
+  scan.report.points = static_cast<int>(scan.mesh.vertexCount());
+  scan.report.triangles = static_cast<int>(scan.mesh.triangleCount());
+  scan.report.point_cloud = scan.isCloud();
+  scan.flags.assign(static_cast<std::size_t>(scan.mesh.vertexCount()), 0);
+  scan.diagonal = boundingBoxDiagonal(scan.mesh.positions);
+  if (scan.isCloud()) {
+    prepareCloudScan(scan);
+  } else if (auto prepared = prepareMeshScan(scan); !prepared) {
+    return prepared.error();
+  }
+  for (const std::uint8_t f : scan.flags) {
+    if (f & kScanBorder) ++scan.report.border_points;
+    if (f & kScanSpike) ++scan.report.spikes;
+  }
+  return scan;
+}
+
+}  // namespace core
