@@ -1,7 +1,9 @@
 // Landmark-free alignment of a head scan to the reference (docs/FIT.md 2.2):
 // for a head scanned roughly upright (turned up to ~45 degrees about the
 // vertical and ~20 about the others), a similarity found by trimmed ICP from
-// a grid of yaw/pitch starts, scan -> reference, the best kept.
+// a grid of yaw/pitch starts, scan -> reference, the best kept. Each ICP step
+// is a point-to-plane similarity step on the kept pairs, weighted by the
+// reference's vertex density (its densely meshed face counts as its vertices do).
 #pragma once
 
 #include <memory>
@@ -35,11 +37,11 @@ struct SearchOptions {
   double max_yaw_deg = 60.0;       // start hypotheses span +-this about the vertical (Y), step yaw_step_deg
   double yaw_step_deg = 15.0;
   double max_tilt_deg = 15.0;      // pitch starts: -this, 0, +this
-  int coarse_samples = 500;        // scan points per hypothesis (farthest-point sample)
-  int coarse_iterations = 6;
-  int refined_hypotheses = 3;      // the best this many continue
+  int coarse_samples = 200;        // scan points per hypothesis (farthest-point sample)
+  int coarse_iterations = 8;       // a start reaching an earlier start's pose stops there (one basin)
+  int refined_hypotheses = 3;      // the best this many distinct (> 10 degrees apart) continue
   int fine_samples = 2000;
-  int fine_iterations = 20;
+  int fine_iterations = 20;        // at most: ICP stops once a step moves the pose < 0.02 degrees
   double keep_fraction = 0.7;      // trimmed ICP: the closest this share of pairs fits each step
   double max_normal_angle_deg = 60.0;  // pairs whose normals differ more are dropped (unsigned when not oriented)
 };
@@ -47,11 +49,13 @@ struct SearchOptions {
 struct SearchAlignment {
   Similarity reference_to_scan;    // scan ~= scale * rotation * reference + translation
   double trimmed_rms = 0.0;        // of the kept pairs, reference units
-  double inlier_fraction = 0.0;    // scan sample points within 0.006 of the reference diagonal after the fit
+  double inlier_fraction = 0.0;    // scan sample points within 0.006 of the reference diagonal after the fit (normals agreeing)
   double score = 0.0;              // trimmed_rms / diagonal + (1 - inlier_fraction); lower is better
-  double runner_up_score = 0.0;    // the best hypothesis more than 10 degrees from the chosen one
+  // The best refined hypothesis that ended more than 10 degrees from the
+  // chosen one; both 0 when every refined start ended in the chosen one's basin.
+  double runner_up_score = 0.0;
   double runner_up_angle_deg = 0.0;
-  int hypotheses = 0;
+  int hypotheses = 0;              // starts tried
 };
 
 // scan_points: #N by 3 in the scan's frame and units (any scale);
