@@ -19,9 +19,13 @@
 #include "core/rig/skinning.h"
 #include "core/solve/tps.h"
 #include "core/transfer/transfer.h"
+#include "tests/data/scan_scoring.h"
 #include "tests/test_support.h"
 
 namespace {
+
+using rigport_test::ShapeErrors;
+using rigport_test::shapeErrors;
 
 // The landmarks of `mesh` given by position (for a mesh whose vertex indices
 // differ: the surface split at its UV seams).
@@ -61,12 +65,6 @@ const core::PreparedRig* ictRig(const std::filesystem::path& data) {
   return prepared ? &*prepared : nullptr;
 }
 
-struct Errors {
-  std::vector<double> e;  // per shape
-  double median() const { auto s = e; std::sort(s.begin(), s.end()); return s[s.size() / 2]; }
-  double worst() const { return *std::max_element(e.begin(), e.end()); }
-};
-
 // The worst vertex of each shape (issue [5]): spike = max_v |d_out - d_gt| /
 // max_v |d_gt|, and the vertices whose error exceeds half the shape's largest
 // true displacement (a lip left behind: a fang), with the shapes they are in.
@@ -94,16 +92,6 @@ Spikes shapeSpikes(const core::Rig& out, const core::Rig& gt) {
     }
   }
   return s;
-}
-
-Errors shapeErrors(const core::Rig& out, const core::Rig& gt) {
-  Errors errors;
-  for (std::size_t k = 0; k < gt.morph_targets.size(); ++k) {
-    const auto& d = out.morph_targets[k].position_deltas;
-    const auto& g = gt.morph_targets[k].position_deltas;
-    errors.e.push_back((d - g).rowwise().norm().sum() / g.rowwise().norm().sum());
-  }
-  return errors;
 }
 
 // p95 of |d_out - d_gt| over vertices near the moving lip/lid that the
@@ -174,7 +162,7 @@ TEST_P(IctTransfer, ShapesBeatThePlainMethodAndOutputIsValid) {
   auto plain = core::transferRig(*source, target->mesh, *landmarks, name, plain_options);
   ASSERT_TRUE(plain) << plain.error().message;
 
-  const Errors e = shapeErrors(ours->rig, gt->rig), p = shapeErrors(plain->rig, gt->rig);
+  const ShapeErrors e = shapeErrors(ours->rig, gt->rig), p = shapeErrors(plain->rig, gt->rig);
   const Spikes spikes = shapeSpikes(ours->rig, gt->rig), plain_spikes = shapeSpikes(plain->rig, gt->rig);
   std::printf("[ %-28s ] spike worst %.3f (%s), torn vertices %d %s| plain %.3f, %d | quality check: %s, %d repaired\n",
               name.c_str(), spikes.worst(), spikes.worst_shape.c_str(), spikes.torn, spikes.torn_shapes.c_str(),
@@ -285,7 +273,7 @@ TEST(IctOtherIdentities, ShapesBeatThePlainMethod) {
     auto plain = core::transferRig(*source, mesh, landmarks, identity.name, plain_options);
     ASSERT_TRUE(ours) << ours.error().message;
     ASSERT_TRUE(plain) << plain.error().message;
-    const Errors e = shapeErrors(ours->rig, truth), p = shapeErrors(plain->rig, truth);
+    const ShapeErrors e = shapeErrors(ours->rig, truth), p = shapeErrors(plain->rig, truth);
     const Spikes spikes = shapeSpikes(ours->rig, truth);
     std::printf("[ %-24s ] E median %.4f worst %.4f | plain %.4f / %.4f | inpainted %d | spike %.3f (%s) torn %d %s\n",
                 identity.name, e.median(), e.worst(), p.median(), p.worst(), ours->report.inpainted_vertices,
@@ -388,7 +376,7 @@ TEST(IctMadeCartoons, TheDefaultDoesNotLoseToThePlainMethod) {
       auto ours = core::transferRig(*source, mesh, landmarks, name);
       auto plain = core::transferRig(*source, mesh, landmarks, name, plain_options);
       ASSERT_TRUE(ours && plain) << name;
-      const Errors e = shapeErrors(ours->rig, truth), p = shapeErrors(plain->rig, truth);
+      const ShapeErrors e = shapeErrors(ours->rig, truth), p = shapeErrors(plain->rig, truth);
       const Spikes spikes = shapeSpikes(ours->rig, truth), plain_spikes = shapeSpikes(plain->rig, truth);
       std::printf("[ %-18s ] E median %.4f worst %.4f | plain %.4f / %.4f | spike %.2f torn %d (plain %.2f, %d) | %s\n",
                   name.c_str(), e.median(), e.worst(), p.median(), p.worst(), spikes.worst(),
@@ -437,13 +425,9 @@ TEST(IctTransferLimits, TrueCorrespondenceAndTrueDenseCentres) {
     mesh.normals = core::computeVertexNormals(mesh.positions, mesh.triangles);
     ASSERT_EQ(mesh.vertexCount(), src.vertexCount());
     auto errors = [&](const core::TargetLocations& at, const std::vector<Eigen::Matrix3d>& adaptation) {
-      Errors e;
-      const auto shapes = core::transferMorphTargets(source->rig.morph_targets, src.triangles, at, adaptation, mesh, nullptr);
-      for (std::size_t k = 0; k < shapes.size(); ++k) {
-        const auto& g = gt->rig.morph_targets[k].position_deltas;
-        e.e.push_back((shapes[k].position_deltas - g).rowwise().norm().sum() / g.rowwise().norm().sum());
-      }
-      return e;
+      return shapeErrors(
+          core::transferMorphTargets(source->rig.morph_targets, src.triangles, at, adaptation, mesh, nullptr),
+          gt->rig.morph_targets);
     };
     // The true correspondence.
     core::TargetLocations truth;
@@ -454,7 +438,7 @@ TEST(IctTransferLimits, TrueCorrespondenceAndTrueDenseCentres) {
       sp.face = face_of[static_cast<std::size_t>(v)];
       for (int k = 0; k < 3; ++k) sp.barycentric(k) = src.triangles(sp.face, k) == v ? 1.0 : 0.0;
     }
-    const Errors exact = errors(truth, {Eigen::Matrix3d::Identity()});
+    const ShapeErrors exact = errors(truth, {Eigen::Matrix3d::Identity()});
     // A dense map through the true positions of the dense centres.
     const Eigen::Index nl = source->surface.landmark_positions.rows();
     Eigen::MatrixX3d centre_targets(source->surface.dense_centres.rows(), 3);
@@ -470,7 +454,7 @@ TEST(IctTransferLimits, TrueCorrespondenceAndTrueDenseCentres) {
     const double diagonal = core::boundingBoxDiagonal(mesh.positions);
     const core::GuideModel guide = core::projectToTarget(warped, core::computeVertexNormals(warped, src.triangles),
                                                          index, diagonal, core::ProjectionOptions{});
-    const Errors centres =
+    const ShapeErrors centres =
         errors(core::locateOnGuide(mesh, guide.positions, *source->surface.guide_index, core::LocateOptions{}),
                {Eigen::Matrix3d::Identity()});
     // The true correspondence with deltas adapted by the local Jacobian of the
@@ -480,12 +464,12 @@ TEST(IctTransferLimits, TrueCorrespondenceAndTrueDenseCentres) {
     smooth.leave_one_out = false;
     auto smooth_map = core::fitTps(source->surface.dense_centres, centre_targets, smooth);
     ASSERT_TRUE(smooth_map) << smooth_map.error().message;
-    const Errors adapted = errors(truth, smooth_map->jacobians(src.positions));
+    const ShapeErrors adapted = errors(truth, smooth_map->jacobians(src.positions));
     core::TransferOptions raw;
     raw.adaptation = core::ShapeAdaptation::kNone;
     auto ours = core::transferRig(*source, target->mesh, *landmarks, name, raw);
     ASSERT_TRUE(ours) << ours.error().message;
-    const Errors pipeline = shapeErrors(ours->rig, gt->rig);
+    const ShapeErrors pipeline = shapeErrors(ours->rig, gt->rig);
     std::printf("[ %-28s ] E median/worst, raw deltas: true correspondence %.4f/%.4f | dense map through the %ld true "
                 "centres %.4f/%.4f | the pipeline %.4f/%.4f || true correspondence, deltas by the local Jacobian "
                 "%.4f/%.4f\n",
@@ -535,7 +519,7 @@ TEST(IctTransferSplit, IdentitySplitAtUvSeamsMatchesAsOneSurface) {
       for (Eigen::Index v = 0; v < split.vertexCount(); ++v) d.row(v) = t.position_deltas.row(ict(v));
       t.position_deltas = d;
     }
-    const Errors e_whole = shapeErrors(whole->rig, gt->rig), e_split = shapeErrors(parts->rig, truth);
+    const ShapeErrors e_whole = shapeErrors(whole->rig, gt->rig), e_split = shapeErrors(parts->rig, truth);
     double weight_gap = 0.0, delta_gap = 0.0;
     std::vector<Eigen::Index> first(static_cast<std::size_t>(identity->mesh.vertexCount()), -1);
     int pairs = 0;
