@@ -108,7 +108,9 @@ std::size_t FitReference::memoryBytes() const {
   const auto sparse = [](const Eigen::SparseMatrix<double>& m) {
     return static_cast<std::size_t>(m.nonZeros()) * (sizeof(double) + sizeof(int));
   };
-  return sparse(laplacian) + sparse(rim_laplacian) + sparse(binding_laplacian) + lip_pairs.size() * 8 +
+  std::size_t rim_bytes = 0;
+  for (const auto& r : rims) rim_bytes += r.size() * sizeof(int);
+  return rim_bytes + sparse(laplacian) + sparse(rim_laplacian) + sparse(binding_laplacian) + lip_pairs.size() * 8 +
           expressive.size() + on_skin.size() + representative.size() * 4 + search.memoryBytes();
 }
 
@@ -133,6 +135,7 @@ Result<FitReference> prepareFitReference(std::shared_ptr<const PreparedRig> rig)
   const std::vector<BoundaryLoop> loops = boundaryLoops(weldedTopology(mesh, out.representative));
   for (std::size_t l = 1; l < loops.size(); ++l) {
     const std::vector<int>& loop = loops[l].vertices;
+    if (loops[l].closed && loop.size() >= 3) out.rims.push_back(loop);
     for (std::size_t i = 0; i < loop.size(); ++i) {
       if (i + 1 < loop.size() || loops[l].closed) rim_edges.push_back({loop[i], loop[(i + 1) % loop.size()]});
     }
@@ -278,7 +281,12 @@ Result<FitResult> fitScan(const FitReference& reference, const Mesh& scan_mesh, 
 
   if (!stage("fit", 0.25)) return stopped("fit");
   t = Clock::now();
-  const Eigen::MatrixX3d prior = fitPrior(reference, *scan, aligned->frame, aligned->targets);
+  Eigen::MatrixX3d prior = fitPrior(reference, *scan, aligned->frame, aligned->targets);
+  if (aligned->targets.vertices.empty()) {
+    // No landmarks: the corners of the scan's own eye holes and mouth slit
+    // place the face's features in the prior (mesh scans).
+    prior = correctAtLandmarks(reference, rimCorners(reference, *scan, aligned->frame, prior), std::move(prior));
+  }
   auto fitted = fitNonRigid(reference, *scan, aligned->frame, prior, aligned->targets, options);
   if (!fitted) return fitted.error();
   report.stages = fitted->stages;

@@ -29,6 +29,9 @@ struct FitReference {
   // Pairs of vertices of opposite lips that touch at rest (non-adjacent, closer
   // than 0.002 of the diagonal): bound so both lips move together (paper 5.7a).
   std::vector<std::array<int, 2>> lip_pairs;
+  // The open boundaries other than the longest (the mouth, the eyes) as
+  // vertex loops: each is pulled onto the scan's own rim there when it has one.
+  std::vector<std::vector<int>> rims;
   std::vector<char> expressive;            // #V: within 0.063 d (3 cm on a head) of a landmark not named jaw_*
   std::vector<char> on_skin;               // #V: on a triangle (an isolated vertex is carried, never fitted)
   std::vector<int> representative;         // coincidentVertexRepresentatives of the reference
@@ -64,6 +67,7 @@ struct FitOptions {
   std::vector<FitStage> schedule = defaultFitSchedule();
   double binding_weight = 10.0;        // lip pairs kept together
   double rim_stiffness = 10.0;         // membrane weight multiplier on the eye and mouth rims' own edges
+  double rim_weight = 1.0;             // pull of the reference's rims onto the scan's matching rims (mesh scans)
   bool reject_borders = true;          // correspondences on the scan's borders and holes are rejected
   bool reject_spikes = true;           // ... and on its spikes
   int fold_repair_rounds = 2;          // triangles flipped after the schedule: their neighbourhood stiffened, refitted
@@ -82,6 +86,7 @@ struct FitStageReport {
   double stiffness = 0.0;
   int iterations = 0;
   int accepted = 0;                     // correspondences used in the last iteration
+  int rim_matches = 0;                  // reference rim vertices pulled onto a scan rim
   int rejected_distance = 0, rejected_normal = 0, rejected_border = 0, rejected_spike = 0;
   double energy_data = 0.0, energy_smooth = 0.0, energy_landmarks = 0.0;
   double max_step = 0.0;                // reference units

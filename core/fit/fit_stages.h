@@ -32,6 +32,12 @@ struct FrameMatches {
 };
 FrameMatches matchInReferenceFrame(const ScanSurface& scan, const FrameMap& frame, const Eigen::MatrixX3d& positions);
 
+// Per reference rim (FitReference::rims) the scan rim it lies on at
+// positions `x` (reference frame), or -1: centroids within the rim's mean
+// radius, lengths within a factor 2.
+std::vector<int> matchScanRims(const FitReference& reference, const ScanSurface& scan, const FrameMap& frame,
+                               const Eigen::MatrixX3d& x);
+
 // Soft landmark constraints of the non-rigid fit: reference vertex -> target (reference frame).
 struct LandmarkTargets {
   std::vector<int> vertices;
@@ -47,6 +53,17 @@ struct LandmarkTargets {
 // neck centimetres astray (whole-skin p95 19-24 mm against 5-12 mm).
 Eigen::MatrixX3d fitPrior(const FitReference& reference, const ScanSurface& scan, const FrameMap& frame,
                           const LandmarkTargets& landmarks);
+
+// Landmarks read off the scan itself when none were given: each matched
+// rim's two ends along its longest axis (the eyes' corners, the mouth's) and
+// the scan rim's ends along the same axis.
+LandmarkTargets rimCorners(const FitReference& reference, const ScanSurface& scan, const FrameMap& frame,
+                           const Eigen::MatrixX3d& x);
+
+// The landmarks' misfit at `prior` spread over the face by a thin-plate
+// spline through them, pinned to `prior` far from them (docs/FIT.md 2.3).
+Eigen::MatrixX3d correctAtLandmarks(const FitReference& reference, const LandmarkTargets& landmarks,
+                                    Eigen::MatrixX3d prior);
 
 struct NonRigidFit {
   Eigen::MatrixX3d positions;      // #V fitted, reference frame

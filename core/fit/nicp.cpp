@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
 
 #include "core/base/parallel.h"
@@ -87,6 +88,50 @@ IterationTerms dataTerms(const FitReference& reference, const ScanSurface& scan,
   return out;
 }
 
+// The closest point to `p` on a closed polyline (scan vertex indices).
+Eigen::Vector3d closestOnLoop(const Eigen::MatrixX3d& positions, const std::vector<int>& loop, const Eigen::Vector3d& p) {
+  Eigen::Vector3d best = positions.row(loop.front()).transpose();
+  double best_sq = (best - p).squaredNorm();
+  for (std::size_t i = 0; i < loop.size(); ++i) {
+    const Eigen::Vector3d a = positions.row(loop[i]).transpose();
+    const Eigen::Vector3d b = positions.row(loop[(i + 1) % loop.size()]).transpose();
+    const Eigen::Vector3d ab = b - a;
+    const double t = ab.squaredNorm() > 0.0 ? std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
+    const Eigen::Vector3d q = a + t * ab;
+    if ((q - p).squaredNorm() < best_sq) {
+      best_sq = (q - p).squaredNorm();
+      best = q;
+    }
+  }
+  return best;
+}
+
+// Rim term (mesh scans): each reference rim (mouth, eyes) with a scan rim
+// (matchScanRims) pulls its vertices onto that rim, where the surface term
+// rejects them (their closest points are on the scan's border). The scan
+// keeps its eye holes and mouth slit where the reference has its rims
+// (docs/FIT.md 0).
+void addRimTerms(const FitReference& reference, const ScanSurface& scan, const FrameMap& frame,
+                 const Eigen::MatrixX3d& x, const FitStage& stage, const FitOptions& options, IterationTerms& out) {
+  if (options.rim_weight <= 0.0 || scan.rims.empty()) return;
+  const double tau = stage.max_distance * reference.rig->surface.diagonal * frame.reference_to_scan.scale;
+  const std::vector<int> matched = matchScanRims(reference, scan, frame, x);
+  for (std::size_t r = 0; r < reference.rims.size(); ++r) {
+    if (matched[r] < 0) continue;
+    for (const int v : reference.rims[r]) {
+      const Eigen::Vector3d p = frame.toScan(x.row(v).transpose());
+      const Eigen::Vector3d q = closestOnLoop(scan.mesh.positions, scan.rims[static_cast<std::size_t>(matched[r])], p);
+      const double distance = (q - p).norm();
+      if (distance > tau) continue;
+      const double ratio = distance / tau;
+      out.weight(v) = options.rim_weight * (1.0 - ratio * ratio) * (1.0 - ratio * ratio);
+      out.target.row(v) = frame.toReference(q).transpose();
+      out.distance[static_cast<std::size_t>(v)] = distance / frame.reference_to_scan.scale;
+      ++out.counts.rim_matches;
+    }
+  }
+}
+
 // Copies of a split point (UV seams) take their representative's position.
 void joinCopies(const std::vector<int>& representative, Eigen::MatrixX3d& x) {
   for (std::size_t v = 0; v < representative.size(); ++v) {
@@ -95,6 +140,71 @@ void joinCopies(const std::vector<int>& representative, Eigen::MatrixX3d& x) {
 }
 
 }  // namespace
+
+std::vector<int> matchScanRims(const FitReference& reference, const ScanSurface& scan, const FrameMap& frame,
+                               const Eigen::MatrixX3d& x) {
+  std::vector<int> out(reference.rims.size(), -1);
+  auto shape = [](const std::vector<int>& loop, auto&& at) {
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    double length = 0.0;
+    for (std::size_t i = 0; i < loop.size(); ++i) {
+      centre += at(loop[i]);
+      length += (at(loop[(i + 1) % loop.size()]) - at(loop[i])).norm();
+    }
+    return std::pair<Eigen::Vector3d, double>(centre / static_cast<double>(loop.size()), length);
+  };
+  std::vector<std::pair<Eigen::Vector3d, double>> scan_rims;
+  for (const auto& loop : scan.rims) {
+    scan_rims.push_back(shape(loop, [&](int v) { return Eigen::Vector3d(scan.mesh.positions.row(v).transpose()); }));
+  }
+  for (std::size_t r = 0; r < reference.rims.size(); ++r) {
+    const auto [centre, length] = shape(reference.rims[r], [&](int v) { return frame.toScan(x.row(v).transpose()); });
+    double nearest = length / (2.0 * std::numbers::pi);  // the rim's mean radius
+    for (std::size_t s = 0; s < scan_rims.size(); ++s) {
+      const double ratio = scan_rims[s].second / length;
+      const double distance = (scan_rims[s].first - centre).norm();
+      if (ratio > 0.5 && ratio < 2.0 && distance < nearest) {
+        nearest = distance;
+        out[r] = static_cast<int>(s);
+      }
+    }
+  }
+  return out;
+}
+
+LandmarkTargets rimCorners(const FitReference& reference, const ScanSurface& scan, const FrameMap& frame,
+                           const Eigen::MatrixX3d& x) {
+  LandmarkTargets out;
+  const std::vector<int> matched = matchScanRims(reference, scan, frame, x);
+  std::vector<Eigen::Vector3d> targets;
+  for (std::size_t r = 0; r < reference.rims.size(); ++r) {
+    if (matched[r] < 0) continue;
+    const std::vector<int>& loop = reference.rims[r];
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (const int v : loop) centre += x.row(v).transpose();
+    centre /= static_cast<double>(loop.size());
+    Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+    for (const int v : loop) covariance += (x.row(v).transpose() - centre) * (x.row(v).transpose() - centre).transpose();
+    const Eigen::Vector3d axis = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance).eigenvectors().col(2);
+    const std::vector<int>& scan_loop = scan.rims[static_cast<std::size_t>(matched[r])];
+    for (const double side : {-1.0, 1.0}) {
+      int corner = loop.front();
+      for (const int v : loop) {
+        if (side * axis.dot(x.row(v).transpose()) > side * axis.dot(x.row(corner).transpose())) corner = v;
+      }
+      Eigen::Vector3d best = frame.toReference(scan.mesh.positions.row(scan_loop.front()).transpose());
+      for (const int s : scan_loop) {
+        const Eigen::Vector3d p = frame.toReference(scan.mesh.positions.row(s).transpose());
+        if (side * axis.dot(p) > side * axis.dot(best)) best = p;
+      }
+      out.vertices.push_back(corner);
+      targets.push_back(best);
+    }
+  }
+  out.targets.resize(static_cast<Eigen::Index>(targets.size()), 3);
+  for (std::size_t i = 0; i < targets.size(); ++i) out.targets.row(static_cast<Eigen::Index>(i)) = targets[i].transpose();
+  return out;
+}
 
 FrameMatches matchInReferenceFrame(const ScanSurface& scan, const FrameMap& frame, const Eigen::MatrixX3d& positions) {
   Eigen::MatrixX3d queries(positions.rows(), 3);
@@ -128,7 +238,8 @@ Result<NonRigidFit> fitNonRigid(const FitReference& reference, const ScanSurface
   // One iteration at `stage` with membrane `smooth`: match, assemble, solve.
   auto iterate = [&](const FitStage& stage, const Eigen::SparseMatrix<double>& smooth,
                      FitStageReport& report) -> Status {
-    const IterationTerms terms = dataTerms(reference, scan, frame, out.positions, stage, options);
+    IterationTerms terms = dataTerms(reference, scan, frame, out.positions, stage, options);
+    addRimTerms(reference, scan, frame, out.positions, stage, options, terms);
     Eigen::SparseMatrix<double> a =
         smooth + options.binding_weight * reference.binding_laplacian + kTikhonov * stage.stiffness * identity;
     Eigen::MatrixX3d rhs = a * prior;
@@ -154,6 +265,7 @@ Result<NonRigidFit> fitNonRigid(const FitReference& reference, const ScanSurface
     report.stiffness = stage.stiffness;
     ++report.iterations;
     report.accepted = terms.counts.accepted;
+    report.rim_matches = terms.counts.rim_matches;
     report.rejected_distance = terms.counts.rejected_distance;
     report.rejected_normal = terms.counts.rejected_normal;
     report.rejected_border = terms.counts.rejected_border;
@@ -231,7 +343,8 @@ Result<NonRigidFit> fitNonRigid(const FitReference& reference, const ScanSurface
   }
 
   // The final correspondences, at the last stage's limits, for the gate.
-  const IterationTerms last = dataTerms(reference, scan, frame, out.positions, options.schedule.back(), options);
+  IterationTerms last = dataTerms(reference, scan, frame, out.positions, options.schedule.back(), options);
+  addRimTerms(reference, scan, frame, out.positions, options.schedule.back(), options, last);
   out.covered.assign(static_cast<std::size_t>(n), 0);
   out.distance = last.distance;
   for (Eigen::Index v = 0; v < n; ++v) out.covered[static_cast<std::size_t>(v)] = last.weight(v) > 0.0;

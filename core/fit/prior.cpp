@@ -23,10 +23,11 @@ struct Pair {
 
 Eigen::Vector3d applyAffine(const AffineMap& map, const Eigen::Vector3d& p) { return map.linear * p + map.translation; }
 
-// The landmarks' remaining misfit spread over the face by a thin-plate
-// spline through them, pinned to the affine prior by anchors (dense-map
-// centres) farther than kAnchorDistance from every landmark: the face's
-// features move to the clicks, the rest of the head keeps its shape.
+}  // namespace
+
+// Anchors: dense-map centres farther than kAnchorDistance from every
+// landmark, kept where the prior has them: the face's features move to the
+// clicks, the rest of the head keeps its shape.
 Eigen::MatrixX3d correctAtLandmarks(const FitReference& reference, const LandmarkTargets& landmarks,
                                     Eigen::MatrixX3d prior) {
   const PreparedSource& surface = reference.rig->surface;
@@ -55,8 +56,6 @@ Eigen::MatrixX3d correctAtLandmarks(const FitReference& reference, const Landmar
   auto warp = fitTps(from, to, tps);
   return warp ? warp->apply(prior) : prior;
 }
-
-}  // namespace
 
 Eigen::MatrixX3d fitPrior(const FitReference& reference, const ScanSurface& scan, const FrameMap& frame,
                           const LandmarkTargets& landmarks) {

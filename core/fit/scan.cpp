@@ -51,14 +51,13 @@ int flagDetachedPieces(const Mesh& mesh, const std::vector<int>& representative,
 // lands on such an edge (ScanSurface::nearest) is a point beyond the scan's
 // data, not the surface under the query.
 void flagMeshBorders(const Mesh& mesh, const std::vector<int>& representative, std::vector<std::uint8_t>& flags,
-                     ScanReport& report) {
-  int skin_loops = 0;
+                     std::vector<std::vector<int>>& rims, ScanReport& report) {
   for (const BoundaryLoop& loop : boundaryLoops(weldedTopology(mesh, representative))) {
     if (loop.vertices.empty() || (flags[static_cast<std::size_t>(loop.vertices.front())] & kScanDetached)) continue;
-    ++skin_loops;
     for (const int v : loop.vertices) flags[static_cast<std::size_t>(v)] |= kScanBorder;
+    if (loop.closed && loop.vertices.size() >= 3) rims.push_back(loop.vertices);
   }
-  report.holes = std::max(0, skin_loops - 1);
+  report.holes = std::max(0, static_cast<int>(rims.size()) - 1);
 }
 
 // Spikes of a mesh scan: a vertex far off the least-squares plane of its
@@ -115,7 +114,7 @@ Status prepareMeshScan(ScanSurface& scan) {
   }
   const VertexAdjacency adjacency = vertexAdjacency(weldedTopology(mesh, representative).triangles, mesh.vertexCount());
   scan.report.detached_points = flagDetachedPieces(mesh, representative, scan.flags, scan.report.pieces);
-  flagMeshBorders(mesh, representative, scan.flags, scan.report);
+  flagMeshBorders(mesh, representative, scan.flags, scan.rims, scan.report);
   flagMeshSpikes(mesh, adjacency, scan.flags);
   scan.surface_index = ClosestPointIndex(mesh.positions, usableTriangles(mesh.triangles, scan.flags));
   if (scan.surface_index.faceCount() == 0) {

@@ -54,6 +54,7 @@ struct ScanSurface {
   Mesh mesh;                       // positions (and triangles of a mesh), in the scan's units and frame
   Eigen::MatrixX3d normals;        // #V unit normals (a cloud's may be re-oriented after alignment)
   std::vector<std::uint8_t> flags; // #V ScanPointFlag bits
+  std::vector<std::vector<int>> rims;  // a mesh's closed open boundaries on the skin (crops, holes, eyes, mouth)
   double diagonal = 0.0;
   ClosestPointIndex surface_index; // a mesh: its skin faces (detached pieces skipped)
   PointCloudIndex point_index;     // a cloud: its points

@@ -213,6 +213,7 @@ std::string formatFitDiagnostics(const FitReport& r, const DiagnosticsContext& c
     stages.push_back({{"stiffness", st.stiffness},
                       {"iterations", st.iterations},
                       {"accepted", st.accepted},
+                      {"rim_matches", st.rim_matches},
                       {"rejected", {{"distance", st.rejected_distance}, {"normal", st.rejected_normal},
                                     {"border", st.rejected_border}, {"spike", st.rejected_spike}}},
                       {"energy", {{"data", st.energy_data}, {"smooth", st.energy_smooth}, {"landmarks", st.energy_landmarks}}},

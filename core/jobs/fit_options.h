@@ -4,7 +4,7 @@
 //    "max_yaw_deg": 60, "max_tilt_deg": 15,
 //    "schedule": [{"stiffness": 100, "iterations": 3, "max_distance": 0.03,
 //                  "max_normal_angle_deg": 70, "landmark_weight": 200, "point_share": 1}, ...],
-//    "binding_weight": 10, "rim_stiffness": 10,
+//    "binding_weight": 10, "rim_stiffness": 10, "rim_weight": 1,
 //    "reject_borders": true, "reject_spikes": true,
 //    "components": {"weights": true, "joints": true, "shapes": true,
 //                   "animations": true, "attributes": true},
