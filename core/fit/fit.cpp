@@ -285,7 +285,8 @@ Result<FitResult> fitScan(const FitReference& reference, const Mesh& scan_mesh, 
   if (aligned->targets.vertices.empty()) {
     // No landmarks: the corners of the scan's own eye holes and mouth slit
     // place the face's features in the prior (mesh scans).
-    prior = correctAtLandmarks(reference, rimCorners(reference, *scan, aligned->frame, prior), std::move(prior));
+    const LandmarkTargets corners = rimCorners(reference, *scan, aligned->frame, prior);
+    prior = correctAtLandmarks(reference, corners, std::move(prior));
   }
   auto fitted = fitNonRigid(reference, *scan, aligned->frame, prior, aligned->targets, options);
   if (!fitted) return fitted.error();
