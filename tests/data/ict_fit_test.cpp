@@ -17,6 +17,7 @@
 
 #include <gtest/gtest.h>
 
+#include "core/correspond/correspondence.h"
 #include "core/correspond/warp_job.h"
 #include "core/fit/fit.h"
 #include "core/io/mesh_io.h"
@@ -287,11 +288,10 @@ struct KnownGap {
 const std::map<std::string, std::vector<KnownGap>> kKnownGaps = {
     // The identity's own 3.9 degree pitch against the reference cannot be told
     // from the head's pose: deltas turned by the pose the scan shows.
-    {"scan_s01/landmarks", {{"flipped", 45}, {"shape_median", 0.075}}},
-    {"scan_s01/search", {{"face_median", 1.4}, {"flipped", 50}, {"shape_median", 0.09}}},
-    {"scan_s02_cloud/landmarks", {{"skin_p95", 13.5}, {"flipped", 65}}},
-    {"scan_s02_cloud/search", {{"face_median", 1.45}, {"face_p95", 5.5}, {"skin_p95", 13.5}, {"rims_median", 1.45},
-                               {"flipped", 75}}},
+    {"scan_s01/landmarks", {{"shape_median", 0.075}}},
+    {"scan_s01/search", {{"face_median", 1.4}, {"shape_median", 0.09}}},
+    {"scan_s02_cloud/landmarks", {{"skin_p95", 13.5}}},
+    {"scan_s02_cloud/search", {{"face_median", 1.45}, {"face_p95", 5.5}, {"skin_p95", 13.5}, {"rims_median", 1.45}}},
     {"scan_s03_obj/landmarks", {{"rims_median", 1.9}}},
     {"scan_s03_obj/search", {{"face_median", 1.65}, {"face_p95", 4.5}, {"rims_median", 3.1}}},
 };
@@ -342,7 +342,17 @@ void fitAndScore(const std::string& name, bool with_landmarks) {
   EXPECT_LE(score->face.max, bound["face_max"]) << label;
   EXPECT_LE(score->skin.p95, bound["skin_p95"]) << label;
   EXPECT_LE(score->rims.median, bound["rims_median"]) << label;
-  EXPECT_LE(score->flipped, bound["flipped"]) << label;
+  // The true fits fold sliver triangles at the mouth's and eyes' corners
+  // against the reference (32, 50, 6 and 12 of them on s01-s04): a fit that
+  // keeps the reference's orientation there counts those as flipped. The
+  // limit applies to the fit's own.
+  const core::Rig* truth = groundTruth(*scan);
+  ASSERT_NE(truth, nullptr);
+  const int truth_folds =
+      core::countFolds(ref.rig->rig.mesh.positions, truth->mesh.positions, ref.rig->rig.mesh.triangles).flipped;
+  std::printf("[ %-28s ] flipped %d against the truth, of which the truth's own folds against the reference: %d\n",
+              label.c_str(), score->flipped, truth_folds);
+  EXPECT_LE(score->flipped, bound["flipped"] + truth_folds) << label;
   if (!cartoon) {
     ASSERT_FALSE(score->shapes.empty());
     EXPECT_LE(score->shapes.median(), bound["shape_median"]) << label;
