@@ -98,10 +98,18 @@ struct FitLandmarkResidual {
   double fitted = 0.0;   // after the fit
 };
 
+struct FoundLandmark {
+  std::string name;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  // on the scan, its frame and units
+};
+
 struct FitReport {
   ScanReport scan;
   AlignmentReport alignment;
   std::vector<FitLandmarkResidual> landmarks;
+  // Without scan landmarks: where the reference's landmarks were found on the
+  // scan (by a first, stiff pass of the fit).
+  std::vector<FoundLandmark> found_landmarks;
   std::vector<FitStageReport> stages;
   DistanceStats face_distance;    // fitted expressive-face vertex to the scan, covered vertices, scan units
   DistanceStats skin_distance;    // the same over all covered vertices

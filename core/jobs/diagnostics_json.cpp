@@ -208,6 +208,8 @@ std::string formatFitDiagnostics(const FitReport& r, const DiagnosticsContext& c
   }
   lm["rms_residual"] = r.landmarks.empty() ? 0.0 : std::sqrt(rms / static_cast<double>(r.landmarks.size()));
   lm["max_residual"] = worst;
+  lm["found"] = Json::array();
+  for (const FoundLandmark& f : r.found_landmarks) lm["found"].push_back({{"name", f.name}, {"position", vectorJson(f.position)}});
   Json stages = Json::array();
   for (const FitStageReport& st : r.stages) {
     stages.push_back({{"stiffness", st.stiffness},
