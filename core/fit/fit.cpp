@@ -229,14 +229,18 @@ Result<AlignedScan> alignScan(const FitReference& reference, const ScanSurface& 
     out.scan_landmarks = pairs->target;
   }
   // Landmark constraints of the fit: each kept landmark's reference vertex
-  // pulled to the scan's landmark brought into the reference frame.
-  for (std::size_t i = 0; i < out.names.size(); ++i) {
-    const int l = surface.landmarks.indexOf(out.names[i]);
-    out.targets.vertices.push_back(surface.landmark_vertices[static_cast<std::size_t>(l)]);
-  }
+  // pulled to the scan's landmark brought into the reference frame, offset
+  // as the vertex is from the reference's landmark (a landmark on a face or
+  // at a position lies off its vertex; it moves with its vertex, as the
+  // rebuild's dense map has it).
   out.targets.targets.resize(out.scan_landmarks.rows(), 3);
-  for (Eigen::Index i = 0; i < out.scan_landmarks.rows(); ++i) {
-    out.targets.targets.row(i) = out.frame.toReference(out.scan_landmarks.row(i).transpose()).transpose();
+  for (std::size_t i = 0; i < out.names.size(); ++i) {
+    const auto l = static_cast<std::size_t>(surface.landmarks.indexOf(out.names[i]));
+    const int v = surface.landmark_vertices[l];
+    out.targets.vertices.push_back(v);
+    const auto row = static_cast<Eigen::Index>(i);
+    out.targets.targets.row(row) = out.frame.toReference(out.scan_landmarks.row(row).transpose()).transpose() +
+                                   surface.mesh.positions.row(v) - surface.landmark_positions.row(static_cast<Eigen::Index>(l));
   }
   const Similarity& s = out.frame.reference_to_scan;
   AlignmentReport& a = report.alignment;
@@ -324,10 +328,14 @@ Result<FitResult> fitScan(const FitReference& reference, const Mesh& scan_mesh, 
   for (std::size_t i = 0; i < aligned->names.size(); ++i) {
     const auto row = static_cast<Eigen::Index>(i);
     const Eigen::Vector3d clicked = aligned->scan_landmarks.row(row).transpose();
+    const PreparedSource& surface = reference.rig->surface;
+    const auto l = static_cast<Eigen::Index>(surface.landmarks.indexOf(aligned->names[i]));
     const int v = aligned->targets.vertices[i];
-    const Eigen::Vector3d rest = reference.rig->surface.mesh.positions.row(v).transpose();
+    // The reference's landmark, and where it went: with its vertex.
+    const Eigen::Vector3d rest = surface.landmark_positions.row(l).transpose();
+    const Eigen::Vector3d moved = rest + (fitted->positions.row(v) - surface.mesh.positions.row(v)).transpose();
     report.landmarks.push_back({aligned->names[i], (aligned->frame.toScan(rest) - clicked).norm(),
-                                (aligned->frame.toScan(fitted->positions.row(v).transpose()) - clicked).norm()});
+                                (aligned->frame.toScan(moved) - clicked).norm()});
   }
   report.scan = scan->report;
   gateFit(reference, aligned->frame, *fitted, options, report);

@@ -16,17 +16,20 @@ namespace {
 
 // The dense map reference -> output: the reference's dense-map centres (its
 // landmarks, then its sampled vertices) to where the fit put them.
+// `to_output`: the linear part of the map from the reference's frame to the
+// output's (the alignment's scale and rotation in the scan's frame).
 Result<TpsWarp> fittedDenseMap(const PreparedSource& surface, const Eigen::MatrixX3d& rest,
-                               const Eigen::MatrixX3d& output) {
+                               const Eigen::MatrixX3d& output, const Eigen::Matrix3d& to_output) {
   if (!surface.dense_factorization) {
     return Error{ErrorCode::kInvalidArgument, surface.label + ": prepared without dense-map centres; the fit needs them"};
   }
   const Eigen::Index nl = surface.landmark_positions.rows();
   Eigen::MatrixX3d targets(surface.dense_centres.rows(), 3);
   for (Eigen::Index l = 0; l < nl; ++l) {
-    // A landmark off a vertex moves with its vertex.
+    // A landmark off a vertex moves with its vertex (its offset carried into
+    // the output's frame and units).
     const int v = surface.landmark_vertices[static_cast<std::size_t>(l)];
-    targets.row(l) = surface.landmark_positions.row(l) + output.row(v) - rest.row(v);
+    targets.row(l) = output.row(v) + (surface.landmark_positions.row(l) - rest.row(v)) * to_output.transpose();
   }
   for (std::size_t i = 0; i < surface.dense_vertices.size(); ++i) {
     targets.row(nl + static_cast<Eigen::Index>(i)) = output.row(surface.dense_vertices[i]);
@@ -64,7 +67,8 @@ Result<Rig> rebuildRig(const FitReference& reference, const FrameMap& frame, con
   rig.mesh.positions = output;
   rig.mesh.normals = computeSharedVertexNormals(output, rest_mesh.triangles,
                                                 smoothVertexRepresentatives(rest_mesh.positions, rest_mesh.normals));
-  auto dense_map = fittedDenseMap(prepared.surface, rest_mesh.positions, output);
+  const Eigen::Matrix3d to_output = scan_frame ? Eigen::Matrix3d(s.scale * s.rotation) : Eigen::Matrix3d::Identity();
+  auto dense_map = fittedDenseMap(prepared.surface, rest_mesh.positions, output, to_output);
   if (!dense_map) return dense_map.error();
 
   std::vector<Eigen::Matrix3d> local;

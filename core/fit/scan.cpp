@@ -18,9 +18,12 @@ constexpr int kMinScanPoints = 100;
 // caps, teeth, debris a scanner leaves (docs/FIT.md 2.1: caps are ~2%).
 constexpr double kDetachedAreaShare = 0.05;
 // A vertex off its 1-ring's plane by more than this many times the ring's
-// mean edge length is a spike: noise is a small fraction of an edge, and a
-// fold or crease of the skin sits within about one.
-constexpr double kSpikeEdgeFactor = 1.0;
+// radius (the ring's mean distance to its own centroid, about an edge) is a
+// spike: noise is a small fraction of an edge, and a fold or crease of the
+// skin sits within about one. The ring's size must not include the vertex:
+// its mean distance to the vertex is never below the offset (triangle
+// inequality), so a rule on that could not fire.
+constexpr double kSpikeRadiusFactor = 1.0;
 // A closest point with a barycentric weight at most this lies on an edge.
 constexpr double kOnEdge = 1e-9;
 
@@ -75,17 +78,17 @@ void flagMeshSpikes(const Mesh& mesh, const VertexAdjacency& adjacency, std::vec
       }
       centroid /= count;
       Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
-      double edge = 0.0;
+      double radius = 0.0;
       for (int i = 0; i < count; ++i) {
         const Eigen::Vector3d p = mesh.positions.row(adjacency.indices[static_cast<std::size_t>(first + i)]).transpose();
         covariance += (p - centroid) * (p - centroid).transpose();
-        edge += (p - mesh.positions.row(v).transpose()).norm();
+        radius += (p - centroid).norm();
       }
-      edge /= count;
+      radius /= count;
       const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);
       const Eigen::Vector3d normal = solver.eigenvectors().col(0);
       const double offset = std::abs(normal.dot(mesh.positions.row(v).transpose() - centroid));
-      if (offset > kSpikeEdgeFactor * edge) flags[static_cast<std::size_t>(v)] |= kScanSpike;
+      if (offset > kSpikeRadiusFactor * radius) flags[static_cast<std::size_t>(v)] |= kScanSpike;
     }
   });
 }
