@@ -1,5 +1,5 @@
 // rigport CLI: wiring only. Subcommands run in-process (core); the service
-// client (rigs, jobs, bench, transfer --server) is in client/remote_commands.h.
+// client (rigs, jobs, bench, transfer|fit --server) is in client/remote_commands.h.
 #include <malloc.h>
 
 #include <cstdio>
@@ -21,7 +21,7 @@ int main(int argc, char** argv) {
   // (docs/journal/BENCHMARKS_HISTORY.md, 2026-11-23: one transfer 101.6 -> 93.7 ms).
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
-  CLI::App app{"rigport: facial rig transfer (warp, transfer, retarget; rigs, jobs and bench on the service)"};
+  CLI::App app{"rigport: facial rig transfer (warp, transfer, fit, retarget; rigs, jobs and bench on the service)"};
   app.set_version_flag("--version", std::string("rigport ") + RIGPORT_VERSION);
   app.require_subcommand(1);
   bool verbose = false, quiet = false;
@@ -131,8 +131,8 @@ int main(int argc, char** argv) {
   demo_cmd->add_option("--threads", demo_threads, "Worker threads (0 = all cores)");
   demo_cmd->add_flag("--inputs-only", demo_inputs_only, "Only write the generated rig and target (scripts/demo.sh sends them to the service)");
 
-  // rigs, jobs, bench, and --server/--api-key on transfer (client/remote_commands.h).
-  const client::RemoteCommands remote(app, *transfer_cmd);
+  // rigs, jobs, bench, and --server/--api-key on transfer and fit (client/remote_commands.h).
+  const client::RemoteCommands remote(app, *transfer_cmd, *fit_cmd);
 
   try {
     app.parse(argc, argv);
@@ -145,7 +145,7 @@ int main(int argc, char** argv) {
   spdlog::set_pattern("%^[%l]%$ %v");
   spdlog::set_level(quiet ? spdlog::level::err : verbose ? spdlog::level::debug : spdlog::level::info);
 
-  if (auto rc = remote.run(transfer)) return *rc;  // remote commands, transfer --server
+  if (auto rc = remote.run(transfer, fit)) return *rc;  // remote commands, transfer|fit --server
   if (*warp_cmd) return client::runWarp(warp);
   if (*transfer_cmd) return client::runTransfer(transfer);
   if (*fit_cmd) return client::runFit(fit);

@@ -134,6 +134,42 @@ int failJob(const api::JobInfo& job) {
   return failText("job " + job.id + " " + api::jobStatusName(job.status));
 }
 
+// A succeeded job's outputs on disk: the GLB at `output`, the diagnostics at
+// `diagnostics_file` and/or on stdout when asked. Their text is kept for the
+// summary (nullopt when it could not be fetched and was not asked for).
+struct JobOutputs {
+  int exit_code = 0;  // non-zero: a problem, already logged
+  std::int64_t bytes = 0;
+  std::optional<std::string> diagnostics;
+};
+
+JobOutputs fetchOutputs(RemoteClient& client, const std::string& id, const std::filesystem::path& output,
+                        const std::filesystem::path& diagnostics_file, bool print_diagnostics) {
+  JobOutputs out;
+  const auto failed = [](int exit_code) {
+    JobOutputs f;
+    f.exit_code = exit_code;
+    return f;
+  };
+  auto written = client.downloadResult(id, output);
+  if (!written) return failed(fail(written.error()));
+  out.bytes = *written;
+  auto diagnostics = client.fetchDiagnostics(id);
+  if (!diagnostics) {
+    if (!diagnostics_file.empty() || print_diagnostics) return failed(fail(diagnostics.error()));
+    spdlog::warn("diagnostics: {}", describeProblem(diagnostics.error()));
+    return out;
+  }
+  if (!diagnostics_file.empty()) {
+    std::ofstream file(diagnostics_file, std::ios::binary | std::ios::trunc);
+    file << *diagnostics;
+    if (!file.flush()) return failed(failText(diagnostics_file.string() + ": cannot write"));
+  }
+  if (print_diagnostics) std::fputs(diagnostics->c_str(), stdout);
+  out.diagnostics = std::move(*diagnostics);
+  return out;
+}
+
 // ---- transfer --server -------------------------------------------------------
 
 int runRemoteTransfer(const TransferArgs& args, const Connection& connection) {
@@ -165,20 +201,9 @@ int runRemoteTransfer(const TransferArgs& args, const Connection& connection) {
   if (!job) return fail(job.error());
   if (job->status != api::JobStatus::kSucceeded) return failJob(*job);
 
-  auto written = client.downloadResult(id, args.output);
-  if (!written) return fail(written.error());
-  auto diagnostics = client.fetchDiagnostics(id);
-  if (!diagnostics) {
-    if (!args.diagnostics.empty() || args.print_diagnostics) return fail(diagnostics.error());
-    spdlog::warn("diagnostics: {}", describeProblem(diagnostics.error()));
-  } else {
-    if (!args.diagnostics.empty()) {
-      std::ofstream out(args.diagnostics, std::ios::binary | std::ios::trunc);
-      out << *diagnostics;
-      if (!out.flush()) return failText(args.diagnostics.string() + ": cannot write");
-    }
-    if (args.print_diagnostics) std::fputs(diagnostics->c_str(), stdout);
-  }
+  const JobOutputs fetched = fetchOutputs(client, id, args.output, args.diagnostics, args.print_diagnostics);
+  if (fetched.exit_code != 0) return fetched.exit_code;
+  const std::optional<std::string>& diagnostics = fetched.diagnostics;
 
   // The same one-line summary as the in-process run, from the diagnostics JSON.
   const double total_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_start).count();
@@ -213,7 +238,88 @@ int runRemoteTransfer(const TransferArgs& args, const Connection& connection) {
   } else {
     spdlog::info("transfer (job {}{}): total {:.1f} ms", id, job->cache_hit ? ", cached rig" : "", total_ms);
   }
-  spdlog::info("wrote {} ({} bytes){}", args.output.string(), *written,
+  spdlog::info("wrote {} ({} bytes){}", args.output.string(), fetched.bytes,
+               args.diagnostics.empty() ? "" : " and " + args.diagnostics.string());
+  return 0;
+}
+
+// ---- fit --server -------------------------------------------------------------
+
+// The number at d[section][key], 0 when absent.
+double numberAt(const json& d, const char* section, const char* key) {
+  const auto s = d.find(section);
+  if (s == d.end() || !s->is_object()) return 0.0;
+  const auto v = s->find(key);
+  return v != s->end() && v->is_number() ? v->get<double>() : 0.0;
+}
+
+// Logs the strings of the array d[key] as warnings.
+void warnEach(const json& d, const char* key) {
+  if (const auto list = d.find(key); list != d.end() && list->is_array()) {
+    for (const json& item : *list) {
+      if (item.is_string()) spdlog::warn("{}", item.get<std::string>());
+    }
+  }
+}
+
+int runRemoteFit(const FitArgs& args, const Connection& connection) {
+  const auto t_start = std::chrono::steady_clock::now();
+  if (args.threads != 0) spdlog::warn("--threads is ignored with --server (the service sizes its workers)");
+  json options = json::object();
+  if (!args.options.empty()) {
+    auto parsed = readJsonObject(args.options);
+    if (!parsed) return failText(parsed.error());
+    options = std::move(*parsed);
+  }
+  if (args.strict) options["strict"] = true;
+  RemoteClient client(remoteOptions(connection));
+
+  // The reference is a rig like a transfer's source: uploaded once, prepared once.
+  auto rig = client.uploadRig({args.reference, args.reference_landmarks, {}});
+  if (!rig) return fail(rig.error());
+  spdlog::info("reference {} {} ({} vertices, {} shapes)", rig->rig.id,
+               rig->uploaded ? "uploaded" : "already on the service", rig->rig.vertices, rig->rig.morph_targets);
+
+  const json spec = {{"kind", "fit"}, {"rig", rig->rig.id}, {"options", options}};
+  std::map<std::string, std::filesystem::path> files = {{"scan", args.scan}};
+  if (!args.scan_landmarks.empty()) files.emplace("scan_landmarks", args.scan_landmarks);
+  auto submitted = client.submitJob(spec, files);
+  if (!submitted) return fail(submitted.error());
+  const std::string id = submitted->job.id;
+  spdlog::info("job {} {}{}", id, api::jobStatusName(submitted->job.status),
+               submitted->queue_retries ? " after " + std::to_string(submitted->queue_retries) + " queue-full retries" : "");
+
+  auto job = waitWithProgress(client, id, 0.0);
+  if (!job) return fail(job.error());
+  if (job->status != api::JobStatus::kSucceeded) return failJob(*job);
+
+  const JobOutputs fetched = fetchOutputs(client, id, args.output, args.diagnostics, args.print_diagnostics);
+  if (fetched.exit_code != 0) return fetched.exit_code;
+  const std::optional<std::string>& diagnostics = fetched.diagnostics;
+
+  // The in-process run's summary line, from the diagnostics JSON.
+  const double total_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_start).count();
+  const json d = diagnostics ? json::parse(*diagnostics, nullptr, false) : json();
+  const std::string cached = job->cache_hit ? ", cached reference" : "";
+  if (d.is_object()) {
+    warnEach(d, "warnings");
+    warnEach(d, "reasons");
+    const auto text = [](const json& j, const char* key) {
+      return j.is_object() && j.contains(key) && j[key].is_string() ? j[key].get<std::string>() : std::string("?");
+    };
+    const std::string units = text(d.value("scan", json()), "units");
+    const json face = d.contains("distance") && d["distance"].is_object() ? d["distance"].value("face", json()) : json();
+    spdlog::info("fit (job {}{}): {} ({} alignment, scan in {}, head {:.3f}x the reference); face to scan median {:.3g} / "
+                 "p95 {:.3g} / max {:.3g} {}, face coverage {:.1f}%, {} flipped; service {:.1f} ms, total {:.1f} ms",
+                 id, cached, text(d, "verdict"), text(d.value("alignment", json()), "method"), units,
+                 numberAt(d, "scan", "size_ratio"), face.is_object() ? face.value("median", 0.0) : 0.0,
+                 face.is_object() ? face.value("p95", 0.0) : 0.0, face.is_object() ? face.value("max", 0.0) : 0.0, units,
+                 100.0 * numberAt(d, "coverage", "face"), numberAt(d, "folds", "flipped"),
+                 numberAt(d, "timings_ms", "total"), total_ms);
+  } else {
+    spdlog::info("fit (job {}{}): total {:.1f} ms", id, cached, total_ms);
+  }
+  spdlog::info("wrote {} ({} bytes){}", args.output.string(), fetched.bytes,
                args.diagnostics.empty() ? "" : " and " + args.diagnostics.string());
   return 0;
 }
@@ -228,6 +334,7 @@ struct RemoteCommands::State {
   std::map<const CLI::App*, Connection> connections;
   Connection connection;  // the chosen command's, copied in run()
   CLI::App* transfer = nullptr;
+  CLI::App* fit = nullptr;
 
   CLI::App* rigs_upload = nullptr;
   CLI::App* rigs_list = nullptr;
@@ -258,10 +365,12 @@ struct RemoteCommands::State {
   int runJobs() const;
 };
 
-RemoteCommands::RemoteCommands(CLI::App& app, CLI::App& transfer) : state_(std::make_unique<State>()) {
+RemoteCommands::RemoteCommands(CLI::App& app, CLI::App& transfer, CLI::App& fit) : state_(std::make_unique<State>()) {
   State& s = *state_;
   s.transfer = &transfer;
+  s.fit = &fit;
   addConnectionOptions(&transfer, s.connections[&transfer], false);
+  addConnectionOptions(&fit, s.connections[&fit], false);
 
   auto* rigs = app.add_subcommand("rigs", "Rigs on the service: upload, list, get, delete");
   rigs->require_subcommand(1);
@@ -324,7 +433,7 @@ RemoteCommands::RemoteCommands(CLI::App& app, CLI::App& transfer) : state_(std::
 
 RemoteCommands::~RemoteCommands() = default;
 
-std::optional<int> RemoteCommands::run(const TransferArgs& transfer) const {
+std::optional<int> RemoteCommands::run(const TransferArgs& transfer, const FitArgs& fit) const {
   State& s = *state_;
   for (const auto& [cmd, connection] : s.connections) {
     if (*cmd) s.connection = connection;
@@ -332,6 +441,10 @@ std::optional<int> RemoteCommands::run(const TransferArgs& transfer) const {
   if (*s.transfer) {
     if (s.connection.server.empty()) return std::nullopt;  // in-process transfer
     return runRemoteTransfer(transfer, s.connection);
+  }
+  if (*s.fit) {
+    if (s.connection.server.empty()) return std::nullopt;  // in-process fit
+    return runRemoteFit(fit, s.connection);
   }
   if (*s.rigs_upload || *s.rigs_list || *s.rigs_get || *s.rigs_delete) return s.runRigs();
   if (*s.jobs_submit || *s.jobs_get || *s.jobs_wait || *s.jobs_list || *s.jobs_cancel || *s.jobs_result || *s.jobs_delete) {
