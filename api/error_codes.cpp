@@ -27,7 +27,7 @@ constexpr Row kTable[] = {
     {WireError::kInvalidLandmarks, 422, "invalid-landmarks", "Landmarks unusable"},
     {WireError::kIllConditioned, 422, "ill-conditioned", "Landmarks make an ill-conditioned warp"},
     {WireError::kUnsupportedFeature, 422, "unsupported-feature", "File uses an unsupported feature"},
-    {WireError::kQualityGate, 422, "quality-gate", "Transfer output failed its quality check"},
+    {WireError::kQualityGate, 422, "quality-gate", "Job output failed its quality check"},
     {WireError::kQueueFull, 429, "queue-full", "Job queue full; retry later"},
     {WireError::kAuthThrottled, 429, "auth-throttled", "Too many failed authentications; retry later"},
     {WireError::kTooManyUploads, 429, "too-many-uploads", "Too many uploads in progress; retry later"},

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <string>
 #include <vector>
@@ -66,11 +67,17 @@ Result<LandmarkAlignment> alignByLandmarks(const LandmarkPairs& pairs, double dr
 }
 
 Result<ScanUnits> scanUnits(double scale, double reference_rms_radius, const std::string& given) {
-  // The reference's unit: the one that makes its RMS radius a head's (6-16 cm).
+  // The reference's unit: the one that makes its RMS radius a head's (6-16
+  // cm), the nearest to ~10 cm (log scale) when two do (cm and in overlap).
   const Unit* reference_unit = nullptr;
+  double closest = std::numeric_limits<double>::infinity();
   for (const Unit& u : kUnits) {
     const double radius_cm = reference_rms_radius * u.metres * 100.0;
-    if (radius_cm >= 6.0 && radius_cm <= 16.0) reference_unit = &u;
+    const double off = std::abs(std::log(radius_cm / 10.0));
+    if (radius_cm >= 6.0 && radius_cm <= 16.0 && off < closest) {
+      closest = off;
+      reference_unit = &u;
+    }
   }
   if (reference_unit == nullptr) {
     return Error{ErrorCode::kInvalidArgument,

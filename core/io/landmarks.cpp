@@ -233,11 +233,11 @@ Status checkSharedLandmarkNames(const LandmarkSet& source, const LandmarkSet& ta
     for (std::size_t i = 0; i < unknown.size() && i < 10; ++i) list += (i ? ", '" : "'") + unknown[i] + "'";
     if (unknown.size() > 10) list += ", ...";
     return makeError(ErrorCode::kInvalidLandmarks, target_label + ": " + std::to_string(unknown.size()) +
-                                                       " landmark name(s) not in the source: " + list);
+                                                       " landmark name(s) not among the rig's landmarks: " + list);
   }
   if (shared < 4) {
     return makeError(ErrorCode::kInvalidLandmarks, target_label + ": only " + std::to_string(shared) +
-                                                       " landmark name(s) shared with the source; at least 4 "
+                                                       " landmark name(s) shared with the rig; at least 4 "
                                                        "non-coplanar ones are needed");
   }
   return Ok{};

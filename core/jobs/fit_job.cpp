@@ -32,8 +32,9 @@ Result<FitJobOutput> runFitJob(const PrepareFitSource& prepare, FitJobInput inpu
     std::string reasons;
     for (const std::string& reason : r.reasons) reasons += (reasons.empty() ? "" : "; ") + reason;
     out.refused = Error{ErrorCode::kQualityGate, input.scan_label + ": the fit " +
-                                                     (r.verdict == "fail" ? "failed" : "was warned about (strict)") +
-                                                     " its quality gate: " + reasons};
+                                                     (r.verdict == "fail" ? "failed its quality gate"
+                                                                          : "drew warnings from its quality gate (strict)") +
+                                                     ": " + reasons};
   } else {
     if (!run.stage("write", 0.92)) return run.stoppedBefore("write");
     t0 = Clock::now();

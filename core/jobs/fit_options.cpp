@@ -60,6 +60,15 @@ Result<double> number(const nlohmann::json& v, const std::string& where, double 
   return v.get<double>();
 }
 
+// A whole number in [lo, hi] (2.5 iterations is a typo, not 2).
+Result<double> count(const nlohmann::json& v, const std::string& where, int lo, int hi) {
+  if (!v.is_number_integer()) {
+    return makeError(ErrorCode::kInvalidArgument, where + " must be a whole number in [" + std::to_string(lo) + ", " +
+                                                      std::to_string(hi) + "]");
+  }
+  return number(v, where, lo, hi);
+}
+
 Result<std::vector<FitStage>> schedule(const nlohmann::json& v, const std::string& where) {
   if (!v.is_array() || v.empty() || v.size() > 20) {
     return makeError(ErrorCode::kInvalidArgument, where + " must be an array of 1 to 20 stages");
@@ -73,7 +82,7 @@ Result<std::vector<FitStage>> schedule(const nlohmann::json& v, const std::strin
       const std::string field = at + "." + key;
       Result<double> x = 0.0;
       if (key == "stiffness") x = number(value, field, 1e-3, 1e6);
-      else if (key == "iterations") x = number(value, field, 1, 50);
+      else if (key == "iterations") x = count(value, field, 1, 50);
       else if (key == "max_distance") x = number(value, field, 1e-5, 1.0);
       else if (key == "max_normal_angle_deg") x = number(value, field, 1.0, 180.0);
       else if (key == "landmark_weight") x = number(value, field, 0.0, 1e6);
@@ -127,7 +136,7 @@ Result<FitSettings> parseFitOptions(const std::string& text, const std::string& 
       if (!m) return m.error();
       s.write.weight_encoding = *m;
     } else if (key == "max_influences") {
-      auto x = number(value, where, 1, 8);
+      auto x = count(value, where, 1, 8);
       if (!x) return x.error();
       s.write.max_influences = static_cast<int>(*x);
     } else if (key == "max_yaw_deg" || key == "max_tilt_deg") {

@@ -151,7 +151,7 @@ TEST_F(ServiceErrors, UnusableInputsAre422AtSubmissionNotFailedLater) {
   parts = jobParts(spec());
   parts[2] = {"target_landmarks", three.dump(), "three.json", "application/json"};
   expectProblem(postParts(*client_, "/v1/jobs", parts), 422, "invalid-landmarks",
-                "only 3 landmark name(s) shared with the source");
+                "only 3 landmark name(s) shared with the rig");
 
   nlohmann::json one_point = {{"landmarks", nlohmann::json::array()}};
   for (int i = 0; i < 4; ++i) one_point["landmarks"].push_back({{"name", names[static_cast<std::size_t>(i)]}, {"vertex", 7}});

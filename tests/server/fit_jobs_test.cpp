@@ -236,7 +236,7 @@ TEST(FitJobs, CliWithServerWritesTheInProcessResult) {
   EXPECT_NE(warned.log.find("check the units"), std::string::npos) << warned.log;
   const CliRun strict = runCliFit(big, dir, server + " --strict");
   EXPECT_EQ(strict.exit_code, 1) << strict.log;
-  EXPECT_NE(strict.log.find("quality gate: the head is 1."), std::string::npos) << strict.log;
+  EXPECT_NE(strict.log.find("quality gate (strict): the head is 1."), std::string::npos) << strict.log;
   EXPECT_FALSE(std::filesystem::exists(dir / "out.glb"));
   const CliRun strict_local = runCliFit(big, dir, "--strict");
   EXPECT_EQ(strict_local.exit_code, 1) << strict_local.log;

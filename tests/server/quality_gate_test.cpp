@@ -115,7 +115,7 @@ TEST(QualityGate, StrictFailsACrossingTransferOnTheService) {
   writeFile(dir / "crossing.json", kCrossing.dump());
   const CliRun remote = runCli(f, dir, url + " --options '" + (dir / "crossing.json").string() + "' --strict");
   EXPECT_EQ(remote.exit_code, 1) << remote.log;
-  EXPECT_NE(remote.log.find("Transfer output failed its quality check (HTTP 422)"), std::string::npos) << remote.log;
+  EXPECT_NE(remote.log.find("Job output failed its quality check (HTTP 422)"), std::string::npos) << remote.log;
   EXPECT_NE(remote.log.find("jawOpen"), std::string::npos) << remote.log;
   service.stop();
 }
