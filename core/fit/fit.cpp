@@ -10,7 +10,6 @@
 #include "core/fit/fit_stages.h"
 #include "core/geometry/point_cloud_index.h"
 #include "core/solve/inpainting.h"
-#include "core/solve/tps.h"
 
 namespace core {
 
@@ -27,9 +26,9 @@ constexpr std::size_t kFirstPassStages = 3;
 // head) of a landmark that is not on the jaw line.
 constexpr double kExpressiveRadius = 0.063;
 
-// Vertices within `rings` edges of v (v included).
-std::vector<int> ringsAround(const VertexAdjacency& adjacency, int v, int rings, std::vector<int>& mark, int stamp) {
-  std::vector<int> frontier{v}, all{v};
+// Marks with `stamp` the vertices within `rings` edges of v (v included).
+void markRingsAround(const VertexAdjacency& adjacency, int v, int rings, std::vector<int>& mark, int stamp) {
+  std::vector<int> frontier{v};
   mark[static_cast<std::size_t>(v)] = stamp;
   for (int r = 0; r < rings; ++r) {
     std::vector<int> next;
@@ -39,12 +38,10 @@ std::vector<int> ringsAround(const VertexAdjacency& adjacency, int v, int rings,
         if (mark[static_cast<std::size_t>(w)] == stamp) continue;
         mark[static_cast<std::size_t>(w)] = stamp;
         next.push_back(w);
-        all.push_back(w);
       }
     }
     frontier = std::move(next);
   }
-  return all;
 }
 
 // Each vertex's nearest vertex across a touching gap (the lips), as pairs.
@@ -60,15 +57,14 @@ std::vector<std::array<int, 2>> touchingPairs(const Mesh& mesh, const std::vecto
     const auto vi = static_cast<std::size_t>(v);
     if (!on_skin[vi] || (!representative.empty() && representative[vi] != v)) continue;
     const auto near = index.nearest(mesh.positions.row(v).transpose(), 8);
-    std::vector<int> ring;
-    bool ring_built = false;
+    bool ring_marked = false;
     for (const auto& nb : near) {
       if (nb.index == v || std::sqrt(nb.sq_distance) >= limit) continue;
       if (!on_skin[static_cast<std::size_t>(nb.index)]) continue;
       if (!representative.empty() && representative[static_cast<std::size_t>(nb.index)] != nb.index) continue;
-      if (!ring_built) {
-        ring = ringsAround(adjacency, static_cast<int>(v), kLipRings, mark, static_cast<int>(v));
-        ring_built = true;
+      if (!ring_marked) {
+        markRingsAround(adjacency, static_cast<int>(v), kLipRings, mark, static_cast<int>(v));
+        ring_marked = true;
       }
       if (mark[static_cast<std::size_t>(nb.index)] == static_cast<int>(v)) continue;  // joined by the mesh
       if (nb.index > v) pairs.push_back({static_cast<int>(v), nb.index});
@@ -113,7 +109,7 @@ std::size_t FitReference::memoryBytes() const {
   std::size_t rim_bytes = 0;
   for (const auto& r : rims) rim_bytes += r.size() * sizeof(int);
   return rim_bytes + sparse(laplacian) + sparse(rim_laplacian) + sparse(binding_laplacian) + lip_pairs.size() * 8 +
-          expressive.size() + on_skin.size() + representative.size() * 4 + search.memoryBytes();
+         expressive.size() + on_skin.size() + representative.size() * 4 + search.memoryBytes();
 }
 
 Result<FitReference> prepareFitReference(std::shared_ptr<const PreparedRig> rig) {
