@@ -13,6 +13,7 @@
 #include "api/json.h"
 #include "core/io/landmarks.h"
 #include "core/io/mesh_io.h"
+#include "core/jobs/fit_options.h"
 #include "core/jobs/retarget_options.h"
 #include "core/io/rig_io.h"
 #include "core/jobs/transfer_options.h"
@@ -35,9 +36,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   (void)core::parseTrc(text, "fuzz.trc");
 #elif RIGPORT_FUZZ_TARGET == 6  // fuzz_landmarks
   (void)core::parseLandmarks(text, "fuzz.landmarks.json");
-#elif RIGPORT_FUZZ_TARGET == 7  // fuzz_options: transfer and retarget options, stiffness
+#elif RIGPORT_FUZZ_TARGET == 7  // fuzz_options: transfer, retarget and fit options, stiffness
   (void)core::parseTransferOptions(text, "fuzz.options.json");
   (void)core::parseRetargetOptions(text, "fuzz.options.json");
+  if (auto fit = core::parseFitOptions(text, "fuzz.options.json")) (void)core::fitOptionsJson(*fit);
   (void)core::parseStiffness(text, "fuzz.stiffness.json");
 #elif RIGPORT_FUZZ_TARGET == 8  // fuzz_job_spec: the multipart `spec` part of POST /v1/jobs
   auto parsed = api::parseJsonText(text, "spec");
