@@ -170,18 +170,27 @@ JobOutputs fetchOutputs(RemoteClient& client, const std::string& id, const std::
   return out;
 }
 
+// A job's options: the --options file's object (empty without one), with
+// "strict" set by --strict.
+api::Parsed<json> jobOptions(const std::filesystem::path& file, bool strict) {
+  json options = json::object();
+  if (!file.empty()) {
+    auto parsed = readJsonObject(file);
+    if (!parsed) return parsed.error();
+    options = std::move(*parsed);
+  }
+  if (strict) options["strict"] = true;
+  return options;
+}
+
 // ---- transfer --server -------------------------------------------------------
 
 int runRemoteTransfer(const TransferArgs& args, const Connection& connection) {
   const auto t_start = std::chrono::steady_clock::now();
   if (args.threads != 0) spdlog::warn("--threads is ignored with --server (the service sizes its workers)");
-  json options = json::object();
-  if (!args.options.empty()) {
-    auto parsed = readJsonObject(args.options);
-    if (!parsed) return failText(parsed.error());
-    options = std::move(*parsed);
-  }
-  if (args.strict) options["strict"] = true;
+  auto read_options = jobOptions(args.options, args.strict);
+  if (!read_options) return failText(read_options.error());
+  const json options = std::move(*read_options);
   RemoteClient client(remoteOptions(connection));
 
   auto rig = client.uploadRig({args.source, args.source_landmarks, {}});
@@ -265,13 +274,9 @@ void warnEach(const json& d, const char* key) {
 int runRemoteFit(const FitArgs& args, const Connection& connection) {
   const auto t_start = std::chrono::steady_clock::now();
   if (args.threads != 0) spdlog::warn("--threads is ignored with --server (the service sizes its workers)");
-  json options = json::object();
-  if (!args.options.empty()) {
-    auto parsed = readJsonObject(args.options);
-    if (!parsed) return failText(parsed.error());
-    options = std::move(*parsed);
-  }
-  if (args.strict) options["strict"] = true;
+  auto read_options = jobOptions(args.options, args.strict);
+  if (!read_options) return failText(read_options.error());
+  const json options = std::move(*read_options);
   RemoteClient client(remoteOptions(connection));
 
   // The reference is a rig like a transfer's source: uploaded once, prepared once.

@@ -35,19 +35,9 @@ struct FitReferenceCase {
   std::string error;
 };
 
-inline FitReferenceCase loadIctFitReference(const std::filesystem::path& data) {
+// A rig prepared (or its error) made ready for fitting.
+inline FitReferenceCase preparedForFitting(core::Result<core::PreparedRig> prepared) {
   FitReferenceCase out;
-  auto rig = core::readRig(data / "ict" / "source_face_skinned.glb");
-  if (!rig) {
-    out.error = rig.error().message;
-    return out;
-  }
-  auto landmarks = core::readLandmarks(data / "ict" / "source_face.landmarks.json");
-  if (!landmarks) {
-    out.error = landmarks.error().message;
-    return out;
-  }
-  auto prepared = core::prepareRig(std::move(rig->rig), std::move(*landmarks), "source_face_skinned.glb");
   if (!prepared) {
     out.error = prepared.error().message;
     return out;
@@ -62,6 +52,21 @@ inline FitReferenceCase loadIctFitReference(const std::filesystem::path& data) {
   return out;
 }
 
+inline FitReferenceCase loadIctFitReference(const std::filesystem::path& data) {
+  FitReferenceCase out;
+  auto rig = core::readRig(data / "ict" / "source_face_skinned.glb");
+  if (!rig) {
+    out.error = rig.error().message;
+    return out;
+  }
+  auto landmarks = core::readLandmarks(data / "ict" / "source_face.landmarks.json");
+  if (!landmarks) {
+    out.error = landmarks.error().message;
+    return out;
+  }
+  return preparedForFitting(core::prepareRig(std::move(rig->rig), std::move(*landmarks), "source_face_skinned.glb"));
+}
+
 // Loaded once per process (the first caller's data directory).
 inline const FitReferenceCase& ictFitReference(const std::filesystem::path& data) {
   static const FitReferenceCase loaded = loadIctFitReference(data);
@@ -72,21 +77,8 @@ inline const FitReferenceCase& ictFitReference(const std::filesystem::path& data
 // prepared for fitting, once per process: the data-free reference.
 inline const FitReferenceCase& syntheticFitReference() {
   static const FitReferenceCase loaded = [] {
-    FitReferenceCase out;
     core::SyntheticRig generated = core::generateRig();
-    auto prepared = core::prepareRig(std::move(generated.rig), std::move(generated.landmarks), "synthetic rig");
-    if (!prepared) {
-      out.error = prepared.error().message;
-      return out;
-    }
-    out.rig = std::make_shared<const core::PreparedRig>(std::move(*prepared));
-    auto reference = core::prepareFitReference(out.rig);
-    if (!reference) {
-      out.error = reference.error().message;
-      return out;
-    }
-    out.reference = std::make_shared<const core::FitReference>(std::move(*reference));
-    return out;
+    return preparedForFitting(core::prepareRig(std::move(generated.rig), std::move(generated.landmarks), "synthetic rig"));
   }();
   return loaded;
 }
