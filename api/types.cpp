@@ -30,7 +30,7 @@ std::optional<JobKind> parseJobKind(std::string_view name) { return enumNamed<Jo
 
 const std::vector<JobKindInfo>& jobKinds() {
   static const std::vector<JobKindInfo> kinds = {
-      {JobKind::kTransfer, true, {"target", "target_landmarks"}, {}},
+      {JobKind::kTransfer, true, {"target"}, {"target_landmarks"}},
       {JobKind::kRetarget, false, {"mesh", "markers", "mocap"}, {"stiffness"}},
       {JobKind::kFit, true, {"scan"}, {"scan_landmarks"}},
   };

@@ -85,6 +85,7 @@ core::Result<LandmarkedInputs> readLandmarkedInputs(const std::filesystem::path&
   auto mesh = core::readMesh(target);
   if (!mesh) return mesh.error();
   in.target = std::move(*mesh);
+  if (target_landmarks.empty()) return in;  // a transfer finds them (runTransferJob)
   auto target_set = core::readLandmarks(target_landmarks);
   if (!target_set) return target_set.error();
   in.target_landmarks = std::move(*target_set);

@@ -60,7 +60,9 @@ int main(int argc, char** argv) {
   transfer_cmd->add_option("--source", transfer.source, "Source rig (GLB/glTF)")->required()->check(CLI::ExistingFile);
   transfer_cmd->add_option("--source-landmarks", transfer.source_landmarks, "Source landmarks JSON")->required()->check(CLI::ExistingFile);
   transfer_cmd->add_option("--target", transfer.target, "Target mesh (GLB/glTF/OBJ/PLY)")->required()->check(CLI::ExistingFile);
-  transfer_cmd->add_option("--target-landmarks", transfer.target_landmarks, "Target landmarks JSON")->required()->check(CLI::ExistingFile);
+  transfer_cmd->add_option("--target-landmarks", transfer.target_landmarks,
+                           "Target landmarks JSON (without: found by a fit of the rig's face)")
+      ->check(CLI::ExistingFile);
   transfer_cmd->add_option("-o,--output", transfer.output, "Rigged target GLB")->required()->check(client::kGlbPath);
   transfer_cmd->add_option("--diagnostics", transfer.diagnostics, "Diagnostics JSON");
   transfer_cmd->add_option("--options", transfer.options, "Transfer options JSON (see core/jobs/transfer_options.h)")->check(CLI::ExistingFile);

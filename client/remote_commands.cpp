@@ -200,7 +200,9 @@ int runRemoteTransfer(const TransferArgs& args, const Connection& connection) {
                rig->rig.morph_targets);
 
   const json spec = {{"kind", "transfer"}, {"rig", rig->rig.id}, {"options", options}};
-  auto submitted = client.submitJob(spec, {{"target", args.target}, {"target_landmarks", args.target_landmarks}});
+  std::map<std::string, std::filesystem::path> files = {{"target", args.target}};
+  if (!args.target_landmarks.empty()) files["target_landmarks"] = args.target_landmarks;
+  auto submitted = client.submitJob(spec, files);
   if (!submitted) return fail(submitted.error());
   const std::string id = submitted->job.id;
   spdlog::info("job {} {}{}", id, api::jobStatusName(submitted->job.status),

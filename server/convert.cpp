@@ -138,6 +138,13 @@ std::optional<api::Problem> checkJobInputs(api::JobSpec& spec,
     const auto& [target_name, target_bytes] = files.at("target");
     auto target = core::readMeshFromMemory(target_bytes, target_name, "target '" + target_name + "'");
     if (!target) return problemFromCoreError(target.error(), instance);
+    if (!files.count("target_landmarks")) {  // found by a fit of the rig's face when the job runs
+      if (auto p = checkCounts(target->mesh, 0, "target '" + target_name + "'", limits, instance)) return p;
+      if (auto ok = core::validateSurfaceMesh(target->mesh, "target '" + target_name + "'"); !ok) {
+        return problemFromCoreError(ok.error(), instance);
+      }
+      return std::nullopt;
+    }
     auto landmarks = core::parseLandmarks(asText(files.at("target_landmarks").second), "target_landmarks");
     if (!landmarks) return problemFromCoreError(landmarks.error(), instance);
     if (auto p = checkCounts(target->mesh, landmarks->landmarks.size(), "target '" + target_name + "'", limits, instance)) return p;
@@ -317,6 +324,25 @@ core::Result<RigCache::Lookup> preparedRig(const RigRecord& rig_record, const Bl
   });
 }
 
+// The fit reference (fit jobs, and transfers that fit), cached per tenant and
+// rig beside the prepared rig it is built on (a transfer's cache entry serves
+// it too). `read` receives how the rig file was read when it was read for it.
+core::PrepareFitSource cachedFitReference(const RigRecord& rig_record, const BlobStore& blobs, Caches& caches,
+                                          core::MeshReadReport& read) {
+  return [&rig_record, &blobs, &caches, &read]() -> core::Result<core::PreparedFitSource> {
+    bool read_now = false;
+    auto fitted = caches.fits.get(tenantCacheKey(rig_record.tenant, rig_record.info.id),
+                                  [&]() -> core::Result<core::FitReference> {
+                                    auto rig = preparedRig(rig_record, blobs, caches.rigs, read);
+                                    if (!rig) return rig.error();
+                                    read_now = !rig->hit;
+                                    return core::prepareFitReference(rig->value);
+                                  });
+    if (!fitted) return fitted.error();
+    return core::PreparedFitSource{fitted->value, read_now ? &read : nullptr, fitted->hit};
+  };
+}
+
 core::Result<core::JobOutput> runFitJob(const JobFiles& in, const RigRecord& rig_record, const BlobStore& blobs,
                                         Caches& caches, core::JobRun run) {
   if (!run.stage("read", 0.02)) return run.stoppedBefore("reading inputs");
@@ -335,21 +361,8 @@ core::Result<core::JobOutput> runFitJob(const JobFiles& in, const RigRecord& rig
   }
   run.read_ms = msSince(run.started);
 
-  // The fit reference, cached per tenant and rig beside the prepared rig it
-  // is built on (a transfer's cache entry serves it too).
   core::MeshReadReport source_read;
-  bool read_now = false;
-  const core::PrepareFitSource prepare = [&]() -> core::Result<core::PreparedFitSource> {
-    auto fitted = caches.fits.get(tenantCacheKey(rig_record.tenant, rig_record.info.id),
-                                  [&]() -> core::Result<core::FitReference> {
-                                    auto rig = preparedRig(rig_record, blobs, caches.rigs, source_read);
-                                    if (!rig) return rig.error();
-                                    read_now = !rig->hit;
-                                    return core::prepareFitReference(rig->value);
-                                  });
-    if (!fitted) return fitted.error();
-    return core::PreparedFitSource{fitted->value, read_now ? &source_read : nullptr, fitted->hit};
-  };
+  const core::PrepareFitSource prepare = cachedFitReference(rig_record, blobs, caches, source_read);
   auto out = core::runFitJob(prepare, std::move(input), run);
   if (!out) return out.error();
   if (out->refused) return *out->refused;
@@ -357,7 +370,7 @@ core::Result<core::JobOutput> runFitJob(const JobFiles& in, const RigRecord& rig
 }
 
 core::Result<core::JobOutput> runTransferJob(const JobFiles& in, const RigRecord& rig_record, const BlobStore& blobs,
-                                             RigCache& cache, core::JobRun run) {
+                                             Caches& caches, core::JobRun run) {
   if (!run.stage("read", 0.02)) return run.stoppedBefore("reading inputs");
   core::TransferJobInput input;
   auto settings = core::parseTransferOptions(in.optionsText(), "spec.options");
@@ -365,10 +378,12 @@ core::Result<core::JobOutput> runTransferJob(const JobFiles& in, const RigRecord
   input.settings = std::move(*settings);
   auto target = in.mesh("target");
   if (!target) return target.error();
-  auto target_landmarks = in.landmarks("target_landmarks");
-  if (!target_landmarks) return target_landmarks.error();
   input.target = std::move(*target);
-  input.target_landmarks = std::move(*target_landmarks);
+  if (in.has("target_landmarks")) {  // else found by a fit of the rig's face
+    auto target_landmarks = in.landmarks("target_landmarks");
+    if (!target_landmarks) return target_landmarks.error();
+    input.target_landmarks = std::move(*target_landmarks);
+  }
   input.target_label = in.name("target");
   if (rig_record.info.has_components) {
     input.warnings.push_back("rig components (components JSON) are stored but not transferred yet");
@@ -378,11 +393,12 @@ core::Result<core::JobOutput> runTransferJob(const JobFiles& in, const RigRecord
   // Cached per tenant and rig content id: a hit skips all source-only work.
   core::MeshReadReport source_read;
   const core::PrepareRigSource prepare = [&]() -> core::Result<core::PreparedRigSource> {
-    auto prepared = preparedRig(rig_record, blobs, cache, source_read);
+    auto prepared = preparedRig(rig_record, blobs, caches.rigs, source_read);
     if (!prepared) return prepared.error();
     return core::PreparedRigSource{prepared->value, &source_read, prepared->hit};
   };
-  auto out = core::runTransferJob(prepare, std::move(input), run);
+  core::MeshReadReport fit_read;  // unused: the rig was read (or cached) by `prepare` first
+  auto out = core::runTransferJob(prepare, std::move(input), run, cachedFitReference(rig_record, blobs, caches, fit_read));
   if (!out) return out.error();
   return std::move(out->output);
 }
@@ -399,7 +415,7 @@ core::Result<core::JobOutput> runJob(const JobRecord& job, const RigRecord* rig,
   switch (job.kind) {
     case api::JobKind::kTransfer:
       if (rig == nullptr) break;
-      return runTransferJob(files, *rig, blobs, caches.rigs, std::move(run));
+      return runTransferJob(files, *rig, blobs, caches, std::move(run));
     case api::JobKind::kRetarget: return runRetargetJob(files, caches.distances, std::move(run));
     case api::JobKind::kFit:
       if (rig == nullptr) break;

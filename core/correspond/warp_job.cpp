@@ -138,7 +138,26 @@ Result<PreparedSource> prepareSource(Mesh mesh, LandmarkSet landmarks, const std
 }
 
 
-Result<WarpResult> runWarp(const PreparedSource& source, PreparedTarget target_prepared, const WarpOptions& options) {
+namespace {
+
+// The source as a fit placed it on the target (correspondThroughFit): each
+// dense-map landmark centre moves with its vertex.
+SurfaceWarp fittedSurface(const PreparedSource& source, const Eigen::MatrixX3d& fitted) {
+  SurfaceWarp surface;
+  surface.positions = fitted;
+  surface.normals = computeVertexNormals(fitted, source.mesh.triangles);
+  surface.landmark_targets = source.landmark_positions;
+  for (Eigen::Index l = 0; l < surface.landmark_targets.rows(); ++l) {
+    const int v = source.landmark_vertices[static_cast<std::size_t>(l)];
+    surface.landmark_targets.row(l) += fitted.row(v) - source.mesh.positions.row(v);
+  }
+  return surface;
+}
+
+// runWarp, or with `fitted` (correspondThroughFit) the fit in place of the
+// dense refinement and local rounds.
+Result<WarpResult> correspond(const PreparedSource& source, PreparedTarget target_prepared, const WarpOptions& options,
+                              const Eigen::MatrixX3d* fitted) {
   const auto t_start = Clock::now();
   if (!source.guide_index) {
     return makeError(ErrorCode::kInvalidArgument, "the source was not prepared (prepareSource) before the warp");
@@ -169,8 +188,14 @@ Result<WarpResult> runWarp(const PreparedSource& source, PreparedTarget target_p
   const Mesh& matched = prepared->matched();
   OpeningMatch openings = matchOpenings(source, fit->warp, target, *prepared, options, report);
   addRimPointsToWarp(source, openings, matched, target_label, options, *fit, report);
-  SurfaceWarp surface = warpSurface(source, *fit, openings, *prepared, matched, projection, options, report);
-  runLocalRounds(source, openings, *prepared, matched, projection, options, surface, report);
+  SurfaceWarp surface;
+  if (fitted) {
+    surface = fittedSurface(source, *fitted);
+    report.guide_from = "fit";
+  } else {
+    surface = warpSurface(source, *fit, openings, *prepared, matched, projection, options, report);
+    runLocalRounds(source, openings, *prepared, matched, projection, options, surface, report);
+  }
   ProjectedGuide projected = projectGuide(source, surface, openings, *prepared, projection, options, report);
   result.dense_map = fitDenseMap(source, surface, projected.guide);
   LocatedTarget located = locateTarget(source, target, surface, projected.guide, openings, *prepared, options, report);
@@ -186,6 +211,21 @@ Result<WarpResult> runWarp(const PreparedSource& source, PreparedTarget target_p
   result.target = std::move(static_cast<PreparedTarget&>(*prepared));
   report.total_ms = target_prepare_ms + msSince(t_start);
   return result;
+}
+
+}  // namespace
+
+Result<WarpResult> runWarp(const PreparedSource& source, PreparedTarget target, const WarpOptions& options) {
+  return correspond(source, std::move(target), options, nullptr);
+}
+
+Result<WarpResult> correspondThroughFit(const PreparedSource& source, PreparedTarget target,
+                                        const Eigen::MatrixX3d& fitted_source, const WarpOptions& options) {
+  if (fitted_source.rows() != source.mesh.vertexCount()) {
+    return makeError(ErrorCode::kInvalidArgument, target.label + ": the fit has " + std::to_string(fitted_source.rows()) +
+                                                      " vertices, the source " + std::to_string(source.mesh.vertexCount()));
+  }
+  return correspond(source, std::move(target), options, &fitted_source);
 }
 
 Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, const LandmarkSet& target_landmarks,

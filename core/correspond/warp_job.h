@@ -182,6 +182,7 @@ struct WarpReport {
   int detached_vertices = 0;          // their vertices (low-confidence, mismatched)
   int matched_rims = 0;               // source rims matched to a target rim (matchRims)
   int rims_in_warp = 0;               // of those, rims whose paired points joined the landmark warp
+  std::string guide_from = "warp";    // what placed the source on the target: "warp", or "fit" (correspondThroughFit)
   int refine_iterations = 0;
   int target_pulls = 0;               // target vertices that pulled the warped source in the local rounds
   int rim_located_vertices = 0;       // target rim vertices located on a source rim (WarpOptions::rim_location)
@@ -241,5 +242,15 @@ Result<WarpResult> runWarp(const PreparedSource& source, PreparedTarget target, 
 // The same, preparing the target first.
 Result<WarpResult> runWarp(const PreparedSource& source, const Mesh& target, const LandmarkSet& target_landmarks,
                            const std::string& target_label, const WarpOptions& options = {});
+
+// The correspondence through a fit of the source onto the target (core/fit;
+// the transfer's `"correspondence": "fit"`): `fitted_source` is every source
+// vertex fitted onto the target (#Vs by 3, target frame). The landmark warp
+// still pairs the landmarks, turns the target and matches its rims and
+// openings; the fit takes the place of the dense refinement and the local
+// rounds: the guide is the fit projected onto the target, and the dense map
+// is fitted to it.
+Result<WarpResult> correspondThroughFit(const PreparedSource& source, PreparedTarget target,
+                                        const Eigen::MatrixX3d& fitted_source, const WarpOptions& options = {});
 
 }  // namespace core

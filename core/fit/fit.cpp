@@ -272,24 +272,43 @@ Result<NonRigidFit> fitWithoutLandmarks(const FitReference& reference, const Sca
   found.targets.resize(static_cast<Eigen::Index>(found.vertices.size()), 3);
   for (std::size_t i = 0; i < found.vertices.size(); ++i) {
     found.targets.row(static_cast<Eigen::Index>(i)) = first->positions.row(found.vertices[i]);
-    report.found_landmarks.push_back(
-        {surface.landmarks.landmarks[i].name, frame.toScan(first->positions.row(found.vertices[i]).transpose())});
   }
-  return fitNonRigid(reference, scan, frame, fitPrior(reference, scan, frame, found), {}, options);
+  auto second = fitNonRigid(reference, scan, frame, fitPrior(reference, scan, frame, found), {}, options);
+  if (!second) return second.error();
+  // Reported where the full fit puts them, on the scan itself (its closest
+  // surface point, a cloud's nearest point): usable as the scan's landmarks.
+  for (std::size_t i = 0; i < found.vertices.size(); ++i) {
+    const Eigen::Vector3d at = frame.toScan(second->positions.row(found.vertices[i]).transpose());
+    Eigen::Vector3d on_scan = at;
+    if (scan.isCloud()) {
+      on_scan = scan.mesh.positions.row(scan.point_index.nearest(at).index).transpose();
+    } else if (const SurfacePoint p = scan.surface_index.closestPoint(at); p.found()) {
+      on_scan = p.point;
+    }
+    report.found_landmarks.push_back({surface.landmarks.landmarks[i].name, on_scan});
+  }
+  return second;
 }
 
 }  // namespace
 
-Result<FitResult> fitScan(const FitReference& reference, const Mesh& scan_mesh, const LandmarkSet& scan_landmarks,
-                          const std::string& scan_label, const FitOptions& options) {
-  const auto started = Clock::now();
+namespace {
+
+// Everything of a fit but the rebuild: scan -> units -> align -> prior ->
+// non-rigid fit -> gate (its verdict in `report`).
+struct SurfaceFitRun {
+  FrameMap frame;
+  NonRigidFit fitted;
+  double unit_scale = 1.0;
+};
+
+Result<SurfaceFitRun> runSurfaceFit(const FitReference& reference, const Mesh& scan_mesh, const LandmarkSet& scan_landmarks,
+                                    const std::string& scan_label, const FitOptions& options, FitReport& report) {
   auto stage = [&](const char* name, double fraction) { return !options.on_stage || options.on_stage(name, fraction); };
   auto stopped = [&](const char* name) {
     return Error{ErrorCode::kCancelled, scan_label + ": fit stopped before stage '" + name + "'"};
   };
   if (options.schedule.empty()) return Error{ErrorCode::kInvalidArgument, "the fit's schedule has no stage"};
-  FitResult result;
-  FitReport& report = result.report;
 
   if (!stage("scan", 0.05)) return stopped("scan");
   auto t = Clock::now();
@@ -336,20 +355,51 @@ Result<FitResult> fitScan(const FitReference& reference, const Mesh& scan_mesh, 
   report.scan = scan->report;
   gateFit(reference, aligned->frame, *fitted, options, report);
   report.gate_ms = msSince(t);
+  return SurfaceFitRun{aligned->frame, std::move(*fitted), units->unit_scale};
+}
 
-  if (!stage("rebuild", 0.9)) return stopped("rebuild");
-  t = Clock::now();
-  auto rig = rebuildRig(reference, aligned->frame, fitted->positions, units->unit_scale, options, report);
+}  // namespace
+
+Result<FittedSurface> fitSurface(const FitReference& reference, const Mesh& scan, const LandmarkSet& scan_landmarks,
+                                 const std::string& scan_label, const FitOptions& options) {
+  const auto started = Clock::now();
+  FittedSurface out;
+  auto run = runSurfaceFit(reference, scan, scan_landmarks, scan_label, options, out.report);
+  if (!run) return run.error();
+  out.positions.resize(run->fitted.positions.rows(), 3);
+  for (Eigen::Index v = 0; v < out.positions.rows(); ++v) {
+    out.positions.row(v) = run->frame.toScan(run->fitted.positions.row(v).transpose()).transpose();
+  }
+  out.report.total_ms = msSince(started);
+  return out;
+}
+
+Result<FitResult> fitScan(const FitReference& reference, const Mesh& scan_mesh, const LandmarkSet& scan_landmarks,
+                          const std::string& scan_label, const FitOptions& options) {
+  const auto started = Clock::now();
+  auto stage = [&](const char* name, double fraction) { return !options.on_stage || options.on_stage(name, fraction); };
+  FitResult result;
+  FitReport& report = result.report;
+  auto run = runSurfaceFit(reference, scan_mesh, scan_landmarks, scan_label, options, report);
+  if (!run) return run.error();
+  const FrameMap& frame = run->frame;
+  const NonRigidFit& fitted = run->fitted;
+
+  if (!stage("rebuild", 0.9)) {
+    return Error{ErrorCode::kCancelled, scan_label + ": fit stopped before stage 'rebuild'"};
+  }
+  const auto t = Clock::now();
+  auto rig = rebuildRig(reference, frame, fitted.positions, run->unit_scale, options, report);
   if (!rig) return rig.error();
   result.rig = std::move(*rig);
   if (options.diagnostic_attributes) {
-    const Eigen::Index n = fitted->positions.rows();
+    const Eigen::Index n = fitted.positions.rows();
     Eigen::MatrixXd distance(n, 1), coverage(n, 1);
-    const double to_output = options.frame == FitFrame::kScan ? aligned->frame.reference_to_scan.scale : 1.0;
+    const double to_output = options.frame == FitFrame::kScan ? frame.reference_to_scan.scale : 1.0;
     for (Eigen::Index v = 0; v < n; ++v) {
-      const double d = fitted->distance[static_cast<std::size_t>(v)];
+      const double d = fitted.distance[static_cast<std::size_t>(v)];
       distance(v, 0) = d >= 0.0 ? d * to_output : -1.0;
-      coverage(v, 0) = fitted->covered[static_cast<std::size_t>(v)] ? 1.0 : 0.0;
+      coverage(v, 0) = fitted.covered[static_cast<std::size_t>(v)] ? 1.0 : 0.0;
     }
     result.rig.attributes.fields["FIT_DISTANCE"] = std::move(distance);
     result.rig.attributes.fields["FIT_COVERAGE"] = std::move(coverage);

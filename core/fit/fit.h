@@ -100,7 +100,7 @@ struct FitLandmarkResidual {
 
 struct FoundLandmark {
   std::string name;
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();  // on the scan, its frame and units
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  // on the scan (its closest point), its frame and units
 };
 
 struct FitReport {
@@ -131,6 +131,18 @@ struct FitResult {
   Rig rig;             // the reference rig rebuilt on the fitted mesh (reference topology and vertex order)
   FitReport report;
 };
+
+// The fitted surface alone (no rebuild): the reference's vertices on the scan,
+// in its frame and units, with the report up to the gate's verdict. The fit
+// as a correspondence: a transfer located on it (`"correspondence": "fit"`,
+// core/jobs/transfer_job.h).
+struct FittedSurface {
+  Eigen::MatrixX3d positions;  // #V reference vertices fitted, scan frame and units
+  FitReport report;            // rebuild counts and rebuild_ms stay 0
+};
+
+Result<FittedSurface> fitSurface(const FitReference& reference, const Mesh& scan, const LandmarkSet& scan_landmarks,
+                                 const std::string& scan_label, const FitOptions& options = {});
 
 // `scan_landmarks` may be empty (then the alignment searches). Errors are for
 // input that cannot be fitted at all (no points, NaN, unknown landmark names);

@@ -53,6 +53,7 @@ Json warpJson(const WarpReport& r, const DiagnosticsContext& context) {
   }
 
   Json& c = doc["correspondence"];
+  c["method"] = r.guide_from;
   c["mean_distance"] = r.mean_distance;
   c["p95_distance"] = r.p95_distance;
   c["max_distance"] = r.max_distance;
@@ -92,84 +93,11 @@ Json warpJson(const WarpReport& r, const DiagnosticsContext& context) {
   return doc;
 }
 
-}  // namespace
-
-std::string formatWarpDiagnostics(const WarpReport& r, const DiagnosticsContext& context) {
-  Json doc = warpJson(r, context);
-  Json& t = doc["timings_ms"];
-  t["prepare"] = r.prepare_ms;
-  t["warp"] = r.warp_ms;
-  t["correspond"] = r.correspond_ms;
-  for (const auto& [name, ms] : context.extra_timings_ms) t[name] = ms;
-  t["total"] = context.total_ms >= 0.0 ? context.total_ms : r.total_ms;
-  return dumpDocument(doc);
-}
-
-std::string formatTransferDiagnostics(const TransferReport& r, const DiagnosticsContext& context) {
-  Json doc = warpJson(r.warp, context);
-  doc["weights"] = {{"inpainted_vertices", r.inpainted_vertices},
-                    {"pruned_vertices", r.pruned_vertices},
-                    {"max_influences", r.max_influences}};
-  doc["shapes"] = {{"count", r.shapes}};
-  doc["joints"] = {{"count", r.joints}};
-  doc["animations"] = {{"count", r.animations}};
-  doc["transfer"] = {{"unlocated_vertices", r.unlocated_vertices},
-                     {"uv_seam_vertices", r.uv_seam_vertices},
-                     {"uv_extended_vertices", r.uv_extended_vertices},
-                     {"adaptation", r.adaptation},
-                     {"adaptation_reason", r.adaptation_reason},
-                     {"global_scale", r.global_scale},
-                     {"global_rotation_deg", r.global_rotation_deg},
-                     {"rotation_threshold_deg", r.rotation_threshold_deg},
-                     {"rotation_applied", r.rotation_applied},
-                     {"scale_applied", r.scale_applied},
-                     {"delta_scale", r.delta_scale},
-                     {"stretch_ratio", r.stretch_ratio},
-                     {"stretch_threshold", r.stretch_threshold},
-                     {"stretch_applied", r.stretch_applied},
-                     {"warnings", r.warnings}};
-  Json& q = doc["quality"];
-  q["clean"] = r.quality.clean();
-  q["shape_outliers"] = r.quality.shape_outliers;
-  q["shapes"] = Json::array();
-  for (const ShapeOutliers& s : r.quality.shapes) {
-    q["shapes"].push_back({{"shape", s.shape}, {"vertices", s.vertices}, {"worst", s.worst}});
-  }
-  q["crossed_vertices"] = r.quality.crossed_vertices;
-  q["crossed_shapes"] = Json::array();
-  for (const ShapeOutliers& s : r.quality.crossed_shapes) {
-    q["crossed_shapes"].push_back({{"shape", s.shape}, {"vertices", s.vertices}, {"worst", s.worst}});
-  }
-  q["repaired_vertices"] = r.quality.repaired_vertices;
-  q["worst"] = Json::array();
-  for (const QualityVertex& w : r.quality.worst) {
-    q["worst"].push_back({{"vertex", w.vertex}, {"shape", w.shape}, {"score", w.score}});
-  }
-  Json& t = doc["timings_ms"];
-  t["prepare"] = r.prepare_ms;
-  t["warp"] = r.warp.warp_ms;
-  t["correspond"] = r.warp.correspond_ms;
-  t["dense_map"] = r.dense_map_ms;
-  t["weights"] = r.weights_ms;
-  t["joints"] = r.joints_ms;
-  t["shapes"] = r.shapes_ms;
-  t["animations"] = r.animations_ms;
-  t["attributes"] = r.attributes_ms;
-  t["quality"] = r.quality_ms;
-  for (const auto& [name, ms] : context.extra_timings_ms) t[name] = ms;
-  t["total"] = context.total_ms >= 0.0 ? context.total_ms : r.total_ms;
-  return dumpDocument(doc);
-}
-
-namespace {
-
 Json distanceJson(const DistanceStats& d) { return {{"median", d.median}, {"p95", d.p95}, {"max", d.max}}; }
 
 Json vectorJson(const Eigen::Vector3d& v) { return Json::array({v(0), v(1), v(2)}); }
 
-}  // namespace
-
-std::string formatFitDiagnostics(const FitReport& r, const DiagnosticsContext& context) {
+Json fitJson(const FitReport& r, const DiagnosticsContext& context) {
   Json doc;
   doc["verdict"] = r.verdict;
   doc["reasons"] = r.reasons;
@@ -226,6 +154,82 @@ std::string formatFitDiagnostics(const FitReport& r, const DiagnosticsContext& c
   doc["coverage"] = {{"face", r.face_coverage}, {"skin", r.skin_coverage}, {"uncovered_vertices", r.uncovered_vertices}};
   doc["folds"] = {{"flipped", r.flipped_triangles}, {"collapsed", r.collapsed_triangles}};
   doc["rebuild"] = {{"shapes", r.shapes}, {"joints", r.joints}, {"animations", r.animations}};
+  return doc;
+}
+
+}  // namespace
+
+std::string formatWarpDiagnostics(const WarpReport& r, const DiagnosticsContext& context) {
+  Json doc = warpJson(r, context);
+  Json& t = doc["timings_ms"];
+  t["prepare"] = r.prepare_ms;
+  t["warp"] = r.warp_ms;
+  t["correspond"] = r.correspond_ms;
+  for (const auto& [name, ms] : context.extra_timings_ms) t[name] = ms;
+  t["total"] = context.total_ms >= 0.0 ? context.total_ms : r.total_ms;
+  return dumpDocument(doc);
+}
+
+std::string formatTransferDiagnostics(const TransferReport& r, const DiagnosticsContext& context) {
+  Json doc = warpJson(r.warp, context);
+  doc["weights"] = {{"inpainted_vertices", r.inpainted_vertices},
+                    {"pruned_vertices", r.pruned_vertices},
+                    {"max_influences", r.max_influences}};
+  doc["shapes"] = {{"count", r.shapes}};
+  doc["joints"] = {{"count", r.joints}};
+  doc["animations"] = {{"count", r.animations}};
+  doc["transfer"] = {{"unlocated_vertices", r.unlocated_vertices},
+                     {"uv_seam_vertices", r.uv_seam_vertices},
+                     {"uv_extended_vertices", r.uv_extended_vertices},
+                     {"adaptation", r.adaptation},
+                     {"adaptation_reason", r.adaptation_reason},
+                     {"global_scale", r.global_scale},
+                     {"global_rotation_deg", r.global_rotation_deg},
+                     {"rotation_threshold_deg", r.rotation_threshold_deg},
+                     {"rotation_applied", r.rotation_applied},
+                     {"scale_applied", r.scale_applied},
+                     {"delta_scale", r.delta_scale},
+                     {"stretch_ratio", r.stretch_ratio},
+                     {"stretch_threshold", r.stretch_threshold},
+                     {"stretch_applied", r.stretch_applied},
+                     {"warnings", r.warnings}};
+  doc["landmarks"]["found_by_fit"] = context.landmarks_found;
+  if (context.fit) doc["fit"] = fitJson(*context.fit, {});
+  Json& q = doc["quality"];
+  q["clean"] = r.quality.clean();
+  q["shape_outliers"] = r.quality.shape_outliers;
+  q["shapes"] = Json::array();
+  for (const ShapeOutliers& s : r.quality.shapes) {
+    q["shapes"].push_back({{"shape", s.shape}, {"vertices", s.vertices}, {"worst", s.worst}});
+  }
+  q["crossed_vertices"] = r.quality.crossed_vertices;
+  q["crossed_shapes"] = Json::array();
+  for (const ShapeOutliers& s : r.quality.crossed_shapes) {
+    q["crossed_shapes"].push_back({{"shape", s.shape}, {"vertices", s.vertices}, {"worst", s.worst}});
+  }
+  q["repaired_vertices"] = r.quality.repaired_vertices;
+  q["worst"] = Json::array();
+  for (const QualityVertex& w : r.quality.worst) {
+    q["worst"].push_back({{"vertex", w.vertex}, {"shape", w.shape}, {"score", w.score}});
+  }
+  Json& t = doc["timings_ms"];
+  t["prepare"] = r.prepare_ms;
+  t["warp"] = r.warp.warp_ms;
+  t["correspond"] = r.warp.correspond_ms;
+  t["dense_map"] = r.dense_map_ms;
+  t["weights"] = r.weights_ms;
+  t["joints"] = r.joints_ms;
+  t["shapes"] = r.shapes_ms;
+  t["animations"] = r.animations_ms;
+  t["attributes"] = r.attributes_ms;
+  t["quality"] = r.quality_ms;
+  for (const auto& [name, ms] : context.extra_timings_ms) t[name] = ms;
+  t["total"] = context.total_ms >= 0.0 ? context.total_ms : r.total_ms;
+  return dumpDocument(doc);
+}
+
+std::string formatFitDiagnostics(const FitReport& r, const DiagnosticsContext& context) {
+  Json doc = fitJson(r, context);
   doc["cache"] = {{"hit", context.cache_hit}};
   Json& t = doc["timings_ms"];
   t["scan"] = r.scan_ms;

@@ -19,6 +19,10 @@ struct DiagnosticsContext {
   std::map<std::string, double> extra_timings_ms;  // e.g. "read", "write" measured by the caller
   double total_ms = -1.0;                          // overrides report.total_ms when >= 0
   bool cache_hit = false;                          // the prepared source came from a cache
+  // A transfer's fit of the rig onto the target (correspondence "fit", or to
+  // find its landmarks): reported under "fit" as formatFitDiagnostics has it.
+  const FitReport* fit = nullptr;
+  bool landmarks_found = false;                    // the target's landmarks were found by that fit
 };
 
 // Pretty-printed JSON (2-space indent), keys in a fixed order.

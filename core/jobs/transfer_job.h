@@ -4,11 +4,13 @@
 
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "core/io/landmarks.h"
 #include "core/io/mesh_io.h"
+#include "core/jobs/fit_job.h"
 #include "core/jobs/job.h"
 #include "core/jobs/transfer_options.h"
 #include "core/transfer/transfer.h"
@@ -26,7 +28,7 @@ using PrepareRigSource = std::function<Result<PreparedRigSource>()>;
 
 struct TransferJobInput {
   LoadedMesh target;
-  LandmarkSet target_landmarks;
+  LandmarkSet target_landmarks;        // empty: found by a fit of the rig's face (landmark-free alignment)
   std::string target_label;            // the target's file name, in messages and diagnostics
   TransferSettings settings;
   std::vector<std::string> warnings;   // the caller's, reported with the transfer's
@@ -35,9 +37,15 @@ struct TransferJobInput {
 struct TransferJobOutput {
   JobOutput output;
   TransferReport report;
+  std::optional<FitReport> fit;        // when the job fitted the rig onto the target
 };
 
-// `prepare` is called once, timed as the "prepare" stage.
-Result<TransferJobOutput> runTransferJob(const PrepareRigSource& prepare, TransferJobInput input, const JobRun& run);
+// `prepare` is called once, timed as the "prepare" stage. The job fits the
+// rig's face onto the target (core/fit, stage "fit") for the correspondence
+// "fit" and to find the landmarks of a target that has none; `prepare_fit`
+// gives the fit reference then (from a cache), or when empty it is prepared
+// here from the rig.
+Result<TransferJobOutput> runTransferJob(const PrepareRigSource& prepare, TransferJobInput input, const JobRun& run,
+                                         const PrepareFitSource& prepare_fit = {});
 
 }  // namespace core

@@ -54,6 +54,10 @@ const std::map<std::string, bool TransferOptions::*> kTransferSwitches = {
 
 }  // namespace
 
+const char* correspondenceMethodName(CorrespondenceMethod method) {
+  return method == CorrespondenceMethod::kFit ? "fit" : "warp";
+}
+
 Result<TransferSettings> parseTransferOptions(const std::string& text, const std::string& label) {
   auto parsed = parseJsonText(text, label);
   if (!parsed) return parsed.error();
@@ -105,6 +109,11 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
       else if (a == "similarity") t.adaptation = ShapeAdaptation::kSimilarity;
       else if (a == "local") t.adaptation = ShapeAdaptation::kLocal;
       else return makeError(ErrorCode::kInvalidArgument, where + " must be \"none\", \"rotation\", \"similarity\" or \"local\"");
+    } else if (key == "correspondence") {
+      const std::string m = value.is_string() ? value.get<std::string>() : "";
+      if (m == "warp") s.correspondence = CorrespondenceMethod::kWarp;
+      else if (m == "fit") s.correspondence = CorrespondenceMethod::kFit;
+      else return makeError(ErrorCode::kInvalidArgument, where + " must be \"warp\" or \"fit\"");
     } else if (key == "exaggeration") {
       auto x = number(value, where, -100.0, 100.0);
       if (!x) return x.error();
@@ -123,7 +132,7 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
       t.warp.refine_iterations = static_cast<int>(*x);
     } else {
       std::vector<std::string> known = {"components", "max_influences", "weight_encoding", "low_confidence_distance",
-                                        "low_confidence_angle_deg", "adaptation", "exaggeration", "shape_exaggeration",
+                                        "low_confidence_angle_deg", "adaptation", "correspondence", "exaggeration", "shape_exaggeration",
                                         "joint_exaggeration", "refine_iterations"};
       for (const auto& [name, member] : kWarpSwitches) known.push_back(name);
       for (const auto& [name, member] : kTransferSwitches) known.push_back(name);
@@ -150,6 +159,7 @@ std::string transferOptionsJson(const TransferSettings& settings) {
   doc["low_confidence_distance"] = t.warp.locate.low_confidence_distance;
   doc["low_confidence_angle_deg"] = t.warp.locate.low_confidence_angle_deg;
   doc["adaptation"] = shapeAdaptationName(t.adaptation);
+  doc["correspondence"] = correspondenceMethodName(settings.correspondence);
   doc["exaggeration"] = t.exaggeration;
   doc["shape_exaggeration"] = t.shape_exaggeration;
   doc["joint_exaggeration"] = t.joint_exaggeration;

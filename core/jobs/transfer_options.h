@@ -9,7 +9,7 @@
 //    "diagnostic_attributes": false, "refine_iterations": 2,
 //    "region_matching": true, "rim_matching": true, "slide_centres": true,
 //    "target_pulls": true, "smooth_guide": true, "side_matching": true,
-//    "strict": false, "repair_unsure": true}
+//    "strict": false, "repair_unsure": true, "correspondence": "warp"}
 // Unknown keys are errors (a typo must not be silently ignored). nlohmann is
 // used privately in the .cpp, as in core/jobs/diagnostics_json.cpp.
 #pragma once
@@ -22,9 +22,16 @@
 
 namespace core {
 
+// What locates the target's vertices on the source: the warp (the dense
+// refinement of `rigport warp`, default), or a fit of the source onto the
+// target as onto a scan (core/fit; docs/FIT.md, "The fit as a correspondence").
+enum class CorrespondenceMethod { kWarp, kFit };
+const char* correspondenceMethodName(CorrespondenceMethod method);  // "warp", "fit"
+
 struct TransferSettings {
   TransferOptions transfer;
   RigWriteOptions write;
+  CorrespondenceMethod correspondence = CorrespondenceMethod::kWarp;
 };
 
 // `label` names the source (file name, or "spec.options") in every message.

@@ -483,16 +483,22 @@ Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target
   return transferRig(source, std::move(*prepared), options);
 }
 
-Result<TransferResult> transferRig(const PreparedRig& source, PreparedTarget prepared_target,
-                                   const TransferOptions& options) {
-  const auto t_start = Clock::now();
-  const std::string target_label = prepared_target.label;
-  const Rig& src = source.rig;
-  if ((options.weights || options.joints) && !src.skin) {
+namespace {
+
+Status checkSourceSkin(const PreparedRig& source, const TransferOptions& options) {
+  if ((options.weights || options.joints) && !source.rig.skin) {
     return makeError(ErrorCode::kInvalidMesh, source.surface.label + ": the rig has no skin (nothing to transfer "
                                                                      "weights or joints from); turn weights/joints off");
   }
+  return Ok{};
+}
 
+// Every stage after the correspondence (`t_start`: when the transfer began).
+Result<TransferResult> transferThroughCorrespondence(const PreparedRig& source, WarpResult correspondence,
+                                                     const TransferOptions& options, Clock::time_point t_start) {
+  const WarpResult* warp = &correspondence;
+  const std::string& target_label = warp->target.label;
+  const Rig& src = source.rig;
   // Stage boundaries: where a caller may stop the job (cancellation, time limit).
   auto stopBefore = [&](std::string_view stage, double fraction) {
     return options.on_stage && !options.on_stage(stage, fraction);
@@ -500,15 +506,6 @@ Result<TransferResult> transferRig(const PreparedRig& source, PreparedTarget pre
   auto stopped = [&](std::string_view stage) {
     return makeError(ErrorCode::kCancelled, target_label + ": transfer stopped before stage '" + std::string(stage) + "'");
   };
-
-  // --- warp + correspond (+ the dense map)
-  if (stopBefore("warp", 0.0)) return stopped("warp");
-  WarpOptions warp_options = options.warp;
-  // The output is the target rigged, not the guide: project only what the
-  // transfer reads from it.
-  warp_options.full_guide = false;
-  auto warp = runWarp(source.surface, std::move(prepared_target), warp_options);
-  if (!warp) return warp.error();
   TransferResult result;
   TransferReport& report = result.report;
   report.warp = warp->report;
@@ -594,6 +591,29 @@ Result<TransferResult> transferRig(const PreparedRig& source, PreparedTarget pre
   report.attributes_ms = msSince(t0);
   report.total_ms = msSince(t_start);
   return result;
+}
+
+}  // namespace
+
+Result<TransferResult> transferRig(const PreparedRig& source, PreparedTarget prepared_target,
+                                   const TransferOptions& options) {
+  const auto t_start = Clock::now();
+  if (auto ok = checkSourceSkin(source, options); !ok) return ok.error();
+  if (options.on_stage && !options.on_stage("warp", 0.0)) {
+    return makeError(ErrorCode::kCancelled, prepared_target.label + ": transfer stopped before stage 'warp'");
+  }
+  WarpOptions warp_options = options.warp;
+  // The output is the target rigged, not the guide: project only what the
+  // transfer reads from it.
+  warp_options.full_guide = false;
+  auto warp = runWarp(source.surface, std::move(prepared_target), warp_options);
+  if (!warp) return warp.error();
+  return transferThroughCorrespondence(source, std::move(*warp), options, t_start);
+}
+
+Result<TransferResult> transferRig(const PreparedRig& source, WarpResult correspondence, const TransferOptions& options) {
+  if (auto ok = checkSourceSkin(source, options); !ok) return ok.error();
+  return transferThroughCorrespondence(source, std::move(correspondence), options, Clock::now());
 }
 
 }  // namespace core

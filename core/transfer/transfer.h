@@ -146,6 +146,9 @@ struct TransferResult {
 
 // The transfer to a target prepared for this job (prepareTarget).
 Result<TransferResult> transferRig(const PreparedRig& source, PreparedTarget target, const TransferOptions& options = {});
+// The transfer through a correspondence made by the caller (correspondThroughFit;
+// its WarpOptions as the transfer's, with full_guide off).
+Result<TransferResult> transferRig(const PreparedRig& source, WarpResult correspondence, const TransferOptions& options = {});
 // The same, preparing the target first.
 Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target, const LandmarkSet& target_landmarks,
                                    const std::string& target_label, const TransferOptions& options = {});

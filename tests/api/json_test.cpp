@@ -309,11 +309,12 @@ TEST(ApiTypes, JobStatusNamesRoundTripAndFinalStatesAreTheThreeEnds) {
   EXPECT_TRUE(api::isFinal(api::JobStatus::kCancelled));
 }
 
-TEST(ApiTypes, TransferKindNeedsRigTargetAndTargetLandmarks) {
+TEST(ApiTypes, TransferKindNeedsRigAndTargetItsLandmarksOptional) {
   const api::JobKindInfo& transfer = api::jobKindInfo(api::JobKind::kTransfer);
   EXPECT_EQ(transfer.kind, api::JobKind::kTransfer);
   EXPECT_TRUE(transfer.needs_rig);
-  EXPECT_EQ(transfer.required_files, (std::vector<std::string>{"target", "target_landmarks"}));
+  EXPECT_EQ(transfer.required_files, (std::vector<std::string>{"target"}));
+  EXPECT_EQ(transfer.optional_files, (std::vector<std::string>{"target_landmarks"}));
   EXPECT_EQ(api::parseJobKind("transfer"), api::JobKind::kTransfer);
   EXPECT_EQ(api::parseJobKind("nope"), std::nullopt);
 }

@@ -5,6 +5,9 @@
 // (landmark TPS, closest point, barycentric copy of raw deltas). Skips when
 // the data is absent.
 #include <algorithm>
+#include <array>
+#include <fstream>
+#include <memory>
 #include <cstdio>
 #include <map>
 #include <string_view>
@@ -19,6 +22,7 @@
 #include "core/rig/skinning.h"
 #include "core/solve/tps.h"
 #include "core/transfer/transfer.h"
+#include "core/jobs/transfer_job.h"
 #include "tests/data/scan_scoring.h"
 #include "tests/test_support.h"
 
@@ -229,6 +233,100 @@ INSTANTIATE_TEST_SUITE_P(Targets, IctTransfer,
                          ::testing::Values("id_s01", "id_s02", "id_s03", "stylized_s01_cartoon", "id_s01_remesh",
                                            "id_s02_remesh", "id_s03_remesh", "stylized_s01_cartoon_remesh",
                                            "sparse10_s01"));
+
+// The transfer job when it fits (core/jobs/transfer_job.h; docs/FIT.md, "The
+// fit as a correspondence"): through the fit's correspondence with the
+// targets' landmarks, and with the warp on landmarks the fit found (none
+// given). E and the worst vertex against the ground truth, beside the warp
+// with the given landmarks; each held at its measured level.
+struct FittingTransfer {
+  ShapeErrors e;
+  Spikes spikes;
+  bool clean = false;
+  double fit_ms = 0.0;
+};
+
+FittingTransfer transferThroughJob(const core::PreparedRig& source, const core::LoadedMesh& target,
+                                   const core::LandmarkSet& landmarks, const std::string& name,
+                                   core::CorrespondenceMethod method, const core::Rig& gt) {
+  const auto shared = std::shared_ptr<const core::PreparedRig>(&source, [](const core::PreparedRig*) {});
+  const core::PrepareRigSource prepare = [&]() -> core::Result<core::PreparedRigSource> {
+    return core::PreparedRigSource{shared, nullptr, true};
+  };
+  core::TransferJobInput input;
+  input.target = target;
+  input.target_landmarks = landmarks;
+  input.target_label = name;
+  input.settings.correspondence = method;
+  auto job = core::runTransferJob(prepare, std::move(input), core::JobRun{});
+  EXPECT_TRUE(job) << name << ": " << job.error().message;
+  FittingTransfer out;
+  if (!job) return out;
+  auto rig = core::readRigGltf(job->output.glb, name, true);
+  EXPECT_TRUE(rig) << name;
+  if (!rig) return out;
+  out.e = shapeErrors(rig->rig, gt);
+  out.spikes = shapeSpikes(rig->rig, gt);
+  out.clean = job->report.quality.clean();
+  out.fit_ms = job->output.timings_ms.at("fit");
+  const auto dir = rigport_test::makeTempDir("fitting_transfer");
+  std::ofstream(dir / "out.glb", std::ios::binary)
+      .write(reinterpret_cast<const char*>(job->output.glb.data()), static_cast<std::streamsize>(job->output.glb.size()));
+  EXPECT_GLTF_VALID(dir / "out.glb");
+  return out;
+}
+
+TEST(IctTransferFitting, ThroughTheFitAndWithLandmarksFoundByIt) {
+  RIGPORT_REQUIRE_SHARED_DATA(data);
+  const core::PreparedRig* source = ictRig(data);
+  ASSERT_NE(source, nullptr) << "ICT rig failed to load";
+  // Measured (docs/FIT.md): through the fit with the given landmarks; with
+  // the landmarks the fit found. The remeshed targets' 5-7-vertex eye holes
+  // leave their eye corners found 3-10 mm off and lid vertices torn: a known
+  // gap, held here at its measured level.
+  // {through the fit: median, worst; landmarks found: median, worst, torn vertices}
+  const std::map<std::string, std::array<double, 5>> measured = {
+      {"id_s01", {0.0320, 0.0773, 0.0592, 0.1015, 0}},
+      {"id_s02", {0.0399, 0.0836, 0.0660, 0.1536, 0}},
+      {"id_s03", {0.0390, 0.0781, 0.0600, 0.1357, 2}},
+      {"stylized_s01_cartoon", {0.1378, 0.2971, 0.1629, 0.2898, 0}},
+      {"id_s01_remesh", {0.0368, 0.1072, 0.0766, 0.4644, 12}},
+      {"id_s02_remesh", {0.0524, 0.1318, 0.0836, 0.4928, 20}},
+      {"id_s03_remesh", {0.0564, 0.1398, 0.0953, 0.5957, 36}},
+      {"stylized_s01_cartoon_remesh", {0.1606, 0.2959, 0.2212, 0.3593, 1}},
+      {"sparse10_s01", {0.0791, 0.1602, 0.0706, 0.3060, 2}}};
+  for (const auto& [name, levels] : measured) {
+    auto target = core::readMesh(data / "ict" / "targets" / (name + ".glb"));
+    auto landmarks = core::readLandmarks(data / "ict" / "targets" / (name + ".landmarks.json"));
+    auto gt = core::readRig(data / "ict" / "targets" / (name + ".gt.glb"));
+    ASSERT_TRUE(target && landmarks && gt) << name;
+    auto warp = core::transferRig(*source, target->mesh, *landmarks, name);
+    ASSERT_TRUE(warp) << warp.error().message;
+    const ShapeErrors w = shapeErrors(warp->rig, gt->rig);
+    const FittingTransfer fit =
+        transferThroughJob(*source, *target, *landmarks, name, core::CorrespondenceMethod::kFit, gt->rig);
+    const FittingTransfer found =
+        transferThroughJob(*source, *target, {}, name, core::CorrespondenceMethod::kWarp, gt->rig);
+    if (fit.e.empty()) continue;
+    std::printf("[ %-28s ] E median/worst: warp %.4f/%.4f | through the fit %.4f/%.4f spike %.3f torn %d (fit %.0f ms)"
+                " | landmarks found %s\n",
+                name.c_str(), w.median(), w.worst(), fit.e.median(), fit.e.worst(), fit.spikes.worst(), fit.spikes.torn,
+                fit.fit_ms,
+                found.e.empty() ? "(failed)"
+                                : (std::to_string(found.e.median()).substr(0, 6) + "/" +
+                                   std::to_string(found.e.worst()).substr(0, 6) + " spike " +
+                                   std::to_string(found.spikes.worst()).substr(0, 5) + " torn " +
+                                   std::to_string(found.spikes.torn)).c_str());
+    EXPECT_LE(fit.e.median(), levels[0] + 0.0005) << name;
+    EXPECT_LE(fit.e.worst(), levels[1] + 0.0005) << name;
+    EXPECT_EQ(fit.spikes.torn, 0) << name << ": " << fit.spikes.torn_shapes;
+    EXPECT_TRUE(fit.clean) << name;
+    ASSERT_FALSE(found.e.empty()) << name;
+    EXPECT_LE(found.e.median(), levels[2] + 0.0005) << name;
+    EXPECT_LE(found.e.worst(), levels[3] + 0.0005) << name;
+    EXPECT_LE(found.spikes.torn, static_cast<int>(levels[4])) << name << ": " << found.spikes.torn_shapes;
+  }
+}
 
 // Identities the data does not hold, made from the ones it does. ICT
 // identities are neutral + sum_m c_m (identity_m - neutral) with c ~ N(0, 1)

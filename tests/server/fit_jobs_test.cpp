@@ -349,6 +349,118 @@ TEST(FitJobs, AFitWhoseGateFailsEndsFailedWithTheReason) {
   EXPECT_EQ(get(*client, "/v1/jobs/" + done["id"].get<std::string>() + "/result").status, 409);
 }
 
+// A transfer target for the reference of writeFitFiles: the scan's identity
+// (seed 3) as a mesh of its own triangulation (GLB, metres as the rig) with
+// its 68 landmarks; `true_landmarks` receives where they truly are.
+TransferFiles writeFitTransferFiles(const FitFiles& f, const std::filesystem::path& dir, Eigen::MatrixX3d& true_landmarks) {
+  core::HeadResolution res;
+  res.columns = 80;
+  res.rows = 70;
+  res.alternate_diagonals = true;
+  res.jitter = 0.2;
+  res.seed = 5;
+  const core::SyntheticHead head = core::generateHead(core::randomHeadShape(3, 0.15), res);
+  TransferFiles t{f.rig, f.landmarks, dir / "target.glb", dir / "target.landmarks.json"};
+  EXPECT_TRUE(core::writeMeshGlb(head.mesh, t.target).ok());
+  writeText(t.target_landmarks, core::formatLandmarks(head.landmarks));
+  auto at = core::resolveLandmarks(head.landmarks, head.mesh, "target");
+  EXPECT_TRUE(at.ok());
+  if (at) true_landmarks = *at;
+  return t;
+}
+
+// `rigport transfer` in-process on `t` (without --target-landmarks when its
+// path is empty), writing out.glb and out.json in `dir`.
+CliRun runCliTransferTo(const TransferFiles& t, const std::filesystem::path& dir, const std::string& flags = "") {
+  std::filesystem::remove(dir / "out.glb");
+  return runRigportCli("transfer --source " + quoted(t.rig) + " --source-landmarks " + quoted(t.landmarks) +
+                       " --target " + quoted(t.target) +
+                       (t.target_landmarks.empty() ? std::string() : " --target-landmarks " + quoted(t.target_landmarks)) +
+                       " -o " + quoted(dir / "out.glb") + " --diagnostics " + quoted(dir / "out.json") + " " + flags);
+}
+
+// Transfers that fit (docs/FIT.md, "The fit as a correspondence"): through
+// the fit's correspondence, and to a target without landmarks (found by the
+// fit, reported). The service's bytes are the CLI's; the fit reference is
+// cached for transfers as for fits.
+TEST(FitJobs, TransfersThroughTheFitAndWithoutTargetLandmarksGiveTheCliBytes) {
+  const auto dir = makeTempDir("fit_transfer");
+  const FitFiles f = writeFitFiles(dir);
+  Eigen::MatrixX3d truth;
+  const TransferFiles given = writeFitTransferFiles(f, dir, truth);
+  TransferFiles found = given;
+  found.target_landmarks.clear();
+  writeText(dir / "fit.json", R"({"correspondence": "fit"})");
+
+  const CliRun through_fit = runCliTransferTo(given, dir, "--options " + quoted(dir / "fit.json"));
+  ASSERT_EQ(through_fit.exit_code, 0) << through_fit.log;
+  const std::string fit_bytes = fileText(dir / "out.glb");
+  EXPECT_GLTF_VALID(dir / "out.glb");
+  const auto fit_d = nlohmann::json::parse(fileText(dir / "out.json"), nullptr, false);
+  EXPECT_EQ(fit_d["correspondence"]["method"], "fit") << fit_d.dump().substr(0, 400);
+  EXPECT_EQ(fit_d["fit"]["verdict"], "ok");
+  EXPECT_FALSE(fit_d["landmarks"]["found_by_fit"].get<bool>());
+  EXPECT_TRUE(fit_d["timings_ms"].contains("fit"));
+  EXPECT_EQ(fit_d["shapes"]["count"], 6);
+
+  const CliRun without = runCliTransferTo(found, dir);
+  ASSERT_EQ(without.exit_code, 0) << without.log;
+  const std::string found_bytes = fileText(dir / "out.glb");
+  EXPECT_GLTF_VALID(dir / "out.glb");
+  EXPECT_NE(without.log.find("the target had no landmarks: the 68 used were found by a fit"), std::string::npos)
+      << without.log;
+  const auto found_d = nlohmann::json::parse(fileText(dir / "out.json"), nullptr, false);
+  EXPECT_EQ(found_d["correspondence"]["method"], "warp");
+  EXPECT_TRUE(found_d["landmarks"]["found_by_fit"].get<bool>());
+  EXPECT_EQ(found_d["fit"]["alignment"]["method"], "search");
+  const nlohmann::json& placed = found_d["fit"]["landmarks"]["found"];
+  ASSERT_EQ(placed.size(), 68u);
+  // Where they were found against where they are (the generated head's own).
+  const double diagonal = found_d["mesh"]["bbox_diagonal"].get<double>();
+  std::vector<double> off;
+  for (std::size_t i = 0; i < placed.size(); ++i) {
+    const auto& p = placed[i]["position"];
+    off.push_back((Eigen::Vector3d(p[0], p[1], p[2]) - truth.row(static_cast<Eigen::Index>(i)).transpose()).norm() / diagonal);
+  }
+  std::sort(off.begin(), off.end());
+  std::printf("landmarks found by the fit: median %.4f, worst %.4f of the diagonal off the head's own\n",
+              off[off.size() / 2], off.back());
+  EXPECT_LE(off[off.size() / 2], 0.01);
+
+  InProcessService service(testConfig(dir / "data"));
+  auto client = service.client();
+  const Reply rig = uploadRig(*client, given);
+  ASSERT_EQ(rig.status, 201) << rig.raw;
+  const std::string rig_id = rig.body["id"];
+  const Reply job = submitTransfer(*client, rig_id, given, "", {{"correspondence", "fit"}});
+  ASSERT_EQ(job.status, 202) << job.raw;
+  const nlohmann::json done = waitForJob(*client, job.body["id"]);
+  ASSERT_EQ(done["status"], "succeeded") << done.dump();
+  EXPECT_GT(done["timings_ms"]["fit"].get<double>(), 0.0);
+  EXPECT_TRUE(get(*client, "/v1/jobs/" + done["id"].get<std::string>() + "/result").raw == fit_bytes)
+      << "the service's transfer through the fit differs from the CLI's";
+
+  const Reply no_landmarks = submitTransfer(*client, rig_id, found);
+  ASSERT_EQ(no_landmarks.status, 202) << no_landmarks.raw;
+  const nlohmann::json found_done = waitForJob(*client, no_landmarks.body["id"]);
+  ASSERT_EQ(found_done["status"], "succeeded") << found_done.dump();
+  EXPECT_EQ(found_done["files"].count("target_landmarks"), 0u) << found_done.dump();
+  const std::string found_id = found_done["id"];
+  EXPECT_TRUE(get(*client, "/v1/jobs/" + found_id + "/result").raw == found_bytes)
+      << "the service's transfer without target landmarks differs from the CLI's";
+  EXPECT_TRUE(get(*client, "/v1/jobs/" + found_id + "/diagnostics").body["landmarks"]["found_by_fit"].get<bool>());
+  // One fit reference for both jobs.
+  EXPECT_EQ(metricValue(*client, "rigport_cache_misses_total{cache=\"fit\"}"), 1.0);
+  EXPECT_EQ(metricValue(*client, "rigport_cache_hits_total{cache=\"fit\"}"), 1.0);
+
+  // `transfer --server` without target landmarks: the same bytes.
+  const CliRun remote = runCliTransferTo(found, dir, "--server http://127.0.0.1:" + std::to_string(service.port()));
+  ASSERT_EQ(remote.exit_code, 0) << remote.log;
+  EXPECT_TRUE(fileText(dir / "out.glb") == found_bytes) << "`transfer --server` without landmarks differs";
+  expectRefused(submitTransfer(*client, rig_id, given, "", {{"correspondence", "icp"}}), 400, "invalid-option",
+                "'correspondence' must be \"warp\" or \"fit\"");
+}
+
 // The served contract lists kind fit, its files and every fit option the
 // service stores (the normalised options of core/jobs/fit_options.h).
 TEST(FitJobs, TheContractDescribesFitJobs) {

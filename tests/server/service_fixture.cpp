@@ -159,8 +159,11 @@ Reply submitTransfer(httplib::Client& client, const std::string& rig_id, const T
   httplib::MultipartFormDataItems items = {
       {"spec", spec.dump(), "spec.json", "application/json"},
       {"target", readText(f.target), f.target.filename().string(), "model/gltf-binary"},
-      {"target_landmarks", readText(f.target_landmarks), f.target_landmarks.filename().string(), "application/json"},
   };
+  if (!f.target_landmarks.empty()) {
+    items.push_back({"target_landmarks", readText(f.target_landmarks), f.target_landmarks.filename().string(),
+                     "application/json"});
+  }
   httplib::Headers headers;
   if (!idempotency_key.empty()) headers.emplace("Idempotency-Key", idempotency_key);
   return toReply(client.Post("/v1/jobs", headers, items));

@@ -74,6 +74,7 @@ struct Reply {
 };
 
 Reply uploadRig(httplib::Client& client, const TransferFiles& files);
+// Without `files.target_landmarks` (empty) the job finds them by a fit.
 Reply submitTransfer(httplib::Client& client, const std::string& rig_id, const TransferFiles& files,
                      const std::string& idempotency_key = "", const nlohmann::json& options = nlohmann::json::object());
 Reply get(httplib::Client& client, const std::string& path);

@@ -52,3 +52,25 @@ TEST(TransferOptions, RimLocationCanBeSwitchedOff) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(TransferOptions, TheCorrespondenceIsTheWarpOrTheFit) {
+  auto defaults = core::parseTransferOptions("{}", "opts.json");
+  ASSERT_TRUE(defaults) << defaults.error().message;
+  EXPECT_EQ(defaults->correspondence, core::CorrespondenceMethod::kWarp);
+  auto fit = core::parseTransferOptions(R"({"correspondence": "fit"})", "opts.json");
+  ASSERT_TRUE(fit) << fit.error().message;
+  EXPECT_EQ(fit->correspondence, core::CorrespondenceMethod::kFit);
+  // Normalised, it reads back as it was given.
+  auto again = core::parseTransferOptions(core::transferOptionsJson(*fit), "normalised");
+  ASSERT_TRUE(again) << again.error().message;
+  EXPECT_EQ(again->correspondence, core::CorrespondenceMethod::kFit);
+  for (const char* bad : {R"({"correspondence": "icp"})", R"({"correspondence": 1})"}) {
+    auto refused = core::parseTransferOptions(bad, "opts.json");
+    ASSERT_FALSE(refused) << bad;
+    EXPECT_EQ(refused.error().message, "opts.json: 'correspondence' must be \"warp\" or \"fit\"");
+  }
+}
+
+}  // namespace
