@@ -256,7 +256,7 @@ int runFit(const FitArgs& args) {
                r.face_distance.p95, r.face_distance.max, r.scan.units, 100.0 * r.face_coverage, r.flipped_triangles,
                job->output.timings_ms.at("total"));
   for (const std::string& reason : r.reasons) spdlog::warn("{}", reason);
-  if (job->refused) return fail(*job->refused);
+  if (job->output.refused) return fail(*job->output.refused);
   if (auto ok = core::writeFileBytes(args.output, job->output.glb); !ok) return fail(ok.error());
   spdlog::info("wrote {}{}", args.output.string(), args.diagnostics.empty() ? "" : " and " + args.diagnostics.string());
   return 0;

@@ -143,6 +143,12 @@ struct JobOutputs {
   std::optional<std::string> diagnostics;
 };
 
+bool writeDiagnosticsFile(const std::filesystem::path& path, const std::string& diagnostics) {
+  std::ofstream file(path, std::ios::binary | std::ios::trunc);
+  file << diagnostics;
+  return static_cast<bool>(file.flush());
+}
+
 JobOutputs fetchOutputs(RemoteClient& client, const std::string& id, const std::filesystem::path& output,
                         const std::filesystem::path& diagnostics_file, bool print_diagnostics) {
   JobOutputs out;
@@ -160,10 +166,8 @@ JobOutputs fetchOutputs(RemoteClient& client, const std::string& id, const std::
     spdlog::warn("diagnostics: {}", describeProblem(diagnostics.error()));
     return out;
   }
-  if (!diagnostics_file.empty()) {
-    std::ofstream file(diagnostics_file, std::ios::binary | std::ios::trunc);
-    file << *diagnostics;
-    if (!file.flush()) return failed(failText(diagnostics_file.string() + ": cannot write"));
+  if (!diagnostics_file.empty() && !writeDiagnosticsFile(diagnostics_file, *diagnostics)) {
+    return failed(failText(diagnostics_file.string() + ": cannot write"));
   }
   if (print_diagnostics) std::fputs(diagnostics->c_str(), stdout);
   out.diagnostics = std::move(*diagnostics);
@@ -298,7 +302,15 @@ int runRemoteFit(const FitArgs& args, const Connection& connection) {
 
   auto job = waitWithProgress(client, id, 0.0);
   if (!job) return fail(job.error());
-  if (job->status != api::JobStatus::kSucceeded) return failJob(*job);
+  if (job->status != api::JobStatus::kSucceeded) {
+    // A fit its gate refused keeps its diagnostics, written as in-process.
+    if (!args.diagnostics.empty()) {
+      if (auto refused = client.fetchDiagnostics(id); refused && writeDiagnosticsFile(args.diagnostics, *refused)) {
+        spdlog::info("wrote {} (the refused fit's diagnostics)", args.diagnostics.string());
+      }
+    }
+    return failJob(*job);
+  }
 
   const JobOutputs fetched = fetchOutputs(client, id, args.output, args.diagnostics, args.print_diagnostics);
   if (fetched.exit_code != 0) return fetched.exit_code;

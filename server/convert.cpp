@@ -365,8 +365,7 @@ core::Result<core::JobOutput> runFitJob(const JobFiles& in, const RigRecord& rig
   const core::PrepareFitSource prepare = cachedFitReference(rig_record, blobs, caches, source_read);
   auto out = core::runFitJob(prepare, std::move(input), run);
   if (!out) return out.error();
-  if (out->refused) return *out->refused;
-  return std::move(out->output);
+  return std::move(out->output);  // a refused fit keeps its diagnostics (JobManager stores them)
 }
 
 core::Result<core::JobOutput> runTransferJob(const JobFiles& in, const RigRecord& rig_record, const BlobStore& blobs,

@@ -286,8 +286,9 @@ JobManager::Retry JobManager::runOne(const std::string& tenant, const std::strin
   if (run.outcome) {
     const core::JobOutput* out = &*run.outcome;
     // Results are durable before the row points at them: a crash in between
-    // leaves the job running (requeued), never half-written.
-    auto result_blob = blobs_.put(out->glb);
+    // leaves the job running (requeued), never half-written. A refused output
+    // (a fit its gate failed) has diagnostics and no result.
+    auto result_blob = out->refused ? core::Result<std::string>(std::string()) : blobs_.put(out->glb);
     auto diagnostics_blob = blobs_.put(std::span(reinterpret_cast<const std::uint8_t*>(out->diagnostics.data()),
                                                  out->diagnostics.size()));
     if (!result_blob || !diagnostics_blob) {
@@ -300,6 +301,7 @@ JobManager::Retry JobManager::runOne(const std::string& tenant, const std::strin
     job->diagnostics_blob = *diagnostics_blob;
     job->cache_hit = out->cache_hit;
     job->timings_json = nlohmann::json(out->timings_ms).dump();
+    if (out->refused) recordFailure(*job, *out->refused, run);
   }
   if (!run.outcome) {
     const core::Error* error = &run.outcome.error();

@@ -444,10 +444,13 @@ void getJobBlob(const Request& req, Response& res, RouteContext& ctx, bool diagn
   std::shared_lock collection(ctx.blob_collection);  // a concurrent DELETE of this job waits for the read
   auto job = ctx.store.getJob(*tenant, id);
   if (!job) return sendProblem(res, api::makeProblem(api::WireError::kNotFound, "no job " + id, req.path), ctx);
-  if (job->status != api::JobStatus::kSucceeded) {
+  // A failed fit its gate refused keeps its diagnostics (why it failed, in full).
+  const bool served = job->status == api::JobStatus::kSucceeded || (diagnostics && !job->diagnostics_blob.empty());
+  if (!served) {
     return sendProblem(res, api::makeProblem(api::WireError::kConflict,
                                              "job " + id + " is " + api::jobStatusName(job->status) +
-                                                 (diagnostics ? "; diagnostics exist once it has succeeded (a failed job carries its error)"
+                                                 (diagnostics ? "; diagnostics exist once it has succeeded, or failed its "
+                                                                "quality gate (other failures carry their error)"
                                                               : "; the result exists once it has succeeded"),
                                              req.path), ctx);
   }

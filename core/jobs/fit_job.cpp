@@ -31,7 +31,7 @@ Result<FitJobOutput> runFitJob(const PrepareFitSource& prepare, FitJobInput inpu
   if (refused) {
     std::string reasons;
     for (const std::string& reason : r.reasons) reasons += (reasons.empty() ? "" : "; ") + reason;
-    out.refused = Error{ErrorCode::kQualityGate, input.scan_label + ": the fit " +
+    out.output.refused = Error{ErrorCode::kQualityGate, input.scan_label + ": the fit " +
                                                      (r.verdict == "fail" ? "failed its quality gate"
                                                                           : "drew warnings from its quality gate (strict)") +
                                                      ": " + reasons};

@@ -34,11 +34,10 @@ struct FitJobInput {
 };
 
 struct FitJobOutput {
-  JobOutput output;                    // glb empty when the gate refused the fit
+  // glb empty and `refused` set when the gate refused the fit (verdict fail,
+  // or warn with strict); the diagnostics are written all the same.
+  JobOutput output;
   FitReport report;
-  // The gate's refusal (verdict fail, or warn with strict): ErrorCode::kQualityGate
-  // naming the reasons. The diagnostics are written all the same.
-  std::optional<Error> refused;
 };
 
 // `prepare` is called once, timed as the "prepare" stage.

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -36,6 +37,9 @@ struct JobOutput {
   std::string diagnostics;                   // JSON (docs/DIAGNOSTICS.md)
   std::map<std::string, double> timings_ms;  // per stage and "total", as the service reports them
   bool cache_hit = false;                    // the source-only work came from a cache
+  // The job ran but its output failed its gate (a fit's verdict): no GLB, the
+  // diagnostics kept all the same, this error (ErrorCode::kQualityGate) naming why.
+  std::optional<Error> refused;
 };
 
 }  // namespace core

@@ -238,6 +238,9 @@ TEST(FitJobs, CliWithServerWritesTheInProcessResult) {
   EXPECT_EQ(strict.exit_code, 1) << strict.log;
   EXPECT_NE(strict.log.find("quality gate (strict): the head is 1."), std::string::npos) << strict.log;
   EXPECT_FALSE(std::filesystem::exists(dir / "out.glb"));
+  // The refused fit's diagnostics are written, as in-process.
+  const auto refused = nlohmann::json::parse(fileText(dir / "out.json"), nullptr, false);
+  EXPECT_EQ(refused.value("verdict", ""), "warn") << strict.log;
   const CliRun strict_local = runCliFit(big, dir, "--strict");
   EXPECT_EQ(strict_local.exit_code, 1) << strict_local.log;
   EXPECT_FALSE(std::filesystem::exists(dir / "out.glb"));
@@ -317,7 +320,7 @@ TEST(FitJobs, CancellingARunningFitStopsIt) {
 }
 
 // A sphere is no head: the search finds no pose, the gate fails the fit, and
-// the job ends failed with the gate's reason (no result).
+// the job ends failed with the gate's reason (no result; its diagnostics kept).
 TEST(FitJobs, AFitWhoseGateFailsEndsFailedWithTheReason) {
   const auto dir = makeTempDir("fit_gate");
   const FitFiles files = writeFitFiles(dir);
@@ -347,6 +350,13 @@ TEST(FitJobs, AFitWhoseGateFailsEndsFailedWithTheReason) {
   EXPECT_NE(detail.find("ball.obj: the fit failed its quality gate: the alignment found no head"), std::string::npos)
       << detail;
   EXPECT_EQ(get(*client, "/v1/jobs/" + done["id"].get<std::string>() + "/result").status, 409);
+  // Why, in full: the refused fit's diagnostics are kept.
+  const Reply diagnostics = get(*client, "/v1/jobs/" + done["id"].get<std::string>() + "/diagnostics");
+  ASSERT_EQ(diagnostics.status, 200) << diagnostics.raw;
+  EXPECT_EQ(diagnostics.body.value("verdict", ""), "fail");
+  ASSERT_FALSE(diagnostics.body["reasons"].empty());
+  EXPECT_NE(diagnostics.body["reasons"][0].get<std::string>().find("the alignment found no head"), std::string::npos)
+      << diagnostics.raw.substr(0, 400);
 }
 
 // A transfer target for the reference of writeFitFiles: the scan's identity
