@@ -25,6 +25,10 @@ constexpr std::size_t kFirstPassStages = 3;
 // The expressive face: within this fraction of the diagonal (3 cm on a
 // head) of a landmark that is not on the jaw line.
 constexpr double kExpressiveRadius = 0.063;
+// Vertices this close to a rim (1 cm on a head) are matched to the closest
+// scan point in every stage (FitOptions::normal_matching): the lips' and
+// lids' normals turn within millimetres.
+constexpr double kNearRimRadius = 0.02;
 
 // Marks with `stamp` the vertices within `rings` edges of v (v included).
 void markRingsAround(const VertexAdjacency& adjacency, int v, int rings, std::vector<int>& mark, int stamp) {
@@ -109,7 +113,7 @@ std::size_t FitReference::memoryBytes() const {
   std::size_t rim_bytes = 0;
   for (const auto& r : rims) rim_bytes += r.size() * sizeof(int);
   return rim_bytes + sparse(laplacian) + sparse(rim_laplacian) + sparse(binding_laplacian) + lip_pairs.size() * 8 +
-         expressive.size() + on_skin.size() + representative.size() * 4 + search.memoryBytes();
+         expressive.size() + on_skin.size() + near_rims.size() + representative.size() * 4 + search.memoryBytes();
 }
 
 Result<FitReference> prepareFitReference(std::shared_ptr<const PreparedRig> rig) {
@@ -141,6 +145,20 @@ Result<FitReference> prepareFitReference(std::shared_ptr<const PreparedRig> rig)
   out.rim_laplacian = edgeLaplacian(n, rim_edges);
   out.lip_pairs = touchingPairs(mesh, out.representative, out.on_skin, surface.diagonal);
   out.binding_laplacian = edgeLaplacian(n, out.lip_pairs);
+  out.near_rims.assign(static_cast<std::size_t>(n), 0);
+  {
+    std::vector<int> rim_vertices;
+    for (const auto& rim : out.rims) rim_vertices.insert(rim_vertices.end(), rim.begin(), rim.end());
+    const double radius = kNearRimRadius * surface.diagonal;
+    for (Eigen::Index v = 0; v < n && !rim_vertices.empty(); ++v) {
+      for (const int u : rim_vertices) {
+        if ((mesh.positions.row(v) - mesh.positions.row(u)).squaredNorm() < radius * radius) {
+          out.near_rims[static_cast<std::size_t>(v)] = 1;
+          break;
+        }
+      }
+    }
+  }
   // The expressive face.
   std::vector<Eigen::Vector3d> inner;
   for (std::size_t l = 0; l < surface.landmarks.landmarks.size(); ++l) {

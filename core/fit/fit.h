@@ -34,6 +34,7 @@ struct FitReference {
   std::vector<std::vector<int>> rims;
   std::vector<char> expressive;            // #V: within 0.063 d (3 cm on a head) of a landmark not named jaw_*
   std::vector<char> on_skin;               // #V: on a triangle (an isolated vertex is carried, never fitted)
+  std::vector<char> near_rims;             // #V: within 0.02 d (1 cm on a head) of a rim vertex
   std::vector<int> representative;         // coincidentVertexRepresentatives of the reference
   double rms_radius = 0.0;                 // about the centroid, reference units
   SearchReference search;                  // what the landmark-free alignment needs (align.h)
@@ -68,6 +69,10 @@ struct FitOptions {
   double binding_weight = 10.0;        // lip pairs kept together
   double rim_stiffness = 10.0;         // membrane weight multiplier on the eye and mouth rims' own edges
   double rim_weight = 1.0;             // pull of the reference's rims onto the scan's matching rims (mesh scans)
+  // Stiff stages (point share 1) match each vertex to the scan point nearest
+  // in position and normal, the normals' difference weighed as this fraction
+  // of the diagonal (0: the closest point): features draw their like.
+  double normal_matching = 0.03;
   bool reject_borders = true;          // correspondences on the scan's borders and holes are rejected
   bool reject_spikes = true;           // ... and on its spikes
   int fold_repair_rounds = 2;          // triangles flipped after the schedule: their neighbourhood stiffened, refitted

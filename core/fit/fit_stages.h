@@ -31,6 +31,12 @@ struct FrameMatches {
   std::vector<ScanMatch> matches;  // point, normal and distance in reference units and frame
 };
 FrameMatches matchInReferenceFrame(const ScanSurface& scan, const FrameMap& frame, const Eigen::MatrixX3d& positions);
+// The same by position and normal (ScanSurface::nearestAlike; `normals` and
+// `normal_weight` in the reference frame and units), except for the vertices
+// `closest` marks, which take the closest point.
+FrameMatches matchAlikeInReferenceFrame(const ScanSurface& scan, const FrameMap& frame, const Eigen::MatrixX3d& positions,
+                                        const Eigen::MatrixX3d& normals, double normal_weight,
+                                        const std::vector<char>& closest);
 
 // Per reference rim (FitReference::rims) the scan rim it lies on at
 // positions `x` (reference frame), or -1: centroids within the rim's mean

@@ -44,8 +44,14 @@ IterationTerms dataTerms(const FitReference& reference, const ScanSurface& scan,
   const Eigen::Index n = x.rows();
   const Mesh& mesh = reference.rig->surface.mesh;
   const Eigen::MatrixX3d normals = computeSeamlessVertexNormals(x, mesh.triangles);
-  const FrameMatches found = matchInReferenceFrame(scan, frame, x);
   const double diagonal = reference.rig->surface.diagonal;
+  // Stages that drag whole regions (point share 1) match by position and
+  // normal, so that the scan's features place the surface along itself; near
+  // the rims, whose normals turn within millimetres, the closest point.
+  const FrameMatches found =
+      stage.point_share >= 1.0 && options.normal_matching > 0.0
+          ? matchAlikeInReferenceFrame(scan, frame, x, normals, options.normal_matching * diagonal, reference.near_rims)
+          : matchInReferenceFrame(scan, frame, x);
   const double tau = stage.max_distance * diagonal;
   const double cos_max = std::cos(stage.max_normal_angle_deg * std::numbers::pi / 180.0);
   const bool unsigned_normals = scan.report.normals_computed;
@@ -206,17 +212,54 @@ LandmarkTargets rimCorners(const FitReference& reference, const ScanSurface& sca
   return out;
 }
 
-FrameMatches matchInReferenceFrame(const ScanSurface& scan, const FrameMap& frame, const Eigen::MatrixX3d& positions) {
-  Eigen::MatrixX3d queries(positions.rows(), 3);
-  for (Eigen::Index v = 0; v < positions.rows(); ++v) queries.row(v) = frame.toScan(positions.row(v).transpose()).transpose();
-  FrameMatches out;
-  out.matches = scan.nearest(queries);
-  for (ScanMatch& m : out.matches) {
+namespace {
+
+// Scan matches of scan-frame queries brought into the reference frame.
+void toReferenceFrame(const FrameMap& frame, std::vector<ScanMatch>& matches) {
+  for (ScanMatch& m : matches) {
     if (!m.found) continue;
     m.point = frame.toReference(m.point);
     m.normal = frame.directionToReference(m.normal);
     m.distance /= frame.reference_to_scan.scale;
   }
+}
+
+}  // namespace
+
+FrameMatches matchInReferenceFrame(const ScanSurface& scan, const FrameMap& frame, const Eigen::MatrixX3d& positions) {
+  Eigen::MatrixX3d queries(positions.rows(), 3);
+  for (Eigen::Index v = 0; v < positions.rows(); ++v) queries.row(v) = frame.toScan(positions.row(v).transpose()).transpose();
+  FrameMatches out;
+  out.matches = scan.nearest(queries);
+  toReferenceFrame(frame, out.matches);
+  return out;
+}
+
+FrameMatches matchAlikeInReferenceFrame(const ScanSurface& scan, const FrameMap& frame, const Eigen::MatrixX3d& positions,
+                                        const Eigen::MatrixX3d& normals, double normal_weight,
+                                        const std::vector<char>& closest) {
+  std::vector<Eigen::Index> by_point, alike;
+  for (Eigen::Index v = 0; v < positions.rows(); ++v) (closest[static_cast<std::size_t>(v)] ? by_point : alike).push_back(v);
+  auto queriesOf = [&](const std::vector<Eigen::Index>& rows) {
+    Eigen::MatrixX3d q(static_cast<Eigen::Index>(rows.size()), 3);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      q.row(static_cast<Eigen::Index>(i)) = frame.toScan(positions.row(rows[i]).transpose()).transpose();
+    }
+    return q;
+  };
+  Eigen::MatrixX3d alike_normals(static_cast<Eigen::Index>(alike.size()), 3);
+  for (std::size_t i = 0; i < alike.size(); ++i) {
+    alike_normals.row(static_cast<Eigen::Index>(i)) = (frame.reference_to_scan.rotation * normals.row(alike[i]).transpose()).transpose();
+  }
+  std::vector<ScanMatch> nearest = scan.nearest(queriesOf(by_point));
+  std::vector<ScanMatch> alike_matches =
+      scan.nearestAlike(queriesOf(alike), alike_normals, normal_weight * frame.reference_to_scan.scale);
+  toReferenceFrame(frame, nearest);
+  toReferenceFrame(frame, alike_matches);
+  FrameMatches out;
+  out.matches.resize(static_cast<std::size_t>(positions.rows()));
+  for (std::size_t i = 0; i < by_point.size(); ++i) out.matches[static_cast<std::size_t>(by_point[i])] = nearest[i];
+  for (std::size_t i = 0; i < alike.size(); ++i) out.matches[static_cast<std::size_t>(alike[i])] = alike_matches[i];
   return out;
 }
 

@@ -57,13 +57,20 @@ struct ScanSurface {
   std::vector<std::vector<int>> rims;  // a mesh's closed open boundaries on the skin (crops, holes, eyes, mouth)
   double diagonal = 0.0;
   ClosestPointIndex surface_index; // a mesh: its skin faces (detached pieces skipped)
-  PointCloudIndex point_index;     // a cloud: its points
+  PointCloudIndex point_index;     // its points (a mesh's vertices)
   ScanReport report;
 
   bool isCloud() const { return mesh.triangleCount() == 0; }
   // The nearest scan surface point of each query row (mesh: on a face, with the
   // barycentric normal; cloud: the nearest point and its normal).
   std::vector<ScanMatch> nearest(const Eigen::MatrixX3d& queries) const;
+  // The scan point nearest each query in position and normal together: of
+  // its nearest points, the one with the least |p - q|^2 + w^2 |n_p - n_q|^2
+  // (w = normal_weight, scan units; a cloud's estimated normals unsigned).
+  // A surface feature (a brow ridge, a cheekbone) draws its like, where the
+  // closest point lets a smooth surface slide. Query normals unit length.
+  std::vector<ScanMatch> nearestAlike(const Eigen::MatrixX3d& queries, const Eigen::MatrixX3d& query_normals,
+                                      double normal_weight) const;
 };
 
 // What a fit needs of a scan, checked alone (a service answers at

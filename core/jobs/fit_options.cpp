@@ -30,7 +30,8 @@ struct Range {
 };
 const std::map<std::string, Range> kNumbers = {{"binding_weight", {&FitOptions::binding_weight, 0.0, 1e6}},
                                                {"rim_stiffness", {&FitOptions::rim_stiffness, 1.0, 1e4}},
-                                               {"rim_weight", {&FitOptions::rim_weight, 0.0, 1e4}}};
+                                               {"rim_weight", {&FitOptions::rim_weight, 0.0, 1e4}},
+                                               {"normal_matching", {&FitOptions::normal_matching, 0.0, 1.0}}};
 const std::map<std::string, bool TransferOptions::*> kComponents = {
     {"weights", &TransferOptions::weights}, {"joints", &TransferOptions::joints}, {"shapes", &TransferOptions::shapes},
     {"animations", &TransferOptions::animations}, {"attributes", &TransferOptions::attributes}};

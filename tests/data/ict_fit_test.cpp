@@ -289,11 +289,13 @@ const std::map<std::string, std::vector<KnownGap>> kKnownGaps = {
     // The identity's own 3.9 degree pitch against the reference cannot be told
     // from the head's pose: deltas turned by the pose the scan shows.
     {"scan_s01/landmarks", {{"shape_median", 0.075}}},
-    {"scan_s01/search", {{"face_median", 1.35}, {"face_p95", 3.4}, {"shape_median", 0.09}}},
-    {"scan_s02_cloud/landmarks", {{"skin_p95", 13.5}}},
-    {"scan_s02_cloud/search", {{"face_p95", 4.5}, {"skin_p95", 13.5}}},
-    {"scan_s03_obj/landmarks", {{"rims_median", 1.9}}},
-    {"scan_s03_obj/search", {{"face_median", 1.35}, {"face_p95", 4.3}, {"rims_median", 3.1}}},
+    {"scan_s01/search", {{"face_p95", 3.1}, {"shape_median", 0.09}}},
+    {"scan_s02_cloud/landmarks", {{"skin_p95", 11.5}}},
+    // Matching by normal too (FitOptions::normal_matching) took the face's
+    // p95 from 4.11 to 3.17 mm and its rims' median from 1.14 to 1.21.
+    {"scan_s02_cloud/search", {{"face_p95", 3.3}, {"skin_p95", 12.0}, {"rims_median", 1.25}}},
+    {"scan_s03_obj/landmarks", {{"rims_median", 1.75}}},
+    {"scan_s03_obj/search", {{"face_p95", 3.75}, {"rims_median", 3.0}}},
 };
 
 // Fits the reference to one scan (with its clicked landmarks or searching)

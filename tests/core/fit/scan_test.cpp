@@ -287,6 +287,32 @@ TEST(PrepareScan, RandomCloudOfAPlaneHasNoBordersInside) {
   EXPECT_LE(inner_flagged, inner / 100);
 }
 
+// A roof: the grid folded along x = 10, both halves rising 45 degrees to the
+// ridge. A query beside the ridge on the left slope carrying the right
+// slope's normal: the closest point is on the left slope, the point nearest
+// in position and normal across the ridge; without a normal weight the two
+// agree.
+TEST(PrepareScan, NearestAlikeDrawsAQueryToThePointOfItsNormal) {
+  core::Mesh roof = gridPlane(20);
+  for (Eigen::Index v = 0; v < roof.positions.rows(); ++v) roof.positions(v, 2) = 10.0 - std::abs(roof.positions(v, 0) - 10.0);
+  auto scan = core::prepareScan(roof, "roof.ply");
+  ASSERT_TRUE(scan) << scan.error().message;
+  Eigen::MatrixX3d query(1, 3), normal(1, 3);
+  query << 9.0, 10.0, 9.3;                            // 0.3 above the left slope (x = 9, z = 9), 1 left of the ridge
+  normal << std::sqrt(0.5), 0.0, std::sqrt(0.5);      // the right slope's normal (it falls towards +x)
+  const core::ScanMatch closest = scan->nearest(query)[0];
+  ASSERT_TRUE(closest.found);
+  EXPECT_LT(closest.point.x(), 10.0);
+  const core::ScanMatch alike = scan->nearestAlike(query, normal, 5.0)[0];
+  ASSERT_TRUE(alike.found);
+  EXPECT_GT(alike.point.x(), 10.0) << alike.point.transpose();
+  EXPECT_GT(alike.normal.dot(normal.row(0).transpose()), 0.9) << alike.normal.transpose();
+  const core::ScanMatch plain = scan->nearestAlike(query, normal, 0.0)[0];
+  ASSERT_TRUE(plain.found);
+  EXPECT_LT(plain.point.x(), 10.0);
+  EXPECT_NEAR(plain.distance, (plain.point - query.row(0).transpose()).norm(), 1e-12);
+}
+
 TEST(CheckScan, RefusesTooFewPointsNaNAndOnePosition) {
   core::Mesh ten;
   ten.positions = rigport_test::randomPoints(10, 3);

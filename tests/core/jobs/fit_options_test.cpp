@@ -85,6 +85,7 @@ TEST(FitOptions, ScheduleValuesOutOfRangeAreNamedByStageAndField) {
 TEST(FitOptions, OtherValuesOutOfRangeAreRefused) {
   expectRefused(R"({"binding_weight": -1})", "'binding_weight' must be a number in");
   expectRefused(R"({"rim_stiffness": 0.5})", "'rim_stiffness' must be a number in");
+  expectRefused(R"({"normal_matching": 2})", "'normal_matching' must be a number in");
   expectRefused(R"({"max_yaw_deg": 200})", "'max_yaw_deg'");
   expectRefused(R"({"max_influences": 9})", "'max_influences'");
   expectRefused(R"({"units": "furlong"})", "'units' must be");
@@ -104,7 +105,7 @@ TEST(FitOptions, JsonRoundTripGivesTheSameSettings) {
                   "landmark_weight": 120, "point_share": 0.75},
                  {"stiffness": 0.2, "iterations": 7, "max_distance": 0.005, "max_normal_angle_deg": 30,
                   "landmark_weight": 0.5, "point_share": 0}],
-    "binding_weight": 2.5, "rim_stiffness": 4, "reject_borders": false, "reject_spikes": false,
+    "binding_weight": 2.5, "rim_stiffness": 4, "normal_matching": 0.07, "reject_borders": false, "reject_spikes": false,
     "diagnostic_attributes": true, "strict": true,
     "components": {"weights": false, "joints": true, "shapes": false, "animations": true, "attributes": false}})";
   const core::FitSettings first = parsed(text);
@@ -122,6 +123,7 @@ TEST(FitOptions, JsonRoundTripGivesTheSameSettings) {
     EXPECT_EQ(s->write.max_influences, 6);
     EXPECT_EQ(f.rebuild.weight_options.max_influences, 6);
     EXPECT_EQ(f.search.max_yaw_deg, 40.5);
+    EXPECT_EQ(f.normal_matching, 0.07);
     EXPECT_EQ(f.search.max_tilt_deg, 12.25);
     ASSERT_EQ(f.schedule.size(), 2u);
     EXPECT_EQ(f.schedule[0].stiffness, 50.0);
