@@ -60,8 +60,9 @@ seed fuzz_trc "$GEN/clip.trc"
 echo '{"influences": 4, "adapt_deltas": "local", "exaggeration": 1.2, "correspondence": {"side_matching": true}}' > "$GEN/transfer.json"
 echo '{"method": "hybrid", "kernel": "gaussian", "tolerance": 0.05, "stiffness": {"nose": 3}}' > "$GEN/retarget.json"
 echo '{"nose": 2, "chin": 9}' > "$GEN/stiffness.json"
-echo '{"alignment": "search", "units": "mm", "frame": "scan", "schedule": [{"stiffness": 10, "iterations": 3, "max_distance": 0.05, "point_share": 1}], "components": {"shapes": false}, "strict": true}' > "$GEN/fit.json"
-for f in "$GEN"/transfer.json "$GEN"/retarget.json "$GEN"/stiffness.json "$GEN"/fit.json; do seed fuzz_options "$f"; done
+echo '{"correspondence": "fit", "max_influences": 4, "adaptation": "local", "strict": true}' > "$GEN/transfer_fit.json"
+echo '{"alignment": "search", "units": "mm", "frame": "scan", "normal_matching": 0.03, "schedule": [{"stiffness": 10, "iterations": 3, "max_distance": 0.05, "point_share": 1}], "components": {"shapes": false}, "strict": true}' > "$GEN/fit.json"
+for f in "$GEN"/transfer.json "$GEN"/transfer_fit.json "$GEN"/retarget.json "$GEN"/stiffness.json "$GEN"/fit.json; do seed fuzz_options "$f"; done
 echo '{"kind": "transfer", "rig": "'"$(printf '%064d' 0)"'", "options": {"influences": 4}}' > "$GEN/spec_transfer.json"
 echo '{"kind": "retarget", "options": {"method": "geodesic"}}' > "$GEN/spec_retarget.json"
 echo '{"kind": "fit", "rig": "'"$(printf '%064d' 0)"'", "options": {"alignment": "landmarks"}}' > "$GEN/spec_fit.json"

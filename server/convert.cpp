@@ -143,6 +143,7 @@ std::optional<api::Problem> checkJobInputs(api::JobSpec& spec,
       if (auto ok = core::validateSurfaceMesh(target->mesh, "target '" + target_name + "'"); !ok) {
         return problemFromCoreError(ok.error(), instance);
       }
+      if (auto ok = core::checkScan(target->mesh, target_name); !ok) return problemFromCoreError(ok.error(), instance);
       return std::nullopt;
     }
     auto landmarks = core::parseLandmarks(asText(files.at("target_landmarks").second), "target_landmarks");

@@ -142,7 +142,7 @@ namespace {
 
 // The source as a fit placed it on the target (correspondThroughFit): each
 // dense-map landmark centre moves with its vertex.
-SurfaceWarp fittedSurface(const PreparedSource& source, const Eigen::MatrixX3d& fitted) {
+SurfaceWarp surfaceFromFit(const PreparedSource& source, const Eigen::MatrixX3d& fitted) {
   SurfaceWarp surface;
   surface.positions = fitted;
   surface.normals = computeVertexNormals(fitted, source.mesh.triangles);
@@ -190,7 +190,7 @@ Result<WarpResult> correspond(const PreparedSource& source, PreparedTarget targe
   addRimPointsToWarp(source, openings, matched, target_label, options, *fit, report);
   SurfaceWarp surface;
   if (fitted) {
-    surface = fittedSurface(source, *fitted);
+    surface = surfaceFromFit(source, *fitted);
     report.guide_from = "fit";
   } else {
     surface = warpSurface(source, *fit, openings, *prepared, matched, projection, options, report);

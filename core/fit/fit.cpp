@@ -308,10 +308,6 @@ Result<NonRigidFit> fitWithoutLandmarks(const FitReference& reference, const Sca
   return second;
 }
 
-}  // namespace
-
-namespace {
-
 // Everything of a fit but the rebuild: scan -> units -> align -> prior ->
 // non-rigid fit -> gate (its verdict in `report`).
 struct SurfaceFitRun {

@@ -27,6 +27,16 @@ constexpr double kConvergedStep = 2e-4;
 // A fold repair stiffens the flipped triangles' vertices and this many rings around them.
 constexpr int kFoldRepairRings = 2;
 
+// Scan matches of scan-frame queries brought into the reference frame.
+void toReferenceFrame(const FrameMap& frame, std::vector<ScanMatch>& matches) {
+  for (ScanMatch& m : matches) {
+    if (!m.found) continue;
+    m.point = frame.toReference(m.point);
+    m.normal = frame.directionToReference(m.normal);
+    m.distance /= frame.reference_to_scan.scale;
+  }
+}
+
 struct IterationTerms {
   Eigen::VectorXd weight;       // #V data weight (0: rejected)
   Eigen::MatrixX3d target;      // #V data target (tangent-plane projection blended with the point)
@@ -211,20 +221,6 @@ LandmarkTargets rimCorners(const FitReference& reference, const ScanSurface& sca
   for (std::size_t i = 0; i < targets.size(); ++i) out.targets.row(static_cast<Eigen::Index>(i)) = targets[i].transpose();
   return out;
 }
-
-namespace {
-
-// Scan matches of scan-frame queries brought into the reference frame.
-void toReferenceFrame(const FrameMap& frame, std::vector<ScanMatch>& matches) {
-  for (ScanMatch& m : matches) {
-    if (!m.found) continue;
-    m.point = frame.toReference(m.point);
-    m.normal = frame.directionToReference(m.normal);
-    m.distance /= frame.reference_to_scan.scale;
-  }
-}
-
-}  // namespace
 
 FrameMatches matchInReferenceFrame(const ScanSurface& scan, const FrameMap& frame, const Eigen::MatrixX3d& positions) {
   Eigen::MatrixX3d queries(positions.rows(), 3);

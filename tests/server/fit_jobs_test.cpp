@@ -469,6 +469,17 @@ TEST(FitJobs, TransfersThroughTheFitAndWithoutTargetLandmarksGiveTheCliBytes) {
   EXPECT_TRUE(fileText(dir / "out.glb") == found_bytes) << "`transfer --server` without landmarks differs";
   expectRefused(submitTransfer(*client, rig_id, given, "", {{"correspondence", "icp"}}), 400, "invalid-option",
                 "'correspondence' must be \"warp\" or \"fit\"");
+  // Without landmarks the target is fitted as a scan: one too small to be a
+  // head is refused at submission, named.
+  core::Mesh tiny;
+  tiny.positions.resize(4, 3);
+  tiny.positions << 0, 0, 0, 0.1, 0, 0, 0, 0.1, 0, 0, 0, 0.1;
+  tiny.triangles.resize(4, 3);
+  tiny.triangles << 0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3;
+  TransferFiles small = found;
+  small.target = dir / "tiny.glb";
+  ASSERT_TRUE(core::writeMeshGlb(tiny, small.target).ok());
+  expectRefused(submitTransfer(*client, rig_id, small), 422, "invalid-mesh", "tiny.glb: 4 points; a head scan needs at least 100");
 }
 
 // The served contract lists kind fit, its files and every fit option the
