@@ -97,6 +97,15 @@ void gateFit(const FitReference& reference, const FrameMap& frame, const NonRigi
       warn("landmark " + l.name + formatted(" is %.3g scan units from the scan's (over %.3g)", l.fitted, 0.006 * d_scan));
     }
   }
+  // A mesh scan whose openings did not take all of the reference's rims
+  // (closed eyes, a coarse mesh's small holes): the lids or lips there follow
+  // the surface alone, and landmarks read off the fit there are unsure.
+  const int rims = static_cast<int>(reference.rims.size());
+  if (!report.scan.point_cloud && options.rim_weight > 0.0 && fit.matched_rims < rims) {
+    report.warnings.push_back(formatted("%d of the reference's %d mouth and eye rims found no opening of the scan to lie "
+                                        "on (closed, or much smaller there): the fit there follows the surface alone",
+                                        rims - fit.matched_rims, rims));
+  }
   for (const std::string& name : report.alignment.landmarks_dropped) {
     report.warnings.push_back("landmark " + name + " disagrees with the others and was left out of the alignment");
   }

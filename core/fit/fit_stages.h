@@ -76,6 +76,7 @@ struct NonRigidFit {
   std::vector<char> covered;       // #V: had an accepted scan correspondence in the last iteration
   std::vector<double> distance;    // #V: to that correspondence, reference units (-1: uncovered)
   std::vector<FitStageReport> stages;
+  int matched_rims = 0;            // reference rims lying on a scan rim at the end (matchScanRims)
   int fold_repairs = 0;            // rounds of fold repair run
   int repaired_vertices = 0;       // vertices stiffened by them
 };

@@ -386,6 +386,7 @@ Result<NonRigidFit> fitNonRigid(const FitReference& reference, const ScanSurface
   addRimTerms(reference, scan, frame, out.positions, options.schedule.back(), options, last);
   out.covered.assign(static_cast<std::size_t>(n), 0);
   out.distance = last.distance;
+  for (const int rim : matchScanRims(reference, scan, frame, out.positions)) out.matched_rims += rim >= 0 ? 1 : 0;
   for (Eigen::Index v = 0; v < n; ++v) out.covered[static_cast<std::size_t>(v)] = last.weight(v) > 0.0;
   return out;
 }

@@ -112,6 +112,9 @@ Result<TransferJobOutput> runTransferJob(const PrepareRigSource& prepare, Transf
                          " used were found by a fit of the rig's face (fit.landmarks.found); check them where the "
                          "eyes or mouth are closed");
   }
+  if (fitted) {
+    for (const std::string& warning : fitted->report.warnings) r.warnings.push_back("fit: " + warning);
+  }
 
   // --- assemble
   if (!run.stage("write", 0.92)) return run.stoppedBefore("write");
