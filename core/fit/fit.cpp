@@ -149,14 +149,13 @@ Result<FitReference> prepareFitReference(std::shared_ptr<const PreparedRig> rig)
   {
     std::vector<int> rim_vertices;
     for (const auto& rim : out.rims) rim_vertices.insert(rim_vertices.end(), rim.begin(), rim.end());
+    Eigen::MatrixX3d rim_points(static_cast<Eigen::Index>(rim_vertices.size()), 3);
+    for (std::size_t i = 0; i < rim_vertices.size(); ++i) rim_points.row(static_cast<Eigen::Index>(i)) = mesh.positions.row(rim_vertices[i]);
     const double radius = kNearRimRadius * surface.diagonal;
-    for (Eigen::Index v = 0; v < n && !rim_vertices.empty(); ++v) {
-      for (const int u : rim_vertices) {
-        if ((mesh.positions.row(v) - mesh.positions.row(u)).squaredNorm() < radius * radius) {
-          out.near_rims[static_cast<std::size_t>(v)] = 1;
-          break;
-        }
-      }
+    const std::vector<PointCloudIndex::Neighbour> nearest_rim = PointCloudIndex(rim_points).nearest(mesh.positions);
+    for (Eigen::Index v = 0; v < n; ++v) {
+      const PointCloudIndex::Neighbour& nb = nearest_rim[static_cast<std::size_t>(v)];
+      if (nb.index >= 0 && nb.sq_distance < radius * radius) out.near_rims[static_cast<std::size_t>(v)] = 1;
     }
   }
   // The expressive face.
@@ -295,15 +294,14 @@ Result<NonRigidFit> fitWithoutLandmarks(const FitReference& reference, const Sca
   if (!second) return second.error();
   // Reported where the full fit puts them, on the scan itself (its closest
   // surface point, a cloud's nearest point): usable as the scan's landmarks.
+  Eigen::MatrixX3d at(static_cast<Eigen::Index>(found.vertices.size()), 3);
   for (std::size_t i = 0; i < found.vertices.size(); ++i) {
-    const Eigen::Vector3d at = frame.toScan(second->positions.row(found.vertices[i]).transpose());
-    Eigen::Vector3d on_scan = at;
-    if (scan.isCloud()) {
-      on_scan = scan.mesh.positions.row(scan.point_index.nearest(at).index).transpose();
-    } else if (const SurfacePoint p = scan.surface_index.closestPoint(at); p.found()) {
-      on_scan = p.point;
-    }
-    report.found_landmarks.push_back({surface.landmarks.landmarks[i].name, on_scan});
+    at.row(static_cast<Eigen::Index>(i)) = frame.toScan(second->positions.row(found.vertices[i]).transpose()).transpose();
+  }
+  const std::vector<ScanMatch> on_scan = scan.nearest(at);
+  for (std::size_t i = 0; i < found.vertices.size(); ++i) {
+    const Eigen::Vector3d where = on_scan[i].found ? on_scan[i].point : Eigen::Vector3d(at.row(static_cast<Eigen::Index>(i)).transpose());
+    report.found_landmarks.push_back({surface.landmarks.landmarks[i].name, where});
   }
   return second;
 }

@@ -160,6 +160,16 @@ void prepareCloudScan(ScanSurface& scan) {
 
 }  // namespace
 
+ScanMatch ScanSurface::matchAtPoint(int index, const Eigen::Vector3d& query) const {
+  ScanMatch m;
+  m.found = true;
+  m.point = mesh.positions.row(index).transpose();
+  m.normal = normals.row(index).transpose();
+  m.distance = (m.point - query).norm();
+  m.flags = flags[static_cast<std::size_t>(index)];
+  return m;
+}
+
 std::vector<ScanMatch> ScanSurface::nearest(const Eigen::MatrixX3d& queries) const {
   std::vector<ScanMatch> out(static_cast<std::size_t>(queries.rows()));
   if (!isCloud()) {
@@ -189,13 +199,7 @@ std::vector<ScanMatch> ScanSurface::nearest(const Eigen::MatrixX3d& queries) con
   }
   const std::vector<PointCloudIndex::Neighbour> points = point_index.nearest(queries);
   for (std::size_t i = 0; i < out.size(); ++i) {
-    if (points[i].index < 0) continue;
-    ScanMatch& m = out[i];
-    m.found = true;
-    m.point = mesh.positions.row(points[i].index).transpose();
-    m.normal = normals.row(points[i].index).transpose();
-    m.distance = std::sqrt(points[i].sq_distance);
-    m.flags = flags[static_cast<std::size_t>(points[i].index)];
+    if (points[i].index >= 0) out[i] = matchAtPoint(points[i].index, queries.row(static_cast<Eigen::Index>(i)).transpose());
   }
   return out;
 }
@@ -221,13 +225,7 @@ std::vector<ScanMatch> ScanSurface::nearestAlike(const Eigen::MatrixX3d& queries
           chosen = nb.index;
         }
       }
-      if (chosen < 0) continue;
-      ScanMatch& m = out[static_cast<std::size_t>(i)];
-      m.found = true;
-      m.point = mesh.positions.row(chosen).transpose();
-      m.normal = normals.row(chosen).transpose();
-      m.distance = (m.point - q).norm();
-      m.flags = flags[static_cast<std::size_t>(chosen)];
+      if (chosen >= 0) out[static_cast<std::size_t>(i)] = matchAtPoint(chosen, q);
     }
   });
   return out;

@@ -71,6 +71,10 @@ struct ScanSurface {
   // closest point lets a smooth surface slide. Query normals unit length.
   std::vector<ScanMatch> nearestAlike(const Eigen::MatrixX3d& queries, const Eigen::MatrixX3d& query_normals,
                                       double normal_weight) const;
+
+ private:
+  // The match of scan point `index` (a cloud's point, a mesh's vertex) to `query`.
+  ScanMatch matchAtPoint(int index, const Eigen::Vector3d& query) const;
 };
 
 // What a fit needs of a scan, checked alone (a service answers at
