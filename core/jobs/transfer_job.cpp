@@ -97,9 +97,8 @@ Result<TransferJobOutput> runTransferJob(const PrepareRigSource& prepare, Transf
     if (settings.correspondence == CorrespondenceMethod::kWarp) {
       return transferRig(*source->rig, std::move(*target), settings.transfer);
     }
-    WarpOptions warp_options = settings.transfer.warp;
-    warp_options.full_guide = false;  // as transferRig's own warp: only what the transfer reads
-    auto correspondence = correspondThroughFit(source->rig->surface, std::move(*target), fitted->positions, warp_options);
+    auto correspondence = correspondThroughFit(source->rig->surface, std::move(*target), fitted->positions,
+                                               transferWarpOptions(settings.transfer));
     if (!correspondence) return correspondence.error();
     return transferRig(*source->rig, std::move(*correspondence), settings.transfer);
   };

@@ -595,6 +595,12 @@ Result<TransferResult> transferThroughCorrespondence(const PreparedRig& source, 
 
 }  // namespace
 
+WarpOptions transferWarpOptions(const TransferOptions& options) {
+  WarpOptions warp_options = options.warp;
+  warp_options.full_guide = false;
+  return warp_options;
+}
+
 Result<TransferResult> transferRig(const PreparedRig& source, PreparedTarget prepared_target,
                                    const TransferOptions& options) {
   const auto t_start = Clock::now();
@@ -602,11 +608,7 @@ Result<TransferResult> transferRig(const PreparedRig& source, PreparedTarget pre
   if (options.on_stage && !options.on_stage("warp", 0.0)) {
     return makeError(ErrorCode::kCancelled, prepared_target.label + ": transfer stopped before stage 'warp'");
   }
-  WarpOptions warp_options = options.warp;
-  // The output is the target rigged, not the guide: project only what the
-  // transfer reads from it.
-  warp_options.full_guide = false;
-  auto warp = runWarp(source.surface, std::move(prepared_target), warp_options);
+  auto warp = runWarp(source.surface, std::move(prepared_target), transferWarpOptions(options));
   if (!warp) return warp.error();
   return transferThroughCorrespondence(source, std::move(*warp), options, t_start);
 }

@@ -146,8 +146,11 @@ struct TransferResult {
 
 // The transfer to a target prepared for this job (prepareTarget).
 Result<TransferResult> transferRig(const PreparedRig& source, PreparedTarget target, const TransferOptions& options = {});
-// The transfer through a correspondence made by the caller (correspondThroughFit;
-// its WarpOptions as the transfer's, with full_guide off).
+// The warp options of a transfer: the output is the target rigged, not the
+// guide, so only what the transfer reads from the guide is projected.
+WarpOptions transferWarpOptions(const TransferOptions& options);
+// The transfer through a correspondence made by the caller (correspondThroughFit
+// with transferWarpOptions).
 Result<TransferResult> transferRig(const PreparedRig& source, WarpResult correspondence, const TransferOptions& options = {});
 // The same, preparing the target first.
 Result<TransferResult> transferRig(const PreparedRig& source, const Mesh& target, const LandmarkSet& target_landmarks,
