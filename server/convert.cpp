@@ -397,8 +397,7 @@ core::Result<core::JobOutput> runTransferJob(const JobFiles& in, const RigRecord
     if (!prepared) return prepared.error();
     return core::PreparedRigSource{prepared->value, &source_read, prepared->hit};
   };
-  core::MeshReadReport fit_read;  // unused: the rig was read (or cached) by `prepare` first
-  auto out = core::runTransferJob(prepare, std::move(input), run, cachedFitReference(rig_record, blobs, caches, fit_read));
+  auto out = core::runTransferJob(prepare, std::move(input), run, cachedFitReference(rig_record, blobs, caches, source_read));
   if (!out) return out.error();
   return std::move(out->output);
 }
