@@ -1,0 +1,23 @@
+// Push-to-surface: points inside a closed collision surface (a skull proxy
+// made of mesh triangles, or an implicit sphere or ellipsoid) pushed out onto it.
+#pragma once
+
+#include <Eigen/Core>
+
+#include "core/components/components.h"
+
+namespace core {
+
+// positions: #V by 3 current vertex positions (the triangle surface and the
+// shapes' centre bindings are taken from them); triangles: the mesh's #F by 3
+// (for face bindings). Each member (push.members; empty: every vertex not on
+// the triangle surface) inside the surface moves onto it:
+//   kClosest: to the closest surface point (triangles: exact, inside told by
+//             the angle-weighted pseudo-normal, Baerentzen & Aanaes 2005;
+//             sphere: radially; ellipsoid: radially in its unit-sphere frame)
+//   kVector:  along push.vector to where it leaves the surface.
+// Returns #V by 3.
+Eigen::MatrixX3d evaluatePushToSurface(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles,
+                                       const PushToSurface& push);
+
+}  // namespace core

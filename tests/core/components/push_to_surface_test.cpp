@@ -1,0 +1,80 @@
+#include "core/components/push_to_surface.h"
+
+#include <gtest/gtest.h>
+
+#include "tests/test_support.h"
+
+namespace {
+
+core::PushToSurface sphere(double radius) {
+  core::PushToSurface p;
+  p.name = "skull";
+  p.surface.kind = core::CollisionShapeKind::kSphere;
+  p.surface.center = core::Binding::atPosition({1.0, 0.0, 0.0});
+  p.surface.radius = radius;
+  return p;
+}
+
+TEST(PushToSurface, InsideASpherePushedOutRadiallyOutsideKept) {
+  Eigen::MatrixX3d points(2, 3);
+  points << 1.5, 0.0, 0.0,  // inside (0.5 from the centre)
+      3.0, 0.0, 0.0;        // outside
+  const Eigen::MatrixX3d out = core::evaluatePushToSurface(points, Eigen::MatrixX3i(0, 3), sphere(1.0));
+  EXPECT_LT((out.row(0) - Eigen::RowVector3d(2.0, 0.0, 0.0)).norm(), 1e-12);
+  EXPECT_EQ(out.row(1), points.row(1));
+}
+
+TEST(PushToSurface, AlongAVectorToWhereItLeaves) {
+  core::PushToSurface p = sphere(1.0);
+  p.direction = core::PushDirection::kVector;
+  p.vector = {0.0, 0.0, 2.0};
+  Eigen::MatrixX3d points(1, 3);
+  points << 1.6, 0.0, 0.0;
+  const Eigen::MatrixX3d out = core::evaluatePushToSurface(points, Eigen::MatrixX3i(0, 3), p);
+  EXPECT_LT((out.row(0) - Eigen::RowVector3d(1.6, 0.0, 0.8)).norm(), 1e-12);  // 0.6^2 + 0.8^2 = 1
+}
+
+TEST(PushToSurface, EllipsoidAlongItsAxes) {
+  core::PushToSurface p;
+  p.surface.kind = core::CollisionShapeKind::kEllipsoid;
+  p.surface.center = core::Binding::atPosition(Eigen::Vector3d::Zero());
+  p.surface.radii = {2.0, 1.0, 1.0};
+  p.surface.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()));  // long axis along y
+  Eigen::MatrixX3d points(2, 3);
+  points << 0.0, 1.0, 0.0,  // inside (on the long axis)
+      1.5, 0.0, 0.0;        // outside (short axis is 1 along x)
+  const Eigen::MatrixX3d out = core::evaluatePushToSurface(points, Eigen::MatrixX3i(0, 3), p);
+  EXPECT_LT((out.row(0) - Eigen::RowVector3d(0.0, 2.0, 0.0)).norm(), 1e-12);
+  EXPECT_EQ(out.row(1), points.row(1));
+}
+
+TEST(PushToSurface, TriangleSurfaceOfMeshVertices) {
+  // The icosphere is the collision surface; three more vertices are the skin.
+  const auto ico = rigport_test::unitIcosphere(3);
+  const Eigen::Index n = ico.positions.rows();
+  Eigen::MatrixX3d positions(n + 3, 3);
+  positions.topRows(n) = ico.positions;
+  positions.row(n) << 0.5, 0.1, 0.0;      // inside
+  positions.row(n + 1) << 0.0, 0.0, 1.3;  // outside
+  positions.row(n + 2) << -0.1, -0.6, 0.3;  // inside
+  core::PushToSurface p;
+  p.surface.kind = core::CollisionShapeKind::kTriangles;
+  for (Eigen::Index f = 0; f < ico.triangles.rows(); ++f) p.surface.triangles.push_back(ico.triangles.row(f).transpose());
+  const Eigen::MatrixX3d out = core::evaluatePushToSurface(positions, ico.triangles, p);
+  EXPECT_EQ(out.topRows(n), positions.topRows(n));  // the surface's own vertices stay
+  EXPECT_EQ(out.row(n + 1), positions.row(n + 1));
+  for (Eigen::Index v : {n, n + 2}) {
+    // On the polyhedron (radius between its inradius and 1), in the point's direction roughly.
+    EXPECT_GT(out.row(v).norm(), 0.98) << v;
+    EXPECT_LE(out.row(v).norm(), 1.0 + 1e-12) << v;
+    EXPECT_GT(out.row(v).normalized().dot(positions.row(v).normalized()), 0.99) << v;
+  }
+  // Along a vector: the inside point leaves through +x.
+  p.direction = core::PushDirection::kVector;
+  p.vector = Eigen::Vector3d::UnitX();
+  const Eigen::MatrixX3d along = core::evaluatePushToSurface(positions, ico.triangles, p);
+  EXPECT_NEAR(along(n, 1), 0.1, 1e-12);
+  EXPECT_GT(along(n, 0), 0.98);
+}
+
+}  // namespace
