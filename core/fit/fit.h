@@ -128,6 +128,7 @@ struct FitReport {
   std::vector<std::string> reasons;   // why not ok
   std::vector<std::string> warnings;
   int shapes = 0, joints = 0, animations = 0;
+  std::vector<CarriedPart> parts;  // the rig's other meshes, as rebuilt (core/transfer/parts.h)
   // milliseconds
   double scan_ms = 0.0, align_ms = 0.0, fit_ms = 0.0, gate_ms = 0.0, rebuild_ms = 0.0, total_ms = 0.0;
 };

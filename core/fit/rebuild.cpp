@@ -116,6 +116,14 @@ Result<Rig> rebuildRig(const FitReference& reference, const FrameMap& frame, con
     rig.animations.clear();
   }
   if (!rebuild.attributes) rig.attributes = VertexAttributes{};
+  // The rig's other meshes by vertex index through the same dense map.
+  CarriedParts parts = carryParts(
+      prepared.rig.parts, *dense_map,
+      [&](const Eigen::Vector3d& p) -> Eigen::Matrix3d { return local.empty() ? deltas : dense_map->jacobian(p); },
+      rotation);
+  rig.parts = std::move(parts.parts);
+  dropPartChannels(rig.parts, rebuild.shapes, rig.skin.has_value());
+  report.parts = std::move(parts.report);
   return rig;
 }
 

@@ -344,6 +344,18 @@ Result<LoadedMesh> readGltfImpl(Bytes bytes, const std::string& label, bool bina
   LoadedMesh loaded;
   auto parsed = parseGltf(bytes, label, binary, base_dir, loaded.report);
   if (!parsed) return parsed.error();
+  // A mesh input (a target, a scan) is one mesh: the others are named, not lost silently.
+  std::vector<std::string> others;
+  for (std::size_t m = 0; m < parsed->model.meshes.size(); ++m) {
+    if (static_cast<int>(m) == parsed->choice.mesh) continue;
+    const std::string& name = parsed->model.meshes[m].name;
+    others.push_back(name.empty() ? "mesh " + std::to_string(m) : name);
+  }
+  if (!others.empty()) {
+    loaded.report.warnings.push_back("only " + parsed->choice.description + " was read; the file's other meshes (" +
+                                     joinNames(others) + ") were dropped: a target or scan is one mesh (a rig's other "
+                                     "meshes come from the source rig)");
+  }
   return chosenMesh(*parsed, label, std::move(loaded));
 }
 

@@ -352,7 +352,13 @@ Result<tinygltf::Primitive> addMeshPrimitive(tinygltf::Model& model, const Mesh&
 // JSON objects are ordered maps).
 Result<std::vector<std::uint8_t>> serializeGlb(const tinygltf::Model& model);
 
+// What messages about a rig being written call it.
+inline const std::string kRigLabel = "rig to write";
 Error invalidRig(const std::string& what);
+// "node 3 'jaw'": a node of the rig to write, in messages.
+std::string nodeName(const Rig& rig, int node);
+// Every rule the validator enforces that the Rig type does not (gltf_rig_check.cpp).
+Status checkRig(const Rig& rig, const RigWriteOptions& options);
 
 // TEXCOORD_1.., COLOR_0 and the custom attributes.
 Status addVertexAttributes(tinygltf::Model& model, const Rig& rig, tinygltf::Primitive& primitive);

@@ -191,9 +191,10 @@ Result<AnimationChannel> readChannel(const tinygltf::Model& model, const tinyglt
   return channel;
 }
 
-// Every usable channel of every animation. Weight channels must target the
-// mesh node (columns = its morph targets); others are skipped with a warning.
-Result<std::vector<Animation>> readAnimations(const tinygltf::Model& model, int mesh_node, int target_count,
+// Every usable channel of every animation. Weight channels must target a
+// mesh node of the rig (`morph_targets_of`: node -> its mesh's morph target
+// count); others are skipped with a warning.
+Result<std::vector<Animation>> readAnimations(const tinygltf::Model& model, const std::map<int, int>& morph_targets_of,
                                               const std::string& label, std::vector<std::string>& warnings) {
   std::vector<Animation> animations;
   for (std::size_t a = 0; a < model.animations.size(); ++a) {
@@ -218,11 +219,13 @@ Result<std::vector<Animation>> readAnimations(const tinygltf::Model& model, int 
         warnings.push_back(what + " animates '" + gchannel.target_path + "', which a rig does not carry; skipped");
         continue;
       }
-      if (*path == AnimationPath::kWeights && node != mesh_node) {
+      const auto mesh_of_node = morph_targets_of.find(node);
+      if (*path == AnimationPath::kWeights && mesh_of_node == morph_targets_of.end()) {
         warnings.push_back(what + " animates the morph weights of node " + std::to_string(node) +
-                           ", not of the rig's mesh; skipped");
+                           ", not of a mesh of the rig; skipped");
         continue;
       }
+      const int target_count = mesh_of_node != morph_targets_of.end() ? mesh_of_node->second : 0;
       if (*path == AnimationPath::kWeights && target_count == 0) {
         return parseError(label, what + " animates morph weights but the mesh has no morph targets");
       }
@@ -406,9 +409,71 @@ Status checkRigSize(const tinygltf::Model& model, const tinygltf::Mesh& gmesh, E
   return Ok{};
 }
 
+// One of the rig's other meshes (readOtherMeshes), read like the face.
+Result<RigPart> readPart(const tinygltf::Model& model, const MeshChoice& choice, const std::string& label,
+                         std::vector<std::string>& warnings) {
+  const tinygltf::Mesh& gmesh = model.meshes[static_cast<std::size_t>(choice.mesh)];
+  const std::string mesh_name = "mesh " + std::to_string(choice.mesh) + quoted(gmesh.name);
+  const std::vector<PrimitiveRange> ranges = primitiveRanges(model, gmesh);
+  if (auto ok = checkRigSize(model, gmesh, vertexTotal(ranges), label); !ok) return ok.error();
+  LoadedMesh loaded;
+  auto built = buildMesh(model, choice, label, std::move(loaded));
+  if (!built) return built.error();
+  for (std::string& warning : built->report.warnings) warnings.push_back(std::move(warning));
+  Rig read;
+  if (auto ok = readSkinning(model, choice, ranges, mesh_name, label, read, warnings); !ok) return ok.error();
+  if (auto ok = readMorphing(model, choice, ranges, mesh_name, label, read, warnings); !ok) return ok.error();
+  auto attributes = readVertexAttributes(model, gmesh, ranges, mesh_name, label, warnings);
+  if (!attributes) return attributes.error();
+  RigPart part;
+  part.name = gmesh.name.empty() ? "mesh_" + std::to_string(choice.mesh) : gmesh.name;
+  part.mesh = std::move(built->mesh);
+  part.node = choice.node;
+  part.weights = std::move(read.weights);
+  part.morph_targets = std::move(read.morph_targets);
+  part.morph_default_weights = std::move(read.morph_default_weights);
+  part.attributes = std::move(*attributes);
+  return part;
+}
+
+// Every node instancing a mesh other than the face's node, in node order, as
+// a part. A part must share the face's skin (or both be unskinned) and have
+// triangles; others are dropped with a warning naming them.
+Status readOtherMeshes(const tinygltf::Model& model, const MeshChoice& face, const std::string& label, Rig& rig,
+                       std::vector<std::string>& warnings) {
+  const int face_skin = face.node >= 0 ? model.nodes[static_cast<std::size_t>(face.node)].skin : -1;
+  for (std::size_t n = 0; n < model.nodes.size(); ++n) {
+    const tinygltf::Node& node = model.nodes[n];
+    if (node.mesh < 0 || static_cast<int>(n) == face.node) continue;
+    if (static_cast<std::size_t>(node.mesh) >= model.meshes.size()) {
+      return parseError(label, "node " + std::to_string(n) + " refers to mesh " + std::to_string(node.mesh) +
+                                   " but the file has " + std::to_string(model.meshes.size()));
+    }
+    const tinygltf::Mesh& gmesh = model.meshes[static_cast<std::size_t>(node.mesh)];
+    const std::string what = "mesh " + std::to_string(node.mesh) + quoted(gmesh.name) + " (node " + std::to_string(n) + ")";
+    const bool skinned = node.skin >= 0 && face.skinned;
+    if (node.skin >= 0 && node.skin != face_skin) {
+      warnings.push_back(what + " is skinned to another skin than the face's; dropped");
+      continue;
+    }
+    const bool triangles_only = std::all_of(gmesh.primitives.begin(), gmesh.primitives.end(), [](const tinygltf::Primitive& p) {
+      return p.mode >= TINYGLTF_MODE_TRIANGLES && p.mode <= TINYGLTF_MODE_TRIANGLE_FAN;
+    });
+    if (gmesh.primitives.empty() || !triangles_only) {
+      warnings.push_back(what + " is not a triangle mesh (points, lines); dropped");
+      continue;
+    }
+    MeshChoice choice{node.mesh, static_cast<int>(n), skinned, what};
+    auto part = readPart(model, choice, label, warnings);
+    if (!part) return part.error();
+    rig.parts.push_back(std::move(*part));
+  }
+  return Ok{};
+}
+
 // Everything beyond the mesh itself (buildMesh has read and placed that).
-Status readRigParts(const tinygltf::Model& model, const MeshChoice& choice, const std::string& label, Rig& rig,
-                    std::vector<std::string>& warnings) {
+Status readRigData(const tinygltf::Model& model, const MeshChoice& choice, const std::string& label, Rig& rig,
+                   std::vector<std::string>& warnings) {
   const tinygltf::Mesh& gmesh = model.meshes[static_cast<std::size_t>(choice.mesh)];
   const std::string mesh_name = "mesh " + std::to_string(choice.mesh);
   const std::vector<PrimitiveRange> ranges = primitiveRanges(model, gmesh);
@@ -420,7 +485,11 @@ Status readRigParts(const tinygltf::Model& model, const MeshChoice& choice, cons
   rig.nodes = std::move(*nodes);
   if (auto ok = readSkinning(model, choice, ranges, mesh_name, label, rig, warnings); !ok) return ok.error();
   if (auto ok = readMorphing(model, choice, ranges, mesh_name, label, rig, warnings); !ok) return ok.error();
-  auto animations = readAnimations(model, choice.node, static_cast<int>(rig.morph_targets.size()), label, warnings);
+  if (auto ok = readOtherMeshes(model, choice, label, rig, warnings); !ok) return ok.error();
+  std::map<int, int> morph_targets_of;
+  if (choice.node >= 0) morph_targets_of[choice.node] = static_cast<int>(rig.morph_targets.size());
+  for (const RigPart& part : rig.parts) morph_targets_of[part.node] = static_cast<int>(part.morph_targets.size());
+  auto animations = readAnimations(model, morph_targets_of, label, warnings);
   if (!animations) return animations.error();
   rig.animations = std::move(*animations);
   auto attributes = readVertexAttributes(model, gmesh, ranges, mesh_name, label, warnings);
@@ -439,7 +508,7 @@ Result<LoadedRig> readRigImpl(Bytes bytes, const std::string& label, bool binary
   LoadedRig loaded;
   loaded.rig.mesh = std::move(mesh->mesh);
   loaded.report = std::move(mesh->report);
-  if (auto ok = readRigParts(parsed->model, parsed->choice, label, loaded.rig, loaded.report.warnings); !ok) {
+  if (auto ok = readRigData(parsed->model, parsed->choice, label, loaded.rig, loaded.report.warnings); !ok) {
     return ok.error();
   }
   return loaded;

@@ -1,137 +1,14 @@
-// glTF rig writing: checks first (every rule the validator enforces that the
-// Rig type does not), then nodes, the mesh primitive, skin, morph targets and
-// animations appended to one model. encodeRigGlb.
+// glTF rig writing: nodes, the mesh primitives (the face and its parts),
+// skin, morph targets and animations appended to one model, after checkRig
+// (gltf_rig_check.cpp). encodeRigGlb.
 
 #include "core/io/gltf_model.h"
 
 namespace core::gltf {
 
-namespace {
-
-// ---------------------------------------------------------------------------
-// Rig writing: checks first (every rule the validator enforces that the Rig
-// type does not), then nodes, the mesh primitive, skin, morph targets and
-// animations appended to one model.
-
-const std::string kRigLabel = "rig to write";
-
-}  // namespace
-
 Error invalidRig(const std::string& what) { return makeError(ErrorCode::kInvalidArgument, kRigLabel + ": " + what); }
 
 namespace {
-
-std::string nodeName(const Rig& rig, int node) {
-  return "node " + std::to_string(node) + quoted(rig.nodes[static_cast<std::size_t>(node)].name);
-}
-
-Status checkRigNodes(const Rig& rig) {
-  const int n = static_cast<int>(rig.nodes.size());
-  for (int i = 0; i < n; ++i) {
-    const Node& node = rig.nodes[static_cast<std::size_t>(i)];
-    if (node.parent < -1 || node.parent >= n || node.parent == i) {
-      return invalidRig(nodeName(rig, i) + " has parent " + std::to_string(node.parent) + ", not another node");
-    }
-    if (!node.translation.allFinite() || !node.rotation.coeffs().allFinite() || !node.scale.allFinite()) {
-      return invalidRig(nodeName(rig, i) + " has a non-finite transform");
-    }
-    if (!(node.rotation.norm() > 0.0)) return invalidRig(nodeName(rig, i) + " has a zero rotation quaternion");
-  }
-  for (int i = 0; i < n; ++i) {  // every parent is a node index now
-    int steps = 0;
-    for (int p = rig.nodes[static_cast<std::size_t>(i)].parent; p >= 0;
-         p = rig.nodes[static_cast<std::size_t>(p)].parent) {
-      if (++steps > n) return invalidRig(nodeName(rig, i) + " is in a cycle of parents");
-    }
-  }
-  if (rig.mesh_node < -1 || rig.mesh_node >= n) {
-    return invalidRig("mesh_node " + std::to_string(rig.mesh_node) + " is not a node index (or -1)");
-  }
-  return Ok{};
-}
-
-Status checkRigSkin(const Rig& rig) {
-  const Eigen::Index nv = rig.mesh.vertexCount();
-  if (!rig.skin) {
-    if (rig.weights.nonZeros() > 0) return invalidRig("it has skin weights but no skin");
-    return Ok{};
-  }
-  const Skin& skin = *rig.skin;
-  const std::size_t count = skin.joints.size();
-  if (count == 0 || count > 65536) return invalidRig("the skin has " + std::to_string(count) + " joints (1..65536)");
-  std::vector<char> used(rig.nodes.size(), 0);
-  for (std::size_t j = 0; j < count; ++j) {
-    const int node = skin.joints[j];
-    if (node < 0 || static_cast<std::size_t>(node) >= rig.nodes.size()) {
-      return invalidRig("skin joint " + std::to_string(j) + " is node " + std::to_string(node) + " but the rig has " +
-                        std::to_string(rig.nodes.size()) + " nodes");
-    }
-    if (used[static_cast<std::size_t>(node)]) {
-      return invalidRig("skin joint " + std::to_string(j) + " repeats " + nodeName(rig, node));
-    }
-    used[static_cast<std::size_t>(node)] = 1;
-  }
-  if (skin.inverse_bind.size() != count) {
-    return invalidRig("the skin has " + std::to_string(count) + " joints but " +
-                      std::to_string(skin.inverse_bind.size()) + " inverse bind matrices");
-  }
-  for (std::size_t j = 0; j < count; ++j) {
-    const Eigen::Matrix4d& m = skin.inverse_bind[j];
-    const std::string joint = "skin joint " + std::to_string(j) + " (" + nodeName(rig, skin.joints[j]) + ")";
-    if (!m.allFinite() || !m.cast<float>().allFinite()) {
-      return invalidRig(joint + " inverse bind matrix is not finite in float32");
-    }
-    if ((m.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-9) {
-      return invalidRig(joint + " inverse bind matrix bottom row is not 0 0 0 1");
-    }
-  }
-  if (skin.skeleton < -1 || skin.skeleton >= static_cast<int>(rig.nodes.size())) {
-    return invalidRig("skin skeleton " + std::to_string(skin.skeleton) + " is not a node index (or -1)");
-  }
-  if (rig.weights.rows() != nv || rig.weights.cols() != static_cast<Eigen::Index>(count)) {
-    return invalidRig("skin weights are " + std::to_string(rig.weights.rows()) + " by " +
-                      std::to_string(rig.weights.cols()) + ", expected #V " + std::to_string(nv) + " by #joints " +
-                      std::to_string(count));
-  }
-  return Ok{};
-}
-
-Status checkRigMorphTargets(const Rig& rig) {
-  const Eigen::Index nv = rig.mesh.vertexCount();
-  const std::size_t count = rig.morph_targets.size();
-  for (std::size_t t = 0; t < count; ++t) {
-    const MorphTarget& target = rig.morph_targets[t];
-    const std::string what = "morph target " + std::to_string(t) + quoted(target.name);
-    if (target.position_deltas.rows() != nv) {
-      return invalidRig(what + " has " + std::to_string(target.position_deltas.rows()) + " position deltas for " +
-                        std::to_string(nv) + " vertices");
-    }
-    if (target.normal_deltas.rows() != 0 && target.normal_deltas.rows() != nv) {
-      return invalidRig(what + " has " + std::to_string(target.normal_deltas.rows()) + " normal deltas for " +
-                        std::to_string(nv) + " vertices");
-    }
-    if (target.normal_deltas.rows() > 0 && rig.mesh.normals.rows() == 0) {
-      return invalidRig(what + " has normal deltas but the mesh has no normals");
-    }
-  }
-  const Eigen::Index defaults = rig.morph_default_weights.size();
-  if ((defaults != 0 && defaults != static_cast<Eigen::Index>(count)) || !rig.morph_default_weights.allFinite()) {
-    return invalidRig("morph_default_weights has " + std::to_string(defaults) + " values for " + std::to_string(count) +
-                      " morph targets (or is not finite)");
-  }
-  return Ok{};
-}
-
-Status checkRig(const Rig& rig, const RigWriteOptions& options) {
-  if (options.max_influences < 1 || options.max_influences > 8) {
-    return invalidRig("max_influences is " + std::to_string(options.max_influences) + " (1..8)");
-  }
-  if (auto ok = validateMesh(rig.mesh, kRigLabel); !ok) return ok.error();
-  if (rig.mesh.vertexCount() == 0) return makeError(ErrorCode::kInvalidMesh, kRigLabel + ": the mesh has no vertices");
-  if (auto ok = checkRigNodes(rig); !ok) return ok.error();
-  if (auto ok = checkRigSkin(rig); !ok) return ok.error();
-  return checkRigMorphTargets(rig);
-}
 
 // Which output node carries the mesh. A skinned mesh's node must be an
 // identity root whose TRS is not animated (glTF ignores it; the validator
@@ -157,11 +34,11 @@ bool animatesTransformOf(const Rig& rig, int node) {
   return false;
 }
 
-MeshNodePlan planMeshNode(const Rig& rig) {
-  const int appended_index = static_cast<int>(rig.nodes.size());
-  const int mesh_node = rig.mesh_node;
+// `mesh_node`: the node a mesh is on (the face's or a part's); a new node
+// gets `appended_index`.
+MeshNodePlan planMeshNode(const Rig& rig, int mesh_node, bool skinned, int appended_index) {
   if (mesh_node < 0) return {appended_index, true, false};
-  if (!rig.skin) return {mesh_node, false, false};
+  if (!skinned) return {mesh_node, false, false};
   const Node& node = rig.nodes[static_cast<std::size_t>(mesh_node)];
   const bool animated = animatesTransformOf(rig, mesh_node);
   if (node.parent < 0 && !hasTransform(node) && !animated) return {mesh_node, false, false};
@@ -186,34 +63,60 @@ tinygltf::Node toGltfNode(const Node& node) {
   return out;
 }
 
-// All rig nodes (children lists from the parents), the mesh node, one scene
+// Where each mesh goes: the face (mesh 0) and each part (mesh 1 + p), new
+// nodes numbered after the rig's in that order.
+struct MeshPlacement {
+  MeshNodePlan plan;
+  std::string name;  // of an appended node
+  bool skinned = false;
+};
+
+std::vector<MeshPlacement> planMeshNodes(const Rig& rig) {
+  std::vector<MeshPlacement> out;
+  int appended = static_cast<int>(rig.nodes.size());
+  auto place = [&](int node, bool skinned, const std::string& name) {
+    const MeshNodePlan plan = planMeshNode(rig, node, skinned, appended);
+    if (plan.appended) ++appended;
+    out.push_back({plan, name.empty() ? "mesh" : name, skinned});
+  };
+  place(rig.mesh_node, rig.skin.has_value(), rig.mesh_name);
+  for (const RigPart& part : rig.parts) place(part.node, part.weights.size() > 0, part.name);
+  return out;
+}
+
+// All rig nodes (children lists from the parents), the mesh nodes, one scene
 // of the roots in index order.
-void addRigNodes(tinygltf::Model& model, const Rig& rig, const MeshNodePlan& plan) {
+void addRigNodes(tinygltf::Model& model, const Rig& rig, const std::vector<MeshPlacement>& meshes) {
   const int n = static_cast<int>(rig.nodes.size());
   for (const Node& node : rig.nodes) model.nodes.push_back(toGltfNode(node));
-  if (plan.appended) {
-    tinygltf::Node mesh_node;
-    mesh_node.name = rig.mesh_name.empty() ? "mesh" : rig.mesh_name;
-    model.nodes.push_back(std::move(mesh_node));
+  std::vector<char> reset(rig.nodes.size(), 0);
+  for (std::size_t m = 0; m < meshes.size(); ++m) {
+    const MeshNodePlan& plan = meshes[m].plan;
+    if (plan.appended) {
+      tinygltf::Node mesh_node;
+      mesh_node.name = meshes[m].name;
+      model.nodes.push_back(std::move(mesh_node));
+    }
+    tinygltf::Node& mesh_node = model.nodes[static_cast<std::size_t>(plan.node)];
+    if (plan.reset) {
+      mesh_node.translation.clear();
+      mesh_node.rotation.clear();
+      mesh_node.scale.clear();
+      reset[static_cast<std::size_t>(plan.node)] = 1;
+    }
+    mesh_node.mesh = static_cast<int>(m);
+    if (meshes[m].skinned) mesh_node.skin = 0;
   }
-  tinygltf::Node& mesh_node = model.nodes[static_cast<std::size_t>(plan.node)];
-  if (plan.reset) {
-    mesh_node.translation.clear();
-    mesh_node.rotation.clear();
-    mesh_node.scale.clear();
-  }
-  mesh_node.mesh = 0;
-  if (rig.skin) mesh_node.skin = 0;
   tinygltf::Scene scene;
   for (int i = 0; i < n; ++i) {
-    const int parent = plan.reset && i == plan.node ? -1 : rig.nodes[static_cast<std::size_t>(i)].parent;
+    const int parent = reset[static_cast<std::size_t>(i)] ? -1 : rig.nodes[static_cast<std::size_t>(i)].parent;
     if (parent < 0) {
       scene.nodes.push_back(i);
     } else {
       model.nodes[static_cast<std::size_t>(parent)].children.push_back(i);
     }
   }
-  if (plan.appended) scene.nodes.push_back(n);
+  for (int i = n; i < static_cast<int>(model.nodes.size()); ++i) scene.nodes.push_back(i);
   model.scenes.push_back(std::move(scene));
   // tinygltf writes a node with no property as null, which no reader accepts.
   for (tinygltf::Node& node : model.nodes) {
@@ -445,12 +348,20 @@ int addInverseBinds(tinygltf::Model& model, const Skin& skin) {
   return addFloatAccessor(model, values, TINYGLTF_TYPE_MAT4, /*target=*/0, false);
 }
 
-Status addSkin(tinygltf::Model& model, const Rig& rig, const RigWriteOptions& options, tinygltf::Primitive& primitive) {
-  auto table = selectInfluences(rig.weights, options.max_influences);
+// JOINTS_n / WEIGHTS_n of one mesh of the rig (its weights by the skin's joints).
+Status addInfluences(tinygltf::Model& model, const SkinWeights& weights, std::size_t joint_count,
+                     const RigWriteOptions& options, tinygltf::Primitive& primitive) {
+  auto table = selectInfluences(weights, options.max_influences);
   if (!table) return table.error();
   std::vector<int> joints = table->joints;
   addWeightSets(model, *table, options.weight_encoding, joints, primitive);  // before the joints: may zero some
-  addJointSets(model, joints, table->slots, rig.skin->joints.size(), primitive);
+  addJointSets(model, joints, table->slots, joint_count, primitive);
+  return Ok{};
+}
+
+// The face's influences and the rig's one skin (skin 0, shared by the parts).
+Status addSkin(tinygltf::Model& model, const Rig& rig, const RigWriteOptions& options, tinygltf::Primitive& primitive) {
+  if (auto ok = addInfluences(model, rig.weights, rig.skin->joints.size(), options, primitive); !ok) return ok.error();
   tinygltf::Skin skin;
   skin.name = rig.skin->name;
   skin.joints = rig.skin->joints;
@@ -619,40 +530,55 @@ Result<int> addKeyValues(tinygltf::Model& model, const AnimationChannel& channel
   return addFloatAccessor(model, values, type, /*target=*/0, false);
 }
 
-// Output node of a channel: weights go to the node carrying the mesh.
-Result<int> channelNode(const Rig& rig, const AnimationChannel& channel, const MeshNodePlan& plan,
-                        const std::string& what) {
+// Output node of a channel (weights go to the node carrying their mesh) and
+// its value columns.
+struct ChannelTarget {
+  int node = -1;
+  int columns = 3;
+};
+
+Result<ChannelTarget> channelTarget(const Rig& rig, const AnimationChannel& channel,
+                                    const std::vector<MeshPlacement>& meshes, const std::string& what) {
   if (channel.node < 0 || static_cast<std::size_t>(channel.node) >= rig.nodes.size()) {
     return invalidRig(what + " targets node " + std::to_string(channel.node) + " but the rig has " +
                       std::to_string(rig.nodes.size()) + " nodes");
   }
-  if (channel.path != AnimationPath::kWeights) return channel.node;
-  if (rig.morph_targets.empty() || channel.node != rig.mesh_node) {
-    return invalidRig(what + " animates morph weights of " + nodeName(rig, channel.node) +
-                      ", which does not carry the rig's morphed mesh");
+  if (channel.path == AnimationPath::kRotation) return ChannelTarget{channel.node, 4};
+  if (channel.path != AnimationPath::kWeights) return ChannelTarget{channel.node, 3};
+  std::size_t targets = 0;
+  int mesh = -1;
+  if (channel.node == rig.mesh_node) {
+    mesh = 0;
+    targets = rig.morph_targets.size();
   }
-  return plan.node;
+  for (std::size_t p = 0; p < rig.parts.size() && mesh < 0; ++p) {
+    if (rig.parts[p].node != channel.node) continue;
+    mesh = static_cast<int>(p) + 1;
+    targets = rig.parts[p].morph_targets.size();
+  }
+  if (mesh < 0 || targets == 0) {
+    return invalidRig(what + " animates morph weights of " + nodeName(rig, channel.node) +
+                      ", which does not carry a morphed mesh of the rig");
+  }
+  return ChannelTarget{meshes[static_cast<std::size_t>(mesh)].plan.node, static_cast<int>(targets)};
 }
 
 Status addAnimation(tinygltf::Model& model, const Rig& rig, const Animation& animation, const std::string& name,
-                    const MeshNodePlan& plan, std::map<std::vector<float>, int>& shared_times) {
+                    const std::vector<MeshPlacement>& meshes, std::map<std::vector<float>, int>& shared_times) {
   tinygltf::Animation ganim;
   ganim.name = animation.name;
   std::set<std::pair<int, AnimationPath>> targets;
   for (std::size_t c = 0; c < animation.channels.size(); ++c) {
     const AnimationChannel& channel = animation.channels[c];
     const std::string what = name + " channel " + std::to_string(c);
-    auto node = channelNode(rig, channel, plan, what);
-    if (!node) return node.error();
-    if (!targets.emplace(*node, channel.path).second) {
+    auto target = channelTarget(rig, channel, meshes, what);
+    if (!target) return target.error();
+    if (!targets.emplace(target->node, channel.path).second) {
       return invalidRig(what + " animates the same node and path as an earlier channel");
     }
-    const int columns = channel.path == AnimationPath::kRotation  ? 4
-                        : channel.path == AnimationPath::kWeights ? static_cast<int>(rig.morph_targets.size())
-                                                                  : 3;
     auto input = addKeyTimes(model, channel.times, what, shared_times);
     if (!input) return input.error();
-    auto output = addKeyValues(model, channel, columns, what);
+    auto output = addKeyValues(model, channel, target->columns, what);
     if (!output) return output.error();
     tinygltf::AnimationSampler sampler;
     sampler.input = *input;
@@ -661,7 +587,7 @@ Status addAnimation(tinygltf::Model& model, const Rig& rig, const Animation& ani
     ganim.samplers.push_back(std::move(sampler));
     tinygltf::AnimationChannel gchannel;
     gchannel.sampler = static_cast<int>(ganim.samplers.size()) - 1;
-    gchannel.target_node = *node;
+    gchannel.target_node = target->node;
     gchannel.target_path = pathName(channel.path);
     ganim.channels.push_back(std::move(gchannel));
   }
@@ -670,13 +596,13 @@ Status addAnimation(tinygltf::Model& model, const Rig& rig, const Animation& ani
 }
 
 // Animations with channels (tinygltf drops empty ones; so do we).
-Status addAnimations(tinygltf::Model& model, const Rig& rig, const MeshNodePlan& plan) {
+Status addAnimations(tinygltf::Model& model, const Rig& rig, const std::vector<MeshPlacement>& meshes) {
   std::map<std::vector<float>, int> shared_times;
   for (std::size_t a = 0; a < rig.animations.size(); ++a) {
     const Animation& animation = rig.animations[a];
     if (animation.channels.empty()) continue;
     const std::string name = "animation " + std::to_string(a) + quoted(animation.name);
-    if (auto ok = addAnimation(model, rig, animation, name, plan, shared_times); !ok) return ok.error();
+    if (auto ok = addAnimation(model, rig, animation, name, meshes, shared_times); !ok) return ok.error();
   }
   return Ok{};
 }
@@ -697,13 +623,10 @@ std::size_t rigBufferBound(const Rig& rig) {
   return bytes + 64 * (rig.nodes.size() + 1);
 }
 
-Result<tinygltf::Model> buildRigModel(const Rig& rig, const RigWriteOptions& options) {
-  tinygltf::Model model;
-  model.asset.version = "2.0";
-  model.asset.generator = "rigport";
-  model.buffers.emplace_back();
-  model.buffers[0].data.reserve(rigBufferBound(rig));
-  const MeshNodePlan plan = planMeshNode(rig);
+// One mesh of the rig (the face, or a part seen as a rig: partAsRig) with its
+// attributes, influences and morph targets; the first one written adds the skin.
+Status addRigMesh(tinygltf::Model& model, const Rig& rig, const MeshNodePlan& plan, const RigWriteOptions& options,
+                  bool first) {
   auto space = meshNodeSpace(rig, plan);
   if (!space) return space.error();
   std::optional<Mesh> local;
@@ -711,8 +634,10 @@ Result<tinygltf::Model> buildRigModel(const Rig& rig, const RigWriteOptions& opt
   auto primitive = addMeshPrimitive(model, local ? *local : rig.mesh, kRigLabel);
   if (!primitive) return primitive.error();
   if (auto ok = addVertexAttributes(model, rig, *primitive); !ok) return ok.error();
-  if (rig.skin) {
+  if (rig.skin && first) {
     if (auto ok = addSkin(model, rig, options, *primitive); !ok) return ok.error();
+  } else if (rig.skin) {
+    if (auto ok = addInfluences(model, rig.weights, rig.skin->joints.size(), options, *primitive); !ok) return ok.error();
   }
   tinygltf::Mesh gmesh;
   gmesh.name = rig.mesh_name;
@@ -721,8 +646,25 @@ Result<tinygltf::Model> buildRigModel(const Rig& rig, const RigWriteOptions& opt
   }
   gmesh.primitives.push_back(std::move(*primitive));
   model.meshes.push_back(std::move(gmesh));
-  addRigNodes(model, rig, plan);
-  if (auto ok = addAnimations(model, rig, plan); !ok) return ok.error();
+  return Ok{};
+}
+
+Result<tinygltf::Model> buildRigModel(const Rig& rig, const RigWriteOptions& options) {
+  tinygltf::Model model;
+  model.asset.version = "2.0";
+  model.asset.generator = "rigport";
+  model.buffers.emplace_back();
+  model.buffers[0].data.reserve(rigBufferBound(rig));
+  const std::vector<MeshPlacement> meshes = planMeshNodes(rig);
+  if (auto ok = addRigMesh(model, rig, meshes[0].plan, options, /*first=*/true); !ok) return ok.error();
+  for (std::size_t p = 0; p < rig.parts.size(); ++p) {
+    const Rig view = partAsRig(rig, rig.parts[p]);
+    if (auto ok = addRigMesh(model, view, meshes[p + 1].plan, options, /*first=*/false); !ok) {
+      return makeError(ok.error().code, "part " + std::to_string(p) + quoted(rig.parts[p].name) + ": " + ok.error().message);
+    }
+  }
+  addRigNodes(model, rig, meshes);
+  if (auto ok = addAnimations(model, rig, meshes); !ok) return ok.error();
   return model;
 }
 

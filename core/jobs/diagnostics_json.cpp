@@ -97,6 +97,19 @@ Json distanceJson(const DistanceStats& d) { return {{"median", d.median}, {"p95"
 
 Json vectorJson(const Eigen::Vector3d& v) { return Json::array({v(0), v(1), v(2)}); }
 
+// The rig's other meshes as carried: how (rigid body or deformed), the
+// body's scale and how far the dense map strays from it.
+Json partsJson(const std::vector<CarriedPart>& parts) {
+  Json out = Json::array();
+  for (const CarriedPart& p : parts) {
+    out.push_back({{"name", p.name},
+                   {"carried", p.rigid ? "rigid" : "deformed"},
+                   {"scale", p.scale},
+                   {"fit_residual", p.fit_residual}});
+  }
+  return out;
+}
+
 Json fitJson(const FitReport& r, const DiagnosticsContext& context) {
   Json doc;
   doc["verdict"] = r.verdict;
@@ -154,6 +167,7 @@ Json fitJson(const FitReport& r, const DiagnosticsContext& context) {
   doc["coverage"] = {{"face", r.face_coverage}, {"skin", r.skin_coverage}, {"uncovered_vertices", r.uncovered_vertices}};
   doc["folds"] = {{"flipped", r.flipped_triangles}, {"collapsed", r.collapsed_triangles}};
   doc["rebuild"] = {{"shapes", r.shapes}, {"joints", r.joints}, {"animations", r.animations}};
+  doc["parts"] = partsJson(r.parts);
   return doc;
 }
 
@@ -178,6 +192,7 @@ std::string formatTransferDiagnostics(const TransferReport& r, const Diagnostics
   doc["shapes"] = {{"count", r.shapes}};
   doc["joints"] = {{"count", r.joints}};
   doc["animations"] = {{"count", r.animations}};
+  doc["parts"] = partsJson(r.parts);
   doc["transfer"] = {{"unlocated_vertices", r.unlocated_vertices},
                      {"uv_seam_vertices", r.uv_seam_vertices},
                      {"uv_extended_vertices", r.uv_extended_vertices},
@@ -220,6 +235,7 @@ std::string formatTransferDiagnostics(const TransferReport& r, const Diagnostics
   t["weights"] = r.weights_ms;
   t["joints"] = r.joints_ms;
   t["shapes"] = r.shapes_ms;
+  t["parts"] = r.parts_ms;
   t["animations"] = r.animations_ms;
   t["attributes"] = r.attributes_ms;
   t["quality"] = r.quality_ms;

@@ -18,6 +18,20 @@ void appendRowCopies(Matrix& values, Eigen::Index vertex_count, const std::vecto
 
 }  // namespace
 
+Rig partAsRig(const Rig& rig, const RigPart& part) {
+  Rig out;
+  out.mesh = part.mesh;
+  out.mesh_name = part.name;
+  out.nodes = rig.nodes;
+  out.mesh_node = part.node;
+  if (part.weights.size() > 0) out.skin = rig.skin;
+  out.weights = part.weights;
+  out.morph_targets = part.morph_targets;
+  out.morph_default_weights = part.morph_default_weights;
+  out.attributes = part.attributes;
+  return out;
+}
+
 void appendVertexCopies(Rig& rig, const std::vector<int>& copy_of) {
   if (copy_of.empty()) return;
   const Eigen::Index nv = rig.mesh.vertexCount();

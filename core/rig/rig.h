@@ -80,6 +80,19 @@ struct VertexAttributes {
   std::map<std::string, Eigen::MatrixXd> fields;   // float custom attributes "_NAME": #V by 1..4
 };
 
+// A mesh of the rig besides the face (eyeballs, teeth, tongue, lashes): its
+// own geometry, shapes and attributes, skinned (or not) like the face, to the
+// rig's skin. Carried by transfer and fit, written back with its name.
+struct RigPart {
+  std::string name;                  // the glTF mesh's name
+  Mesh mesh;                         // as the face's: bind space when skinned, world space when not
+  int node = -1;                     // node instancing it (Rig::nodes)
+  SkinWeights weights;               // #V by rig.skin->joints.size(); empty when unskinned
+  std::vector<MorphTarget> morph_targets;
+  Eigen::VectorXd morph_default_weights;
+  VertexAttributes attributes;
+};
+
 struct Rig {
   Mesh mesh;                        // skinned: positions in bind space (the node transform is ignored)
   std::string mesh_name;
@@ -91,7 +104,14 @@ struct Rig {
   Eigen::VectorXd morph_default_weights;  // #targets (mesh.weights), zeros when absent
   std::vector<Animation> animations;
   VertexAttributes attributes;
+  // The rig's other meshes. Weight channels of animations may target their
+  // nodes (columns: that part's morph targets).
+  std::vector<RigPart> parts;
 };
+
+// The part as a rig of its own (its mesh, weights, shapes and attributes with
+// the rig's nodes, skin and no animations): for what reads or writes one mesh.
+Rig partAsRig(const Rig& rig, const RigPart& part);
 
 // Appends one vertex per entry of `copy_of`, a copy of that vertex: every
 // per-vertex array of the rig (mesh positions, normals, UVs, regions; skin

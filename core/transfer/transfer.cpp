@@ -574,6 +574,17 @@ Result<TransferResult> transferThroughCorrespondence(const PreparedRig& source, 
   report.shapes_ms = msSince(t0);
   report.animations = static_cast<int>(out.animations.size());
 
+  // --- the rig's other meshes (eyeballs, teeth, lashes): by vertex index through the dense map
+  if (stopBefore("parts", 0.8)) return stopped("parts");
+  t0 = Clock::now();
+  CarriedParts parts = carryParts(
+      src.parts, adaptation->dense_map, [&](const Eigen::Vector3d& p) { return adaptation->at(p); },
+      adaptation->global.rotation);
+  out.parts = std::move(parts.parts);
+  dropPartChannels(out.parts, options.shapes, out.skin.has_value());
+  report.parts = std::move(parts.report);
+  report.parts_ms = msSince(t0);
+
   // --- check the output (and repair unsure vertices), before any UV copies
   t0 = Clock::now();
   if (auto ok = checkAndRepairShapes(source, *warp, inpainting->laplacian, options, out, report); !ok) return ok.error();

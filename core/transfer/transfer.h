@@ -13,6 +13,7 @@
 #include "core/base/stage_hook.h"
 #include "core/transfer/attributes.h"
 #include "core/transfer/blendshapes.h"
+#include "core/transfer/parts.h"
 #include "core/rig/rig.h"
 #include "core/transfer/skeleton.h"
 #include "core/transfer/skin_weights.h"
@@ -126,6 +127,7 @@ struct TransferReport {
   // units); 1 when not applied.
   double delta_scale = 1.0;
   QualityReport quality;           // the output's own check (checkTransferQuality)
+  std::vector<CarriedPart> parts;  // the rig's other meshes, as carried (core/transfer/parts.h)
   std::vector<std::string> warnings;
   // milliseconds
   double prepare_ms = 0.0;
@@ -133,6 +135,7 @@ struct TransferReport {
   double weights_ms = 0.0;
   double joints_ms = 0.0;
   double shapes_ms = 0.0;
+  double parts_ms = 0.0;
   double animations_ms = 0.0;
   double attributes_ms = 0.0;
   double quality_ms = 0.0;

@@ -52,9 +52,10 @@ inline FitReferenceCase preparedForFitting(core::Result<core::PreparedRig> prepa
   return out;
 }
 
-inline FitReferenceCase loadIctFitReference(const std::filesystem::path& data) {
+inline FitReferenceCase loadIctFitReference(const std::filesystem::path& data,
+                                            const std::string& file = "source_face_skinned.glb") {
   FitReferenceCase out;
-  auto rig = core::readRig(data / "ict" / "source_face_skinned.glb");
+  auto rig = core::readRig(data / "ict" / file);
   if (!rig) {
     out.error = rig.error().message;
     return out;
@@ -64,7 +65,7 @@ inline FitReferenceCase loadIctFitReference(const std::filesystem::path& data) {
     out.error = landmarks.error().message;
     return out;
   }
-  return preparedForFitting(core::prepareRig(std::move(rig->rig), std::move(*landmarks), "source_face_skinned.glb"));
+  return preparedForFitting(core::prepareRig(std::move(rig->rig), std::move(*landmarks), file));
 }
 
 // Loaded once per process (the first caller's data directory).

@@ -108,6 +108,25 @@ void expectRebuiltAsTheReferenceMoved(const FitReferenceCase& ref, const core::S
   std::printf("%s: deltas off by at most %.3g (largest %.3g, scan units), %zu shapes, %d joints moved\n",
               prepared.surface.label.c_str(), worst, largest, rig.morph_targets.size(), r.joints);
   EXPECT_LE(worst, 1e-12 * largest);
+
+  // The rig's other meshes: moved as the face was, weights and shapes kept.
+  ASSERT_EQ(rig.parts.size(), source.parts.size());
+  ASSERT_EQ(r.parts.size(), source.parts.size());
+  for (std::size_t p = 0; p < source.parts.size(); ++p) {
+    const core::RigPart& in = source.parts[p];
+    const core::RigPart& out = rig.parts[p];
+    SCOPED_TRACE(in.name);
+    EXPECT_EQ(out.name, in.name);
+    EXPECT_TRUE(rigport_test::matricesNear(out.mesh.positions, rigport_test::transformedPoints(in.mesh.positions, move),
+                                           1e-7 * diagonal));
+    EXPECT_EQ((out.weights - in.weights).norm(), 0.0);
+    ASSERT_EQ(out.morph_targets.size(), in.morph_targets.size());
+    for (std::size_t k = 0; k < in.morph_targets.size(); ++k) {
+      const Eigen::MatrixX3d deltas = move.scale * in.morph_targets[k].position_deltas * move.rotation.transpose();
+      EXPECT_LE((out.morph_targets[k].position_deltas - deltas).cwiseAbs().maxCoeff(), 1e-6 * (largest + 1e-30))
+          << in.morph_targets[k].name;
+    }
+  }
 }
 
 TEST(RebuildRig, GeneratedRigOnItselfIsItself) {
@@ -133,6 +152,16 @@ TEST(RebuildRig, IctOnItselfTurnedAndInMillimetres) {
   RIGPORT_REQUIRE_SHARED_DATA(data);
   const FitReferenceCase& ref = rigport_test::ictFitReference(data);
   ASSERT_TRUE(ref.reference) << "ICT reference did not load: " << ref.error;
+  expectRebuiltAsTheReferenceMoved(ref, turned(10.0), "mm");  // cm -> mm
+}
+
+// The multi-mesh ICT rig (eyeballs, teeth, gums and tongue, lashes): every
+// mesh rebuilt with the face.
+TEST(RebuildRig, IctMultiMeshOnItselfTurnedAndInMillimetres) {
+  RIGPORT_REQUIRE_SHARED_DATA(data);
+  static const FitReferenceCase ref = rigport_test::loadIctFitReference(data, "source_face_full.glb");
+  ASSERT_TRUE(ref.reference) << "ICT multi-mesh reference did not load: " << ref.error;
+  ASSERT_EQ(ref.rig->rig.parts.size(), 6u);
   expectRebuiltAsTheReferenceMoved(ref, turned(10.0), "mm");  // cm -> mm
 }
 

@@ -174,6 +174,17 @@ inline void expectRigsEqual(const core::Rig& a, const core::Rig& b, bool same_in
   expectMorphTargetsEqual(a, b);
   expectAnimationsEqual(a, b);
   expectAttributesEqual(a, b);
+  ASSERT_EQ(a.parts.size(), b.parts.size());
+  for (std::size_t p = 0; p < a.parts.size(); ++p) {
+    SCOPED_TRACE("part " + a.parts[p].name);
+    EXPECT_EQ(a.parts[p].node, b.parts[p].node);
+    const core::Rig pa = core::partAsRig(a, a.parts[p]);
+    const core::Rig pb = core::partAsRig(b, b.parts[p]);
+    expectMeshEqual(pa, pb);
+    expectSkinEqual(pa, pb, same_influence_sets);
+    expectMorphTargetsEqual(pa, pb);
+    expectAttributesEqual(pa, pb);
+  }
 }
 
 // ---------------------------------------------------------------------------

@@ -163,6 +163,45 @@ TEST(RigIct, SkinnedSourceFaceRoundTripsAndValidates) {
   EXPECT_EQ(rigport_test::validateGltf(path).warnings, 0);
 }
 
+// A rig as studios deliver faces: the face plus eyeballs, teeth, gums and
+// tongue, lashes, each a mesh of its own on the face's skin, with its shapes,
+// and one clip driving every mesh's morph weights.
+TEST(RigIct, MultiMeshRigKeepsEveryMeshRoundTripsAndValidates) {
+  RIGPORT_REQUIRE_SHARED_DATA(data);
+  auto loaded = core::readRig(data / "ict" / "source_face_full.glb");
+  ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+  const Rig& rig = loaded->rig;
+  EXPECT_EQ(rig.mesh_name, "ict_face");
+  const std::vector<std::string> expected = {"eyeball_L", "eyeball_R", "teeth", "gums_tongue", "eyelashes_L", "eyelashes_R"};
+  ASSERT_EQ(rig.parts.size(), expected.size());
+  for (std::size_t p = 0; p < expected.size(); ++p) {
+    const core::RigPart& part = rig.parts[p];
+    EXPECT_EQ(part.name, expected[p]);
+    EXPECT_GT(part.mesh.triangleCount(), 0);
+    EXPECT_EQ(part.weights.rows(), part.mesh.vertexCount()) << part.name << " is skinned";
+    EXPECT_EQ(part.weights.cols(), static_cast<Eigen::Index>(rig.skin->joints.size()));
+    EXPECT_EQ(part.morph_targets.size(), rig.morph_targets.size()) << part.name;
+  }
+  // The expression clip animates the weights of all seven meshes.
+  const auto clip = std::find_if(rig.animations.begin(), rig.animations.end(),
+                                 [](const core::Animation& a) { return a.name == "expression_weights"; });
+  ASSERT_NE(clip, rig.animations.end());
+  const auto weight_channels = std::count_if(clip->channels.begin(), clip->channels.end(), [](const core::AnimationChannel& c) {
+    return c.path == AnimationPath::kWeights;
+  });
+  EXPECT_EQ(weight_channels, 7);
+  for (const std::string& warning : loaded->report.warnings) {
+    EXPECT_EQ(warning.find("dropped"), std::string::npos) << warning;
+    EXPECT_EQ(warning.find("skipped"), std::string::npos) << warning;
+  }
+
+  const ByteVector bytes = mustEncode(rig);
+  const LoadedRig back = mustRead(bytes);
+  expectRigsEqual(rig, back.rig, /*same_influence_sets=*/true);
+  const auto path = writeTemp(bytes, "source_face_full");
+  EXPECT_GLTF_VALID(path);
+}
+
 TEST(RigIct, SparseGroundTruthMorphTargetsReadExactly) {
   RIGPORT_REQUIRE_SHARED_DATA(data);
   const auto file = data / "ict" / "targets" / "id_s01.gt.glb";

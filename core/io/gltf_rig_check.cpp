@@ -1,0 +1,145 @@
+// glTF rig writing, the checks first: every rule the validator enforces that
+// the Rig type does not (nodes, skin, morph targets, parts), so a rig that
+// passes writes a valid file. checkRig.
+
+#include "core/io/gltf_model.h"
+
+namespace core::gltf {
+
+std::string nodeName(const Rig& rig, int node) {
+  return "node " + std::to_string(node) + quoted(rig.nodes[static_cast<std::size_t>(node)].name);
+}
+
+namespace {
+
+Status checkRigNodes(const Rig& rig) {
+  const int n = static_cast<int>(rig.nodes.size());
+  for (int i = 0; i < n; ++i) {
+    const Node& node = rig.nodes[static_cast<std::size_t>(i)];
+    if (node.parent < -1 || node.parent >= n || node.parent == i) {
+      return invalidRig(nodeName(rig, i) + " has parent " + std::to_string(node.parent) + ", not another node");
+    }
+    if (!node.translation.allFinite() || !node.rotation.coeffs().allFinite() || !node.scale.allFinite()) {
+      return invalidRig(nodeName(rig, i) + " has a non-finite transform");
+    }
+    if (!(node.rotation.norm() > 0.0)) return invalidRig(nodeName(rig, i) + " has a zero rotation quaternion");
+  }
+  for (int i = 0; i < n; ++i) {  // every parent is a node index now
+    int steps = 0;
+    for (int p = rig.nodes[static_cast<std::size_t>(i)].parent; p >= 0;
+         p = rig.nodes[static_cast<std::size_t>(p)].parent) {
+      if (++steps > n) return invalidRig(nodeName(rig, i) + " is in a cycle of parents");
+    }
+  }
+  if (rig.mesh_node < -1 || rig.mesh_node >= n) {
+    return invalidRig("mesh_node " + std::to_string(rig.mesh_node) + " is not a node index (or -1)");
+  }
+  return Ok{};
+}
+
+Status checkRigSkin(const Rig& rig) {
+  const Eigen::Index nv = rig.mesh.vertexCount();
+  if (!rig.skin) {
+    if (rig.weights.nonZeros() > 0) return invalidRig("it has skin weights but no skin");
+    return Ok{};
+  }
+  const Skin& skin = *rig.skin;
+  const std::size_t count = skin.joints.size();
+  if (count == 0 || count > 65536) return invalidRig("the skin has " + std::to_string(count) + " joints (1..65536)");
+  std::vector<char> used(rig.nodes.size(), 0);
+  for (std::size_t j = 0; j < count; ++j) {
+    const int node = skin.joints[j];
+    if (node < 0 || static_cast<std::size_t>(node) >= rig.nodes.size()) {
+      return invalidRig("skin joint " + std::to_string(j) + " is node " + std::to_string(node) + " but the rig has " +
+                        std::to_string(rig.nodes.size()) + " nodes");
+    }
+    if (used[static_cast<std::size_t>(node)]) {
+      return invalidRig("skin joint " + std::to_string(j) + " repeats " + nodeName(rig, node));
+    }
+    used[static_cast<std::size_t>(node)] = 1;
+  }
+  if (skin.inverse_bind.size() != count) {
+    return invalidRig("the skin has " + std::to_string(count) + " joints but " +
+                      std::to_string(skin.inverse_bind.size()) + " inverse bind matrices");
+  }
+  for (std::size_t j = 0; j < count; ++j) {
+    const Eigen::Matrix4d& m = skin.inverse_bind[j];
+    const std::string joint = "skin joint " + std::to_string(j) + " (" + nodeName(rig, skin.joints[j]) + ")";
+    if (!m.allFinite() || !m.cast<float>().allFinite()) {
+      return invalidRig(joint + " inverse bind matrix is not finite in float32");
+    }
+    if ((m.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-9) {
+      return invalidRig(joint + " inverse bind matrix bottom row is not 0 0 0 1");
+    }
+  }
+  if (skin.skeleton < -1 || skin.skeleton >= static_cast<int>(rig.nodes.size())) {
+    return invalidRig("skin skeleton " + std::to_string(skin.skeleton) + " is not a node index (or -1)");
+  }
+  if (rig.weights.rows() != nv || rig.weights.cols() != static_cast<Eigen::Index>(count)) {
+    return invalidRig("skin weights are " + std::to_string(rig.weights.rows()) + " by " +
+                      std::to_string(rig.weights.cols()) + ", expected #V " + std::to_string(nv) + " by #joints " +
+                      std::to_string(count));
+  }
+  return Ok{};
+}
+
+Status checkRigMorphTargets(const Rig& rig) {
+  const Eigen::Index nv = rig.mesh.vertexCount();
+  const std::size_t count = rig.morph_targets.size();
+  for (std::size_t t = 0; t < count; ++t) {
+    const MorphTarget& target = rig.morph_targets[t];
+    const std::string what = "morph target " + std::to_string(t) + quoted(target.name);
+    if (target.position_deltas.rows() != nv) {
+      return invalidRig(what + " has " + std::to_string(target.position_deltas.rows()) + " position deltas for " +
+                        std::to_string(nv) + " vertices");
+    }
+    if (target.normal_deltas.rows() != 0 && target.normal_deltas.rows() != nv) {
+      return invalidRig(what + " has " + std::to_string(target.normal_deltas.rows()) + " normal deltas for " +
+                        std::to_string(nv) + " vertices");
+    }
+    if (target.normal_deltas.rows() > 0 && rig.mesh.normals.rows() == 0) {
+      return invalidRig(what + " has normal deltas but the mesh has no normals");
+    }
+  }
+  const Eigen::Index defaults = rig.morph_default_weights.size();
+  if ((defaults != 0 && defaults != static_cast<Eigen::Index>(count)) || !rig.morph_default_weights.allFinite()) {
+    return invalidRig("morph_default_weights has " + std::to_string(defaults) + " values for " + std::to_string(count) +
+                      " morph targets (or is not finite)");
+  }
+  return Ok{};
+}
+
+}  // namespace
+
+Status checkRig(const Rig& rig, const RigWriteOptions& options) {
+  if (options.max_influences < 1 || options.max_influences > 8) {
+    return invalidRig("max_influences is " + std::to_string(options.max_influences) + " (1..8)");
+  }
+  if (auto ok = validateMesh(rig.mesh, kRigLabel); !ok) return ok.error();
+  if (rig.mesh.vertexCount() == 0) return makeError(ErrorCode::kInvalidMesh, kRigLabel + ": the mesh has no vertices");
+  if (auto ok = checkRigNodes(rig); !ok) return ok.error();
+  if (auto ok = checkRigSkin(rig); !ok) return ok.error();
+  if (auto ok = checkRigMorphTargets(rig); !ok) return ok.error();
+  for (std::size_t p = 0; p < rig.parts.size(); ++p) {
+    const RigPart& part = rig.parts[p];
+    const std::string what = "part " + std::to_string(p) + quoted(part.name);
+    if (part.node < 0 || part.node >= static_cast<int>(rig.nodes.size()) || part.node == rig.mesh_node) {
+      return invalidRig(what + " is on node " + std::to_string(part.node) + ", not a node of its own");
+    }
+    if (part.weights.size() > 0 && !rig.skin) return invalidRig(what + " has skin weights but the rig has no skin");
+    if (auto ok = validateMesh(part.mesh, kRigLabel + " " + what); !ok) return ok.error();
+    const Rig view = partAsRig(rig, part);
+    if (auto ok = checkRigSkin(view); !ok) return makeError(ok.error().code, what + ": " + ok.error().message);
+    if (auto ok = checkRigMorphTargets(view); !ok) return makeError(ok.error().code, what + ": " + ok.error().message);
+  }
+  for (std::size_t p = 0; p < rig.parts.size(); ++p) {
+    for (std::size_t q = 0; q < p; ++q) {
+      if (rig.parts[p].node == rig.parts[q].node) {
+        return invalidRig("parts " + std::to_string(q) + " and " + std::to_string(p) + " are on one node");
+      }
+    }
+  }
+  return Ok{};
+}
+
+}  // namespace core::gltf
