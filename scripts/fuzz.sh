@@ -13,7 +13,7 @@ cd "$ROOT"
 SECONDS_EACH="${1:-30}"
 shift || true
 TARGETS=("$@")
-[ "${#TARGETS[@]}" -gt 0 ] || TARGETS=(fuzz_glb fuzz_gltf fuzz_obj fuzz_ply fuzz_trc fuzz_landmarks fuzz_options fuzz_job_spec)
+[ "${#TARGETS[@]}" -gt 0 ] || TARGETS=(fuzz_glb fuzz_gltf fuzz_obj fuzz_ply fuzz_trc fuzz_landmarks fuzz_options fuzz_job_spec fuzz_components)
 JOBS="$(nproc 2>/dev/null || echo 2)"
 
 bash docker/install-deps.sh
@@ -67,6 +67,9 @@ echo '{"kind": "transfer", "rig": "'"$(printf '%064d' 0)"'", "options": {"influe
 echo '{"kind": "retarget", "options": {"method": "geodesic"}}' > "$GEN/spec_retarget.json"
 echo '{"kind": "fit", "rig": "'"$(printf '%064d' 0)"'", "options": {"alignment": "landmarks"}}' > "$GEN/spec_fit.json"
 for f in "$GEN"/spec_*.json; do seed fuzz_job_spec "$f"; done
+# The components document's example (docs/COMPONENTS.md, its one json block).
+sed -n '/^```json$/,/^```$/p' "$ROOT/docs/COMPONENTS.md" | sed '1d;$d' > "$GEN/components.json"
+seed fuzz_components "$GEN/components.json"
 SHARED="$ROOT/../shared/data"
 if [ -d "$SHARED" ]; then
   while IFS= read -r f; do

@@ -11,6 +11,7 @@
 #include <string_view>
 
 #include "api/json.h"
+#include "core/io/components_io.h"
 #include "core/io/landmarks.h"
 #include "core/io/mesh_io.h"
 #include "core/jobs/fit_options.h"
@@ -44,8 +45,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
 #elif RIGPORT_FUZZ_TARGET == 8  // fuzz_job_spec: the multipart `spec` part of POST /v1/jobs
   auto parsed = api::parseJsonText(text, "spec");
   if (parsed) (void)api::jobSpecFromJson(*parsed);
+#elif RIGPORT_FUZZ_TARGET == 9  // fuzz_components: the rig components document, written back and read again
+  if (auto doc = core::parseComponents(text, "fuzz.components.json")) {
+    // What was accepted must read back: a written document the reader refuses is a bug.
+    if (!core::parseComponents(core::formatComponents(*doc), "fuzz.components.json")) __builtin_trap();
+  }
 #else
-#error "RIGPORT_FUZZ_TARGET must name a reader (1-8)"
+#error "RIGPORT_FUZZ_TARGET must name a reader (1-9)"
 #endif
   return 0;
 }
