@@ -12,6 +12,7 @@
 #include "core/jobs/fit_options.h"
 #include "core/jobs/retarget_job.h"
 #include "core/jobs/transfer_job.h"
+#include "core/io/components_io.h"
 #include "core/io/landmarks.h"
 #include "core/io/mesh_io.h"
 #include "core/jobs/retarget_options.h"
@@ -103,13 +104,14 @@ api::Result<api::RigInfo> checkRigUpload(Bytes rig_bytes, const std::string& rig
   std::vector<std::string> names;
   for (const auto& l : landmarks->landmarks) names.push_back(l.name);
   if (auto ok = core::checkTpsCentres(*positions, {}, names); !ok) return problemFromCoreError(ok.error(), "/v1/rigs");
-  if (components) {
-    auto json = api::parseJsonText(std::string(asText(*components)), "components");
-    if (!json) {
-      return api::makeProblem(api::WireError::kMalformedFile, json.error(), "/v1/rigs");
-    }
-    if (!json->is_object()) {
-      return api::makeProblem(api::WireError::kMalformedFile, "components: expected a JSON object", "/v1/rigs");
+  if (components) {  // the document read and checked against the rig's face (docs/COMPONENTS.md)
+    auto doc = core::parseComponents(asText(*components), "components");
+    if (!doc) return api::makeProblem(api::WireError::kMalformedFile, doc.error().message, "/v1/rigs");
+    core::ComponentsMeshCounts counts;
+    counts.vertex_count = rig->rig.mesh.vertexCount();
+    counts.triangle_count = rig->rig.mesh.triangleCount();
+    if (auto ok = core::validateComponents(*doc, "components", counts); !ok) {
+      return api::makeProblem(api::WireError::kMalformedFile, ok.error().message, "/v1/rigs");
     }
   }
   api::RigInfo info;

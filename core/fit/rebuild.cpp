@@ -95,6 +95,7 @@ Result<Rig> rebuildRig(const FitReference& reference, const FrameMap& frame, con
   } else {
     rig.morph_targets.clear();
     rig.morph_default_weights.resize(0);
+    rig.baked_presets.clear();
   }
   if (rebuild.joints && rig.skin) {
     TransferredSkeleton skeleton = transferSkeleton(prepared.rig, *dense_map, rotation);

@@ -269,6 +269,10 @@ Result<Matrix> readMergedAttribute(const tinygltf::Model& model, const std::vect
   return merged;
 }
 
+// mesh.extras key listing the morph targets that are baked presets of the
+// rig's components (Rig::baked_presets).
+inline const char* const kBakedPresetsKey = "rigportBakedPresets";
+
 // mesh.extras.targetNames when it is a list of `count` strings, else target_<i>.
 std::vector<std::string> targetNames(const tinygltf::Mesh& gmesh, std::size_t count, const std::string& mesh_name,
                                      std::vector<std::string>& warnings);

@@ -101,6 +101,11 @@ Status checkRigMorphTargets(const Rig& rig) {
       return invalidRig(what + " has normal deltas but the mesh has no normals");
     }
   }
+  for (const std::string& baked : rig.baked_presets) {
+    const bool known = std::any_of(rig.morph_targets.begin(), rig.morph_targets.end(),
+                                   [&](const MorphTarget& t) { return t.name == baked; });
+    if (!known) return invalidRig("baked preset '" + baked + "' is not a morph target of the face");
+  }
   const Eigen::Index defaults = rig.morph_default_weights.size();
   if ((defaults != 0 && defaults != static_cast<Eigen::Index>(count)) || !rig.morph_default_weights.allFinite()) {
     return invalidRig("morph_default_weights has " + std::to_string(defaults) + " values for " + std::to_string(count) +

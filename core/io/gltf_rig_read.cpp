@@ -359,6 +359,26 @@ Result<VertexAttributes> readVertexAttributes(const tinygltf::Model& model, cons
   return out;
 }
 
+// mesh.extras.rigportBakedPresets: names of morph targets of this mesh.
+std::vector<std::string> bakedPresets(const tinygltf::Mesh& gmesh, const std::vector<MorphTarget>& targets,
+                                      const std::string& mesh_name, std::vector<std::string>& warnings) {
+  std::vector<std::string> names;
+  if (!gmesh.extras.IsObject() || !gmesh.extras.Has(kBakedPresetsKey)) return names;
+  const tinygltf::Value& list = gmesh.extras.Get(kBakedPresetsKey);
+  for (std::size_t i = 0; list.IsArray() && i < list.ArrayLen(); ++i) {
+    const tinygltf::Value& item = list.Get(static_cast<int>(i));
+    const bool known = item.IsString() && std::any_of(targets.begin(), targets.end(), [&](const MorphTarget& t) {
+                         return t.name == item.Get<std::string>();
+                       });
+    if (!known) {
+      warnings.push_back(mesh_name + " extras." + kBakedPresetsKey + " is not a list of its morph target names; ignored");
+      return {};
+    }
+    names.push_back(item.Get<std::string>());
+  }
+  return names;
+}
+
 Status readMorphing(const tinygltf::Model& model, const MeshChoice& choice, const std::vector<PrimitiveRange>& ranges,
                     const std::string& mesh_name, const std::string& label, Rig& rig,
                     std::vector<std::string>& warnings) {
@@ -373,6 +393,7 @@ Status readMorphing(const tinygltf::Model& model, const MeshChoice& choice, cons
   }
   const tinygltf::Node* node = choice.node >= 0 ? &model.nodes[static_cast<std::size_t>(choice.node)] : nullptr;
   rig.morph_default_weights = defaultMorphWeights(gmesh, node, rig.morph_targets.size(), mesh_name, warnings);
+  rig.baked_presets = bakedPresets(gmesh, rig.morph_targets, mesh_name, warnings);
   return Ok{};
 }
 

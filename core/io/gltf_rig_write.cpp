@@ -457,6 +457,11 @@ Status addMorphTargets(tinygltf::Model& model, const Rig& rig, const NodeSpace& 
   for (Eigen::Index t = 0; t < defaults.size(); ++t) gmesh.weights[static_cast<std::size_t>(t)] = defaults(t);
   tinygltf::Value::Object extras;
   extras["targetNames"] = tinygltf::Value(std::move(names));
+  if (!rig.baked_presets.empty()) {
+    tinygltf::Value::Array baked;
+    for (const std::string& name : rig.baked_presets) baked.emplace_back(name);
+    extras[kBakedPresetsKey] = tinygltf::Value(std::move(baked));
+  }
   gmesh.extras = tinygltf::Value(std::move(extras));
   return Ok{};
 }

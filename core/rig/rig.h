@@ -107,6 +107,9 @@ struct Rig {
   // The rig's other meshes. Weight channels of animations may target their
   // nodes (columns: that part's morph targets).
   std::vector<RigPart> parts;
+  // Names of the face's morph targets that are baked presets of its
+  // components (core/components/bake.h); the GLB's mesh.extras.
+  std::vector<std::string> baked_presets;
 };
 
 // The part as a rig of its own (its mesh, weights, shapes and attributes with

@@ -4,6 +4,7 @@
 #include "core/transfer/transfer.h"
 
 #include "core/base/timing.h"
+#include "core/transfer/components_transfer.h"
 
 #include <algorithm>
 #include <cctype>
@@ -329,6 +330,7 @@ void transferShapes(const PreparedRig& source, const TargetLocations& locations,
     out.morph_targets = transferMorphTargets(src.morph_targets, source.surface.mesh.triangles, locations,
                                              vertex_adaptation, out.mesh, mismatched, shape_options);
     out.morph_default_weights = src.morph_default_weights;
+    out.baked_presets = src.baked_presets;
     return;
   }
   // Morph-weight channels would point at targets that no longer exist.
@@ -394,7 +396,7 @@ void addDiagnosticAttributes(const TargetLocations& locations, const Transferred
 // Last: carrying the source's UV seams over splits target vertices, and
 // every per-vertex value before goes with its copies.
 Status transferUvs(const PreparedRig& source, const WarpResult& warp, const TransferOptions& options, Rig& out,
-                   TransferReport& report) {
+                   TransferReport& report, std::optional<ComponentsDocument>& components) {
   if (!options.uvs) return Ok{};
   const std::string& target_label = warp.target.label;
   if (!source.uv_layout) {
@@ -405,6 +407,7 @@ Status transferUvs(const PreparedRig& source, const WarpResult& warp, const Tran
   const Mesh& src_mesh = source.surface.mesh;
   auto layout = transferUvLayout(src_mesh, *source.uv_layout, warp.target.mesh, warp.locations, warp.target.representative);
   if (!layout) return Error{layout.error().code, target_label + ": " + layout.error().message};
+  if (components) addVertexCopies(*components, layout->copy_of, static_cast<int>(out.mesh.vertexCount()));
   appendVertexCopies(out, layout->copy_of);
   out.mesh.triangles = layout->triangles;
   std::size_t next = 0;
@@ -432,6 +435,11 @@ std::size_t PreparedRig::memoryBytes() const {
   for (const auto& t : rig.morph_targets) bytes += static_cast<std::size_t>(t.position_deltas.size() + t.normal_deltas.size()) * sizeof(double);
   bytes += static_cast<std::size_t>(rig.weights.nonZeros()) * (sizeof(double) + sizeof(int));
   for (const auto& a : rig.animations) for (const auto& c : a.channels) bytes += static_cast<std::size_t>(c.values.size() + c.times.size()) * sizeof(double);
+  for (const RigPart& part : rig.parts) {  // the other meshes: as large as the face's shapes, together
+    bytes += static_cast<std::size_t>(part.mesh.positions.size() + part.mesh.normals.size()) * sizeof(double);
+    for (const auto& t : part.morph_targets) bytes += static_cast<std::size_t>(t.position_deltas.size() + t.normal_deltas.size()) * sizeof(double);
+    bytes += static_cast<std::size_t>(part.weights.nonZeros()) * (sizeof(double) + sizeof(int));
+  }
   return bytes;
 }
 
@@ -598,7 +606,13 @@ Result<TransferResult> transferThroughCorrespondence(const PreparedRig& source, 
                                         inpainting->mismatchedOrNull());
   }
   if (options.diagnostic_attributes) addDiagnosticAttributes(warp->locations, weights, report.quality, out);
-  if (auto ok = transferUvs(source, *warp, options, out, report); !ok) return ok.error();
+  if (source.components) {
+    const ComponentsCorrespondence map{source.surface.mesh,        adaptation->dense_map, warp->target.mesh,
+                                       warp->target.index,         warp->locations,       inpainting->laplacian,
+                                       inpainting->mismatchedOrNull(), adaptation->global.rotation, report.global_scale};
+    result.components = transferComponents(*source.components, map);
+  }
+  if (auto ok = transferUvs(source, *warp, options, out, report, result.components); !ok) return ok.error();
   report.attributes_ms = msSince(t0);
   report.total_ms = msSince(t_start);
   return result;

@@ -12,6 +12,7 @@
 
 #include "core/base/stage_hook.h"
 #include "core/transfer/attributes.h"
+#include "core/components/components.h"
 #include "core/transfer/blendshapes.h"
 #include "core/transfer/parts.h"
 #include "core/rig/rig.h"
@@ -80,6 +81,9 @@ struct PreparedRig {
   Rig rig;
   PreparedSource surface;
   std::optional<SourceUvLayout> uv_layout;  // when the rig has UV sets (for TransferOptions::uvs)
+  // The rig's components document (docs/COMPONENTS.md), when it has one:
+  // carried to each target (core/transfer/components_transfer.h).
+  std::optional<ComponentsDocument> components;
   std::size_t memoryBytes() const;
 };
 
@@ -145,6 +149,7 @@ struct TransferReport {
 struct TransferResult {
   Rig rig;
   TransferReport report;
+  std::optional<ComponentsDocument> components;  // the target's, when the rig has a document
 };
 
 // The transfer to a target prepared for this job (prepareTarget).

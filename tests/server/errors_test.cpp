@@ -129,6 +129,28 @@ TEST_F(ServiceErrors, UnusableFilesAre400Or422NamingTheFile) {
   EXPECT_EQ(r.content_type, "application/problem+json");
 }
 
+// A rig's components document is read and checked at upload: a document the
+// rig cannot use is refused naming the component and field; a good one stored.
+TEST_F(ServiceErrors, RigComponentsAreCheckedAtUploadNamingTheField) {
+  auto rigParts = [&](const std::string& components) {
+    return httplib::MultipartFormDataItems{{"rig", fileText(files_.rig), "rig.glb", "model/gltf-binary"},
+                                           {"landmarks", fileText(files_.landmarks), "l.json", "application/json"},
+                                           {"components", components, "c.json", "application/json"}};
+  };
+  const std::string header = R"("format": "rigport.components", "version": 1)";
+  Reply r = postParts(*client_, "/v1/rigs",
+                      rigParts("{" + header + R"(, "wires": [{"name": "upper_lip", "base_curve": "a", "curve": "a", "dropoff_distance": -1}]})"));
+  EXPECT_EQ(r.status, 400) << r.raw;
+  EXPECT_NE(r.raw.find("upper_lip"), std::string::npos) << r.raw;
+  r = postParts(*client_, "/v1/rigs", rigParts("{" + header + R"(, "locators": [{"name": "tip", "binding": {"vertex": 99999999}}]})"));
+  EXPECT_EQ(r.status, 400) << r.raw;
+  EXPECT_EQ(r.body.value("type", ""), "urn:rigport:problem:malformed-file") << r.raw;
+  EXPECT_NE(r.raw.find("tip"), std::string::npos) << r.raw;
+  r = postParts(*client_, "/v1/rigs", rigParts("{" + header + R"(, "locators": [{"name": "tip", "binding": {"vertex": 3}}]})"));
+  EXPECT_EQ(r.status, 201) << r.raw;
+  EXPECT_EQ(r.body.value("has_components", false), true) << r.raw;
+}
+
 // What a job would refuse is answered at submission (422), never accepted and
 // failed later: a target with no surface, landmarks sharing fewer than 4 names
 // with the rig, shared landmarks that do not span 3D. Nothing is stored.

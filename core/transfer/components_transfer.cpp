@@ -1,0 +1,208 @@
+// transferComponents: see components_transfer.h.
+
+#include "core/transfer/components_transfer.h"
+
+#include <string>
+
+#include "core/transfer/attributes.h"
+
+namespace core {
+
+namespace {
+
+// Member weights below this after interpolation are no longer members.
+constexpr double kMemberWeightFloor = 1e-4;
+// A set member (0/1) stays one where at least half its location's corners are.
+constexpr double kSetMemberThreshold = 0.5;
+
+class ComponentsMapper {
+ public:
+  explicit ComponentsMapper(const ComponentsCorrespondence& map) : map_(map) {}
+
+  Eigen::Vector3d point(const Eigen::Vector3d& p) const { return map_.dense_map.apply(p); }
+  Eigen::Vector3d direction(const Eigen::Vector3d& d) const { return map_.rotation * d; }
+  double length(double l) const { return map_.scale * l; }
+  Eigen::Quaterniond rotation(const Eigen::Quaterniond& q) const {
+    const Eigen::Quaterniond r(map_.rotation);
+    return (r * q * r.conjugate()).normalized();
+  }
+
+  Binding binding(const Binding& b) const {
+    const Eigen::Vector3d at =
+        point(resolveBinding(b, map_.source_mesh.positions, map_.source_mesh.triangles));
+    if (b.kind == BindingKind::kPosition) return Binding::atPosition(at);
+    const SurfacePoint sp = map_.target_index.closestPoint(at);
+    return sp.found() ? Binding::onFace(sp.face, sp.barycentric) : Binding::atPosition(at);
+  }
+
+  // The target vertex nearest where the map puts source vertex v.
+  int vertex(int v) const {
+    const Eigen::Vector3d at = point(map_.source_mesh.positions.row(v).transpose());
+    const SurfacePoint sp = map_.target_index.closestPoint(at);
+    if (!sp.found()) return 0;
+    int corner = 0;
+    sp.barycentric.maxCoeff(&corner);
+    return map_.target_mesh.triangles(sp.face, corner);
+  }
+
+ private:
+  const ComponentsCorrespondence& map_;
+};
+
+// Every member set of the document as one field of the source (#Vs by 1),
+// carried together by the attribute transfer.
+class MemberFields {
+ public:
+  explicit MemberFields(Eigen::Index source_vertices) : n_(source_vertices) {}
+
+  std::string add(const std::string& key, const std::vector<std::pair<int, double>>& members) {
+    Eigen::MatrixXd field = Eigen::MatrixXd::Zero(n_, 1);
+    for (const auto& [v, w] : members) field(v, 0) = w;
+    source_.fields[key] = std::move(field);
+    return key;
+  }
+  void carry(const ComponentsCorrespondence& map) {
+    target_ = transferAttributes(map.source_mesh, source_, map.locations, map.target_laplacian, map.mismatched);
+  }
+  std::vector<ClusterMember> weighted(const std::string& key) const {
+    std::vector<ClusterMember> out;
+    const Eigen::MatrixXd& f = target_.fields.at(key);
+    for (Eigen::Index v = 0; v < f.rows(); ++v) {
+      if (f(v, 0) > kMemberWeightFloor) out.push_back({static_cast<int>(v), f(v, 0)});
+    }
+    return out;
+  }
+  std::vector<int> set(const std::string& key) const {
+    std::vector<int> out;
+    const Eigen::MatrixXd& f = target_.fields.at(key);
+    for (Eigen::Index v = 0; v < f.rows(); ++v) {
+      if (f(v, 0) >= kSetMemberThreshold) out.push_back(static_cast<int>(v));
+    }
+    return out;
+  }
+
+ private:
+  Eigen::Index n_;
+  VertexAttributes source_;
+  VertexAttributes target_;
+};
+
+std::vector<std::pair<int, double>> asWeighted(const std::vector<int>& set) {
+  std::vector<std::pair<int, double>> out;
+  for (const int v : set) out.emplace_back(v, 1.0);
+  return out;
+}
+
+std::vector<std::pair<int, double>> asWeighted(const std::vector<ClusterMember>& members) {
+  std::vector<std::pair<int, double>> out;
+  for (const ClusterMember& m : members) out.emplace_back(m.vertex, m.weight);
+  return out;
+}
+
+void mapTargets(std::vector<ConstraintTarget>& targets, const ComponentsMapper& m) {
+  for (ConstraintTarget& t : targets) {
+    if (t.kind == TargetKind::kVertex) t.vertex = m.vertex(t.vertex);
+  }
+}
+
+void mapCollision(CollisionShape& s, const ComponentsMapper& m) {
+  for (Eigen::Vector3i& t : s.triangles) t = Eigen::Vector3i(m.vertex(t(0)), m.vertex(t(1)), m.vertex(t(2)));
+  s.center = m.binding(s.center);
+  s.radius = m.length(s.radius);
+  s.radii *= m.length(1.0);
+  s.rotation = m.rotation(s.rotation);
+}
+
+}  // namespace
+
+ComponentsDocument transferComponents(const ComponentsDocument& source, const ComponentsCorrespondence& map) {
+  const ComponentsMapper m(map);
+  ComponentsDocument out = source;
+  // Member sets first: one attribute transfer for all. An empty set means
+  // "every vertex" and stays empty.
+  MemberFields fields(map.source_mesh.vertexCount());
+  for (const Cluster& c : source.clusters) fields.add("cluster:" + c.name, asWeighted(c.members));
+  for (const Wire& w : source.wires) {
+    if (!w.members.empty()) fields.add("wire:" + w.name, asWeighted(w.members));
+  }
+  for (const Lattice& l : source.lattices) {
+    if (!l.members.empty()) fields.add("lattice:" + l.name, asWeighted(l.members));
+  }
+  for (const PushToSurface& p : source.push_to_surfaces) {
+    if (!p.members.empty()) fields.add("push:" + p.name, asWeighted(p.members));
+  }
+  fields.carry(map);
+
+  for (Locator& l : out.locators) l.binding = m.binding(l.binding);
+  for (Cluster& c : out.clusters) {
+    c.pivot = m.binding(c.pivot);
+    c.members = fields.weighted("cluster:" + c.name);
+    c.translate = m.length(1.0) * m.direction(c.translate);
+    c.rotate = m.rotation(c.rotate);
+  }
+  for (PointConstraint& p : out.point_constraints) mapTargets(p.targets, m);
+  for (AimConstraint& a : out.aim_constraints) {
+    mapTargets(a.targets, m);
+    a.world_up = m.direction(a.world_up);
+  }
+  for (NurbsCurve& c : out.curves) {
+    for (Binding& b : c.points) b = m.binding(b);
+  }
+  for (NurbsSurface& s : out.surfaces) {
+    for (Binding& b : s.points) b = m.binding(b);
+  }
+  for (Wire& w : out.wires) {
+    w.dropoff_distance = m.length(w.dropoff_distance);
+    if (!w.members.empty()) w.members = fields.set("wire:" + w.name);
+  }
+  for (Lattice& l : out.lattices) {
+    l.origin = m.point(l.origin);
+    l.axes = m.length(1.0) * (map.rotation * l.axes);
+    for (Eigen::Vector3d& p : l.points) p = m.point(p);
+    if (!l.members.empty()) l.members = fields.set("lattice:" + l.name);
+  }
+  for (PushToSurface& p : out.push_to_surfaces) {
+    mapCollision(p.surface, m);
+    p.vector = m.direction(p.vector);
+    if (!p.members.empty()) p.members = fields.set("push:" + p.name);
+  }
+  for (Muscle& mu : out.muscles) {
+    mu.origin = m.binding(mu.origin);
+    mu.insertion = m.binding(mu.insertion);
+  }
+  // Controls driving a cluster's translation move it in model units.
+  for (Control& c : out.controls) {
+    for (ControlDrive& d : c.drives) {
+      const bool translate = d.kind == DriveTargetKind::kCluster && (d.cluster_channel == ClusterChannel::kTranslateX ||
+                                                                     d.cluster_channel == ClusterChannel::kTranslateY ||
+                                                                     d.cluster_channel == ClusterChannel::kTranslateZ);
+      if (translate) d.gain = m.length(d.gain);
+    }
+  }
+  return out;
+}
+
+void addVertexCopies(ComponentsDocument& doc, const std::vector<int>& copy_of, int first) {
+  if (copy_of.empty()) return;
+  std::vector<std::vector<int>> copies(static_cast<std::size_t>(first));
+  for (std::size_t i = 0; i < copy_of.size(); ++i) {
+    copies[static_cast<std::size_t>(copy_of[i])].push_back(first + static_cast<int>(i));
+  }
+  auto extendSet = [&](std::vector<int>& set) {
+    const std::size_t n = set.size();
+    for (std::size_t k = 0; k < n; ++k) {
+      for (const int c : copies[static_cast<std::size_t>(set[k])]) set.push_back(c);
+    }
+  };
+  for (Cluster& c : doc.clusters) {
+    const std::size_t n = c.members.size();
+    for (std::size_t k = 0; k < n; ++k) {
+      for (const int copy : copies[static_cast<std::size_t>(c.members[k].vertex)]) c.members.push_back({copy, c.members[k].weight});
+    }
+  }
+  for (Wire& w : doc.wires) extendSet(w.members);
+  for (Lattice& l : doc.lattices) extendSet(l.members);
+  for (PushToSurface& p : doc.push_to_surfaces) extendSet(p.members);
+}
+
+}  // namespace core
