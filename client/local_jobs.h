@@ -79,6 +79,14 @@ struct RetargetArgs {
 };
 int runRetarget(const RetargetArgs& args);
 
+struct PoseArgs {
+  std::filesystem::path rig;          // GLB/glTF
+  std::filesystem::path components;   // rigport.components JSON; empty = none (no presets or controls)
+  std::filesystem::path pose;         // pose JSON (core/components/pose_spec.h)
+  std::filesystem::path output;       // static posed GLB
+};
+int runPose(const PoseArgs& args);
+
 // Generates a source rig and a target head of other proportions and topology
 // in `dir`, transfers the rig (out.glb) and prints the diagnostics; with
 // `inputs_only` it stops after writing the inputs.

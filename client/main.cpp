@@ -21,7 +21,7 @@ int main(int argc, char** argv) {
   // (docs/journal/BENCHMARKS_HISTORY.md, 2026-11-23: one transfer 101.6 -> 93.7 ms).
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
-  CLI::App app{"rigport: facial rig transfer (warp, transfer, fit, retarget; rigs, jobs and bench on the service)"};
+  CLI::App app{"rigport: facial rig transfer (warp, transfer, fit, retarget, pose; rigs, jobs and bench on the service)"};
   app.set_version_flag("--version", std::string("rigport ") + RIGPORT_VERSION);
   app.require_subcommand(1);
   bool verbose = false, quiet = false;
@@ -125,6 +125,18 @@ int main(int argc, char** argv) {
   retarget_cmd->add_option("--threads", retarget.threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
   retarget_cmd->add_flag("--print-diagnostics", retarget.print_diagnostics, "Also print the diagnostics JSON on stdout");
 
+  client::PoseArgs pose;
+  auto* pose_cmd = app.add_subcommand("pose", "Pose a rig (components preset or controls, morph weights, joint rotations): "
+                                              "writes the posed meshes as a static GLB");
+  pose_cmd->add_option("--rig", pose.rig, "Rig (GLB/glTF)")->required()->check(CLI::ExistingFile);
+  pose_cmd->add_option("--components", pose.components,
+                       "The rig's components document (rigport.components JSON; needed for presets and controls)")
+      ->check(CLI::ExistingFile);
+  pose_cmd->add_option("--pose", pose.pose, "Pose JSON: preset, controls, morph_weights, joints (docs/COMPONENTS.md)")
+      ->required()->check(CLI::ExistingFile);
+  pose_cmd->add_option("-o,--output", pose.output, "Posed static GLB (no skin, morph targets or animations)")
+      ->required()->check(client::kGlbPath);
+
   std::string demo_dir = "demo-out";
   int demo_threads = 0;
   bool demo_inputs_only = false;
@@ -153,6 +165,7 @@ int main(int argc, char** argv) {
   if (*fit_cmd) return client::runFit(fit);
   if (*head_cmd) return client::runGenerateHead(head);
   if (*retarget_cmd) return client::runRetarget(retarget);
+  if (*pose_cmd) return client::runPose(pose);
   if (*demo_cmd) return client::runDemo(demo_dir, demo_threads, demo_inputs_only);
   return 2;
 }

@@ -1,0 +1,343 @@
+// The pose JSON (parsePoseSpec) and a rig posed by it (poseRig): see
+// pose_spec.h. nlohmann::json is used privately here (file format edge);
+// nothing JSON leaves this file.
+#include "core/components/pose_spec.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+#include <nlohmann/json.hpp>
+
+#include "core/components/cluster.h"
+#include "core/components/pose.h"
+#include "core/io/json_text.h"
+#include "core/io/mesh_io.h"
+#include "core/rig/skinning.h"
+
+namespace core {
+
+namespace {
+
+constexpr std::array<const char*, 4> kPoseKeys = {"preset", "controls", "morph_weights", "joints"};
+
+Error fieldError(const std::string& label, const std::string& field, const std::string& what) {
+  return makeError(ErrorCode::kInvalidArgument, label + ": " + field + ": " + what);
+}
+
+std::string didYouMean(const std::string& name, const std::vector<std::string>& known) {
+  const std::string guess = closestName(name, known);
+  return guess.empty() ? "" : " (did you mean \"" + guess + "\"?)";
+}
+
+Result<double> readFinite(const nlohmann::json& value, const std::string& label, const std::string& field) {
+  if (!value.is_number()) return fieldError(label, field, "must be a number");
+  const double number = value.get<double>();
+  if (!std::isfinite(number)) return fieldError(label, field, "must be a finite number");
+  return number;
+}
+
+// {"name": number, ...} of `field`.
+Result<std::map<std::string, double>> readNumberMap(const nlohmann::json& value, const std::string& label,
+                                                    const std::string& field) {
+  if (!value.is_object()) return fieldError(label, field, "must be an object of name: number");
+  std::map<std::string, double> out;
+  for (const auto& [name, number] : value.items()) {
+    if (name.empty()) return fieldError(label, field, "an empty name");
+    auto read = readFinite(number, label, field + "." + name);
+    if (!read) return read.error();
+    out[name] = *read;
+  }
+  return out;
+}
+
+// {"joint": [x, y, z], ...}: Euler degrees.
+Result<std::map<std::string, Eigen::Vector3d>> readRotationMap(const nlohmann::json& value, const std::string& label,
+                                                               const std::string& field) {
+  if (!value.is_object()) return fieldError(label, field, "must be an object of joint name: [x, y, z] degrees");
+  std::map<std::string, Eigen::Vector3d> out;
+  for (const auto& [name, angles] : value.items()) {
+    const std::string where = field + "." + name;
+    if (name.empty()) return fieldError(label, field, "an empty joint name");
+    if (!angles.is_array() || angles.size() != 3) return fieldError(label, where, "must be [x, y, z] (Euler degrees)");
+    Eigen::Vector3d degrees;
+    for (int k = 0; k < 3; ++k) {
+      auto read = readFinite(angles[static_cast<std::size_t>(k)], label, where + "[" + std::to_string(k) + "]");
+      if (!read) return read.error();
+      degrees(k) = *read;
+    }
+    out[name] = degrees;
+  }
+  return out;
+}
+
+}  // namespace
+
+Result<PoseSpec> parsePoseSpec(std::string_view json_text, const std::string& label) {
+  auto parsed = parseJsonText(json_text, label, "pose JSON");
+  if (!parsed) return parsed.error();
+  const nlohmann::json& doc = *parsed;
+  if (!doc.is_object()) {
+    return makeError(ErrorCode::kInvalidArgument,
+                     label + ": expected a JSON object with any of \"preset\", \"controls\", \"morph_weights\", \"joints\"");
+  }
+  PoseSpec spec;
+  for (const auto& [key, value] : doc.items()) {
+    if (key == "preset") {
+      if (!value.is_string() || value.get<std::string>().empty()) {
+        return fieldError(label, key, "must be a non-empty string (a preset name)");
+      }
+      spec.preset = value.get<std::string>();
+    } else if (key == "controls" || key == "morph_weights") {
+      auto read = readNumberMap(value, label, key);
+      if (!read) return read.error();
+      (key == "controls" ? spec.controls : spec.morph_weights) = std::move(*read);
+    } else if (key == "joints") {
+      auto read = readRotationMap(value, label, key);
+      if (!read) return read.error();
+      spec.joint_rotations = std::move(*read);
+    } else {
+      return fieldError(label, key, "unknown key" + didYouMean(key, {kPoseKeys.begin(), kPoseKeys.end()}) +
+                                        "; known: " + joinNames({kPoseKeys.begin(), kPoseKeys.end()}));
+    }
+  }
+  return spec;
+}
+
+Result<PoseSpec> readPoseSpec(const std::filesystem::path& path) {
+  auto bytes = readFileBytes(path);
+  if (!bytes) return bytes.error();
+  return parsePoseSpec(std::string(bytes->begin(), bytes->end()), path.filename().string());
+}
+
+namespace {
+
+// Morph target names of the face, then of each part, each once.
+std::vector<std::string> morphTargetNames(const Rig& rig) {
+  std::vector<std::string> names;
+  auto add = [&](const std::vector<MorphTarget>& targets) {
+    for (const MorphTarget& target : targets) {
+      if (std::find(names.begin(), names.end(), target.name) == names.end()) names.push_back(target.name);
+    }
+  };
+  add(rig.morph_targets);
+  for (const RigPart& part : rig.parts) add(part.morph_targets);
+  return names;
+}
+
+// Node index by name; the first node of a repeated name.
+std::map<std::string, int> nodeIndexByName(const std::vector<Node>& nodes) {
+  std::map<std::string, int> index;
+  for (std::size_t n = 0; n < nodes.size(); ++n) {
+    if (!nodes[n].name.empty()) index.emplace(nodes[n].name, static_cast<int>(n));
+  }
+  return index;
+}
+
+std::vector<std::string> keysOf(const std::map<std::string, int>& map) {
+  std::vector<std::string> keys;
+  for (const auto& [key, value] : map) keys.push_back(key);
+  return keys;
+}
+
+// Every name the spec gives is the rig's or its document's.
+Status checkSpecNames(const Rig& rig, const ComponentsDocument* doc, const PoseSpec& spec, const PoseLabels& labels) {
+  const std::string in_components = " in " + labels.components;
+  if (!doc && !spec.preset.empty()) return fieldError(labels.pose, "preset", "needs a components document (none given)");
+  if (!doc && !spec.controls.empty()) return fieldError(labels.pose, "controls", "need a components document (none given)");
+  if (doc && !spec.preset.empty() && !doc->presets.count(spec.preset)) {
+    std::vector<std::string> presets;
+    for (const auto& [name, preset] : doc->presets) presets.push_back(name);
+    return fieldError(labels.pose, "preset", "unknown preset \"" + spec.preset + "\"" + in_components +
+                                                 didYouMean(spec.preset, presets) +
+                                                 (presets.empty() ? " (it has none)" : ""));
+  }
+  for (const auto& [name, value] : spec.controls) {
+    if (indexByName(doc->controls, name) >= 0) continue;
+    std::vector<std::string> controls;
+    for (const Control& control : doc->controls) controls.push_back(control.name);
+    return fieldError(labels.pose, "controls." + name,
+                      "unknown control \"" + name + "\"" + in_components + didYouMean(name, controls));
+  }
+  const std::vector<std::string> targets = morphTargetNames(rig);
+  for (const auto& [name, weight] : spec.morph_weights) {
+    if (std::find(targets.begin(), targets.end(), name) != targets.end()) continue;
+    return fieldError(labels.pose, "morph_weights." + name,
+                      "the rig has no morph target \"" + name + "\"" + didYouMean(name, targets) +
+                          (targets.empty() ? " (it has none)" : ""));
+  }
+  const std::map<std::string, int> nodes = nodeIndexByName(rig.nodes);
+  for (const auto& [name, degrees] : spec.joint_rotations) {
+    if (nodes.count(name)) continue;
+    return fieldError(labels.pose, "joints." + name,
+                      "the rig has no joint (node) \"" + name + "\"" + didYouMean(name, keysOf(nodes)));
+  }
+  return Ok{};
+}
+
+// The preset's control values (defaults filled in), overridden by the spec's.
+Result<std::map<std::string, double>> specControlValues(const ComponentsDocument& doc, const PoseSpec& spec) {
+  std::map<std::string, double> values;
+  if (!spec.preset.empty()) {
+    auto preset = presetControls(doc, spec.preset);
+    if (!preset) return preset.error();
+    values = std::move(*preset);
+  }
+  for (const auto& [name, value] : spec.controls) values[name] = value;
+  return values;
+}
+
+// The nodes with `rotations` (Euler degrees) composed after their rest rotation.
+std::vector<Node> rotatedNodes(const std::vector<Node>& nodes, const std::map<std::string, Eigen::Vector3d>& rotations) {
+  const std::map<std::string, int> index = nodeIndexByName(nodes);
+  std::vector<Node> out = nodes;
+  for (const auto& [name, degrees] : rotations) {
+    Node& node = out[static_cast<std::size_t>(index.at(name))];
+    node.rotation = (node.rotation.normalized() * Eigen::Quaterniond(eulerDegreesToRotation(degrees))).normalized();
+  }
+  return out;
+}
+
+// Joint positions for constraints that target joints: at rest, and at the
+// spec's own joint rotations (those the controls drive come out of the
+// evaluation that needs these).
+PoseOptions jointPositionOptions(const std::vector<Node>& rest_nodes, const std::vector<Node>& spec_nodes) {
+  const std::vector<Eigen::Matrix4d> rest = nodeWorldTransforms(rest_nodes);
+  const std::vector<Eigen::Matrix4d> posed = nodeWorldTransforms(spec_nodes);
+  PoseOptions options;
+  for (std::size_t n = 0; n < rest_nodes.size(); ++n) {
+    if (rest_nodes[n].name.empty()) continue;
+    options.joint_rest_positions.emplace(rest_nodes[n].name, rest[n].topRightCorner<3, 1>());
+    options.joint_positions.emplace(rest_nodes[n].name, posed[n].topRightCorner<3, 1>());
+  }
+  return options;
+}
+
+// Adds what the controls drive to the report's morph weights and joint
+// rotations; a name the rig lacks is an error when its amount is not zero.
+Status addDrivenAmounts(const Rig& rig, const ComponentsPose& pose, const PoseLabels& labels, PoseReport& report) {
+  const std::vector<std::string> targets = morphTargetNames(rig);
+  for (const auto& [name, weight] : pose.morph_weights) {
+    if (std::find(targets.begin(), targets.end(), name) != targets.end()) {
+      report.morph_weights[name] += weight;
+    } else if (weight != 0.0) {
+      return makeError(ErrorCode::kInvalidArgument, labels.components + ": controls drive morph target \"" + name +
+                                                        "\", which the rig does not have" + didYouMean(name, targets));
+    }
+  }
+  const std::map<std::string, int> nodes = nodeIndexByName(rig.nodes);
+  for (const auto& [name, degrees] : pose.joint_rotations) {
+    if (nodes.count(name)) {
+      auto [it, fresh] = report.joint_rotations.emplace(name, Eigen::Vector3d::Zero());
+      it->second += degrees;
+    } else if (!degrees.isZero(0.0)) {
+      return makeError(ErrorCode::kInvalidArgument, labels.components + ": controls drive joint \"" + name +
+                                                        "\", which the rig does not have" +
+                                                        didYouMean(name, keysOf(nodes)));
+    }
+  }
+  return Ok{};
+}
+
+// Components on the face: the posed face replaces the rig's rest face;
+// control values and clamped controls and the driven amounts go to `report`.
+Status applyComponents(Rig& rig, const ComponentsDocument& doc, const PoseSpec& spec, const PoseLabels& labels,
+                       PoseReport& report) {
+  const ComponentsMeshCounts counts{rig.mesh.vertexCount(), rig.mesh.triangleCount()};
+  if (auto ok = validateComponents(doc, labels.components, counts); !ok) return ok.error();
+  auto controls = specControlValues(doc, spec);
+  if (!controls) return makeError(controls.error().code, labels.components + ": " + controls.error().message);
+  const PoseOptions options = jointPositionOptions(rig.nodes, rotatedNodes(rig.nodes, spec.joint_rotations));
+  auto pose = evaluatePose(rig.mesh.positions, rig.mesh.triangles, doc, *controls, options);
+  if (!pose) return makeError(pose.error().code, labels.components + ": " + pose.error().message);
+  if (auto ok = addDrivenAmounts(rig, *pose, labels, report); !ok) return ok;
+  report.control_values = pose->control_values;
+  report.clamped_controls = pose->clamped_controls;
+  rig.mesh.positions = std::move(pose->positions);
+  return Ok{};
+}
+
+// #targets weights: the defaults, with the targets named in `named` set.
+Eigen::VectorXd morphWeightsOf(const std::vector<MorphTarget>& targets, const Eigen::VectorXd& defaults,
+                               const std::map<std::string, double>& named) {
+  const auto count = static_cast<Eigen::Index>(targets.size());
+  Eigen::VectorXd weights = defaults.size() == count ? defaults : Eigen::VectorXd::Zero(count);
+  for (Eigen::Index k = 0; k < count; ++k) {
+    const auto found = named.find(targets[static_cast<std::size_t>(k)].name);
+    if (found != named.end()) weights(k) = found->second;
+  }
+  return weights;
+}
+
+// #V by 3 world positions of one mesh (the face or partAsRig of a part) at
+// the pose. poseMesh leaves an unskinned mesh where it is; in glTF it moves
+// with its node, so it is moved by its node's change from rest.
+Eigen::MatrixX3d posedMeshPositions(const Rig& mesh_rig, const std::vector<Node>& posed_nodes,
+                                    const std::map<std::string, double>& morph_weights,
+                                    const std::vector<Eigen::Matrix4d>& rest_world,
+                                    const std::vector<Eigen::Matrix4d>& posed_world) {
+  Pose pose;
+  pose.nodes = posed_nodes;
+  pose.morph_weights = morphWeightsOf(mesh_rig.morph_targets, mesh_rig.morph_default_weights, morph_weights);
+  Eigen::MatrixX3d positions = poseMesh(mesh_rig, pose);
+  const int node = mesh_rig.mesh_node;
+  if (mesh_rig.skin || node < 0 || static_cast<std::size_t>(node) >= posed_world.size() ||
+      posed_world[static_cast<std::size_t>(node)] == rest_world[static_cast<std::size_t>(node)]) {
+    return positions;
+  }
+  const Eigen::Matrix4d motion = posed_world[static_cast<std::size_t>(node)] * rest_world[static_cast<std::size_t>(node)].inverse();
+  return (positions * motion.topLeftCorner<3, 3>().transpose()).rowwise() + motion.topRightCorner<3, 1>().transpose();
+}
+
+Mesh staticMesh(Mesh mesh, Eigen::MatrixX3d positions) {
+  mesh.positions = std::move(positions);
+  mesh.normals = computeVertexNormals(mesh.positions, mesh.triangles);
+  return mesh;
+}
+
+int countMoved(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3d& posed) {
+  // Skinning at rest reproduces the rest only to rounding: a file's float32
+  // nodes and inverse binds to about 1e-7 of the model's size.
+  const double tolerance = 1e-6 * boundingBoxDiagonal(rest);
+  return static_cast<int>(((posed - rest).rowwise().norm().array() > tolerance).count());
+}
+
+}  // namespace
+
+Result<PosedRig> poseRig(Rig rig, const ComponentsDocument* components, const PoseSpec& spec, const PoseLabels& labels) {
+  if (auto ok = checkSpecNames(rig, components, spec, labels); !ok) return ok.error();
+  PosedRig out;
+  PoseReport& report = out.report;
+  const Eigen::MatrixX3d rest_face = rig.mesh.positions;
+  if (components) {
+    if (auto ok = applyComponents(rig, *components, spec, labels, report); !ok) return ok.error();
+  }
+  for (const auto& [name, weight] : spec.morph_weights) report.morph_weights[name] += weight;
+  for (const auto& [name, degrees] : spec.joint_rotations) {
+    auto [it, fresh] = report.joint_rotations.emplace(name, Eigen::Vector3d::Zero());
+    it->second += degrees;
+  }
+
+  const std::vector<Node> posed_nodes = rotatedNodes(rig.nodes, report.joint_rotations);
+  const std::vector<Eigen::Matrix4d> rest_world = nodeWorldTransforms(rig.nodes);
+  const std::vector<Eigen::Matrix4d> posed_world = nodeWorldTransforms(posed_nodes);
+  Rig& posed = out.rig;
+  posed.mesh = staticMesh(rig.mesh, posedMeshPositions(rig, posed_nodes, report.morph_weights, rest_world, posed_world));
+  posed.mesh_name = rig.mesh_name;
+  posed.nodes = posed_nodes;
+  posed.mesh_node = rig.mesh_node;
+  posed.attributes = std::move(rig.attributes);
+  for (const RigPart& part : rig.parts) {
+    RigPart static_part;
+    static_part.name = part.name;
+    static_part.node = part.node;
+    static_part.mesh = staticMesh(part.mesh, posedMeshPositions(partAsRig(rig, part), posed_nodes,
+                                                                report.morph_weights, rest_world, posed_world));
+    static_part.attributes = part.attributes;
+    posed.parts.push_back(std::move(static_part));
+  }
+  report.moved_face_vertices = countMoved(rest_face, posed.mesh.positions);
+  return out;
+}
+
+}  // namespace core

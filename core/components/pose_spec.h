@@ -1,0 +1,74 @@
+// One pose of a rig, as a person names it (the "pose JSON"), and the rig
+// posed by it as a static rig:
+//   {"preset": "smile",                      a preset of the components document
+//    "controls": {"smile": 0.5},             component controls (override the preset's values)
+//    "morph_weights": {"jawOpen": 1},        morph targets by name
+//    "joints": {"jaw": [10, 0, 0]}}          Euler degrees X, then Y, then Z, after the rest rotation
+// every key optional, unknown keys errors. parsePoseSpec checks the shape and
+// values; poseRig checks the names against a rig and its components document
+// ("did you mean") and evaluates in this order:
+//   controls -> evaluatePose on the face's rest positions (core/components/pose.h)
+//   -> the posed face replaces its rest -> morph weights and joint rotations
+//   (given + driven by the controls) through poseMesh (core/rig/skinning.h),
+//   on the face and on every part (components do not move parts).
+#pragma once
+
+#include <filesystem>
+#include <map>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "core/base/error.h"
+#include "core/components/components.h"
+#include "core/rig/rig.h"
+
+namespace core {
+
+struct PoseSpec {
+  std::string preset;                                      // preset name; empty: none
+  std::map<std::string, double> controls;                  // control name -> value, over the preset's
+  std::map<std::string, double> morph_weights;             // morph target name -> weight, plus the controls' drives
+  std::map<std::string, Eigen::Vector3d> joint_rotations;  // node name -> Euler degrees (x, y, z), plus the controls'
+};
+
+// `label` (the file name) starts every message, followed by the field:
+// `pose.json: morph_weights.jawOpen: must be a finite number`.
+Result<PoseSpec> parsePoseSpec(std::string_view json_text, const std::string& label);
+Result<PoseSpec> readPoseSpec(const std::filesystem::path& path);
+
+// Names of the inputs in messages (file names for a CLI run).
+struct PoseLabels {
+  std::string pose = "pose";
+  std::string components = "components";
+};
+
+struct PoseReport {
+  std::map<std::string, double> control_values;             // every control of the document, as evaluated
+  std::vector<std::string> clamped_controls;                // given outside their control's range
+  std::map<std::string, double> morph_weights;              // named by the pose or its controls: the summed weight
+  std::map<std::string, Eigen::Vector3d> joint_rotations;   // the same for joints, Euler degrees
+  int moved_face_vertices = 0;                              // face vertices off their rest position
+};
+
+struct PosedRig {
+  // The face and every part at the pose, static: no skin, weights, morph
+  // targets or animations; the nodes at the pose; normals recomputed.
+  Rig rig;
+  PoseReport report;
+};
+
+// `rig` is taken by value because its face's rest positions are replaced by
+// the components' posed ones (move it in when done with it). `components`:
+// nullptr when the rig has none (then the spec may hold no preset or
+// controls). Morph weights name the face's or a part's targets; each mesh's
+// targets of that name take the weight (the others keep their defaults).
+// An unskinned mesh follows its node, as in glTF. Errors: unknown names
+// ("did you mean"), a document that does not fit the face, what evaluatePose
+// refuses.
+Result<PosedRig> poseRig(Rig rig, const ComponentsDocument* components, const PoseSpec& spec,
+                         const PoseLabels& labels = {});
+
+}  // namespace core

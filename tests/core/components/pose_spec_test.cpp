@@ -1,0 +1,255 @@
+// The pose JSON (parsePoseSpec): every key read, every error naming the file
+// and the field; and poseRig on a four-vertex skinned rig: components, morph
+// weights and joint rotations move what they drive and nothing else, the
+// output is static, and unknown names are refused with "did you mean".
+#include "core/components/pose_spec.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "core/io/components_io.h"
+#include "core/io/rig_io.h"
+#include "core/rig/skinning.h"
+
+namespace {
+
+bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+// The error message of a spec that must fail to parse.
+std::string parseError(const std::string& json) {
+  auto spec = core::parsePoseSpec(json, "pose.json");
+  EXPECT_FALSE(spec) << json;
+  return spec ? std::string() : spec.error().message;
+}
+
+TEST(PoseSpec, ReadsEveryKey) {
+  auto spec = core::parsePoseSpec(R"({"preset": "smile", "controls": {"smile": 0.5, "blink": 1},
+                                      "morph_weights": {"jawOpen": 1}, "joints": {"jaw": [10, -5, 2.5]}})",
+                                   "pose.json");
+  ASSERT_TRUE(spec) << spec.error().message;
+  EXPECT_EQ(spec->preset, "smile");
+  EXPECT_EQ(spec->controls, (std::map<std::string, double>{{"blink", 1.0}, {"smile", 0.5}}));
+  EXPECT_EQ(spec->morph_weights, (std::map<std::string, double>{{"jawOpen", 1.0}}));
+  ASSERT_EQ(spec->joint_rotations.size(), 1u);
+  EXPECT_EQ(spec->joint_rotations.at("jaw"), Eigen::Vector3d(10.0, -5.0, 2.5));
+}
+
+TEST(PoseSpec, EmptyObjectIsTheRestPose) {
+  auto spec = core::parsePoseSpec("{}", "pose.json");
+  ASSERT_TRUE(spec) << spec.error().message;
+  EXPECT_TRUE(spec->preset.empty());
+  EXPECT_TRUE(spec->controls.empty() && spec->morph_weights.empty() && spec->joint_rotations.empty());
+}
+
+TEST(PoseSpec, EachErrorNamesTheFileAndTheField) {
+  std::string message = parseError(R"({"morph_weight": {"jawOpen": 1}})");
+  EXPECT_TRUE(contains(message, "pose.json: morph_weight: unknown key")) << message;
+  EXPECT_TRUE(contains(message, "did you mean \"morph_weights\"")) << message;
+
+  message = parseError(R"({"preset": 3})");
+  EXPECT_TRUE(contains(message, "pose.json: preset: must be a non-empty string")) << message;
+  message = parseError(R"({"preset": ""})");
+  EXPECT_TRUE(contains(message, "pose.json: preset:")) << message;
+
+  message = parseError(R"({"controls": [1, 2]})");
+  EXPECT_TRUE(contains(message, "pose.json: controls: must be an object")) << message;
+  message = parseError(R"({"controls": {"smile": "high"}})");
+  EXPECT_TRUE(contains(message, "pose.json: controls.smile: must be a number")) << message;
+  message = parseError(R"({"morph_weights": {"jawOpen": true}})");
+  EXPECT_TRUE(contains(message, "pose.json: morph_weights.jawOpen: must be a number")) << message;
+  message = parseError(R"({"morph_weights": {"": 1}})");
+  EXPECT_TRUE(contains(message, "pose.json: morph_weights: an empty name")) << message;
+
+  message = parseError(R"({"joints": {"jaw": [10, 0]}})");
+  EXPECT_TRUE(contains(message, "pose.json: joints.jaw: must be [x, y, z]")) << message;
+  message = parseError(R"({"joints": {"jaw": [10, null, 0]}})");
+  EXPECT_TRUE(contains(message, "pose.json: joints.jaw[1]: must be a number")) << message;
+  message = parseError(R"({"joints": {"jaw": 10}})");
+  EXPECT_TRUE(contains(message, "pose.json: joints.jaw:")) << message;
+
+  message = parseError("[1, 2, 3]");
+  EXPECT_TRUE(contains(message, "pose.json: expected a JSON object")) << message;
+  // JSON has no NaN or Inf: a number out of range is how one arrives.
+  message = parseError(R"({"morph_weights": {"jawOpen": 1e400}})");
+  EXPECT_TRUE(contains(message, "pose.json: not valid pose JSON")) << message;
+  message = parseError(R"({"preset": )");
+  EXPECT_TRUE(contains(message, "pose.json: not valid pose JSON")) << message;
+}
+
+// A quad in the XY plane: vertices 0, 1 (y = 0) on the root joint, 2, 3
+// (y = 2) on the jaw joint at (0, 1, 0); morph target jawOpen moves vertex 3
+// by +z. An unskinned part (a triangle, target jawOpen too) on the jaw node.
+core::Rig quadRig() {
+  core::Rig rig;
+  rig.mesh.positions.resize(4, 3);
+  rig.mesh.positions << 0, 0, 0, 1, 0, 0, 1, 2, 0, 0, 2, 0;
+  rig.mesh.triangles.resize(2, 3);
+  rig.mesh.triangles << 0, 1, 2, 0, 2, 3;
+  rig.mesh_name = "face";
+  core::Node root, jaw, face;
+  root.name = "root";
+  jaw.name = "jaw";
+  jaw.parent = 0;
+  jaw.translation = Eigen::Vector3d(0, 1, 0);
+  face.name = "face";
+  rig.nodes = {root, jaw, face};
+  rig.mesh_node = 2;
+  core::Skin skin;
+  skin.joints = {0, 1};
+  const std::vector<Eigen::Matrix4d> world = core::nodeWorldTransforms(rig.nodes);
+  skin.inverse_bind = {world[0].inverse(), world[1].inverse()};
+  rig.skin = skin;
+  rig.weights.resize(4, 2);
+  rig.weights.insert(0, 0) = 1.0;
+  rig.weights.insert(1, 0) = 1.0;
+  rig.weights.insert(2, 1) = 1.0;
+  rig.weights.insert(3, 1) = 1.0;
+  rig.weights.makeCompressed();
+  core::MorphTarget jaw_open;
+  jaw_open.name = "jawOpen";
+  jaw_open.position_deltas = Eigen::MatrixX3d::Zero(4, 3);
+  jaw_open.position_deltas(3, 2) = 0.5;
+  rig.morph_targets = {jaw_open};
+  rig.morph_default_weights = Eigen::VectorXd::Zero(1);
+
+  core::RigPart tooth;
+  tooth.name = "tooth";
+  tooth.node = 1;
+  tooth.mesh.positions.resize(3, 3);
+  tooth.mesh.positions << 0, 1, 0.1, 0.5, 1, 0.1, 0, 1.5, 0.1;  // world space, as read
+  tooth.mesh.triangles.resize(1, 3);
+  tooth.mesh.triangles << 0, 1, 2;
+  core::MorphTarget tooth_open = jaw_open;
+  tooth_open.position_deltas = Eigen::MatrixX3d::Zero(3, 3);
+  tooth_open.position_deltas(0, 1) = -0.25;
+  tooth.morph_targets = {tooth_open};
+  tooth.morph_default_weights = Eigen::VectorXd::Zero(1);
+  rig.parts = {tooth};
+  return rig;
+}
+
+// A cluster on vertex 1 raised by control "raise" (0.5 per unit), which also
+// drives jawOpen by 0.25 per unit; preset "up" sets raise to 1.
+core::ComponentsDocument quadComponents() {
+  auto doc = core::parseComponents(R"({"format": "rigport.components", "version": 1,
+      "clusters": [{"name": "corner", "pivot": {"vertex": 0}, "members": [{"vertex": 1}]}],
+      "controls": [{"name": "raise", "range": [0, 2],
+                    "drives": [{"cluster": "corner", "channel": "translate_y", "gain": 0.5},
+                               {"morph": "jawOpen", "gain": 0.25}]}],
+      "presets": {"up": {"controls": {"raise": 1}}}})",
+                                   "quad.components.json");
+  EXPECT_TRUE(doc) << doc.error().message;
+  return doc ? *doc : core::ComponentsDocument{};
+}
+
+const core::PoseLabels kLabels{"pose.json", "quad.components.json"};
+
+core::PoseSpec spec(const std::string& json) {
+  auto parsed = core::parsePoseSpec(json, "pose.json");
+  EXPECT_TRUE(parsed) << parsed.error().message;
+  return parsed ? *parsed : core::PoseSpec{};
+}
+
+TEST(PoseRig, RestSpecGivesTheRestAndAStaticRig) {
+  const core::ComponentsDocument doc = quadComponents();
+  auto posed = core::poseRig(quadRig(), &doc, spec("{}"), kLabels);
+  ASSERT_TRUE(posed) << posed.error().message;
+  const core::Rig& rig = posed->rig;
+  EXPECT_LT((rig.mesh.positions - quadRig().mesh.positions).norm(), 1e-12);
+  EXPECT_EQ(posed->report.moved_face_vertices, 0);
+  EXPECT_FALSE(rig.skin.has_value());
+  EXPECT_EQ(rig.weights.size(), 0);
+  EXPECT_TRUE(rig.morph_targets.empty() && rig.animations.empty());
+  EXPECT_EQ(rig.mesh.normals.rows(), 4);
+  EXPECT_NEAR(std::abs(rig.mesh.normals(0, 2)), 1.0, 1e-12);
+  ASSERT_EQ(rig.parts.size(), 1u);
+  EXPECT_TRUE(rig.parts[0].morph_targets.empty());
+  EXPECT_EQ(rig.parts[0].weights.size(), 0);
+  EXPECT_EQ(rig.nodes.size(), 3u);
+  EXPECT_EQ(rig.mesh_node, 2);
+  auto glb = core::encodeRigGlb(rig);
+  EXPECT_TRUE(glb) << glb.error().message;
+}
+
+TEST(PoseRig, MorphWeightsMoveTheFaceAndThePartsTargetsOfThatName) {
+  auto posed = core::poseRig(quadRig(), nullptr, spec(R"({"morph_weights": {"jawOpen": 0.5}})"), kLabels);
+  ASSERT_TRUE(posed) << posed.error().message;
+  Eigen::MatrixX3d expected = quadRig().mesh.positions;
+  expected(3, 2) += 0.25;
+  EXPECT_LT((posed->rig.mesh.positions - expected).norm(), 1e-12);
+  EXPECT_EQ(posed->report.moved_face_vertices, 1);
+  Eigen::MatrixX3d tooth = quadRig().parts[0].mesh.positions;
+  tooth(0, 1) -= 0.125;
+  EXPECT_LT((posed->rig.parts[0].mesh.positions - tooth).norm(), 1e-12);
+}
+
+TEST(PoseRig, JointRotationTurnsItsVerticesAndTheUnskinnedPartOnIt) {
+  // 90 degrees about the jaw's X axis: y -> z about the jaw at (0, 1, 0).
+  auto posed = core::poseRig(quadRig(), nullptr, spec(R"({"joints": {"jaw": [90, 0, 0]}})"), kLabels);
+  ASSERT_TRUE(posed) << posed.error().message;
+  const Eigen::MatrixX3d& p = posed->rig.mesh.positions;
+  EXPECT_LT((p.topRows(2) - quadRig().mesh.positions.topRows(2)).norm(), 1e-12);  // on the root: still
+  EXPECT_LT((p.row(2) - Eigen::RowVector3d(1, 1, 1)).norm(), 1e-12);
+  EXPECT_LT((p.row(3) - Eigen::RowVector3d(0, 1, 1)).norm(), 1e-12);
+  // The tooth's third corner, 0.5 above the jaw and 0.1 in front, turns to 0.5 in front, 0.1 below.
+  EXPECT_LT((posed->rig.parts[0].mesh.positions.row(2) - Eigen::RowVector3d(0, 0.9, 0.5)).norm(), 1e-12);
+  const Eigen::Quaterniond turned = posed->rig.nodes[1].rotation;
+  EXPECT_NEAR(turned.angularDistance(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX()))), 0.0,
+              1e-12);
+}
+
+TEST(PoseRig, PresetMovesTheClusterAndDrivesItsMorphWeight) {
+  const core::ComponentsDocument doc = quadComponents();
+  auto posed = core::poseRig(quadRig(), &doc, spec(R"({"preset": "up", "morph_weights": {"jawOpen": 0.5}})"), kLabels);
+  ASSERT_TRUE(posed) << posed.error().message;
+  Eigen::MatrixX3d expected = quadRig().mesh.positions;
+  expected(1, 1) += 0.5;           // the cluster, raise = 1
+  expected(3, 2) += 0.5 * 0.75;    // jawOpen: 0.5 given + 0.25 driven
+  EXPECT_LT((posed->rig.mesh.positions - expected).norm(), 1e-12);
+  EXPECT_DOUBLE_EQ(posed->report.morph_weights.at("jawOpen"), 0.75);
+  EXPECT_DOUBLE_EQ(posed->report.control_values.at("raise"), 1.0);
+
+  // Controls override the preset's values.
+  posed = core::poseRig(quadRig(), &doc, spec(R"({"preset": "up", "controls": {"raise": 2}})"), kLabels);
+  ASSERT_TRUE(posed) << posed.error().message;
+  EXPECT_NEAR(posed->rig.mesh.positions(1, 1), 1.0, 1e-12);
+  EXPECT_DOUBLE_EQ(posed->report.morph_weights.at("jawOpen"), 0.5);
+}
+
+std::string poseError(const core::ComponentsDocument* doc, const std::string& json, core::Rig rig = quadRig()) {
+  auto posed = core::poseRig(std::move(rig), doc, spec(json), kLabels);
+  EXPECT_FALSE(posed) << json;
+  return posed ? std::string() : posed.error().message;
+}
+
+TEST(PoseRig, UnknownNamesAreRefusedWithTheirField) {
+  const core::ComponentsDocument doc = quadComponents();
+  std::string message = poseError(&doc, R"({"preset": "upp"})");
+  EXPECT_TRUE(contains(message, "pose.json: preset: unknown preset \"upp\" in quad.components.json")) << message;
+  EXPECT_TRUE(contains(message, "did you mean \"up\"")) << message;
+  message = poseError(&doc, R"({"controls": {"rasie": 1}})");
+  EXPECT_TRUE(contains(message, "pose.json: controls.rasie: unknown control")) << message;
+  EXPECT_TRUE(contains(message, "did you mean \"raise\"")) << message;
+  message = poseError(&doc, R"({"morph_weights": {"jawOpn": 1}})");
+  EXPECT_TRUE(contains(message, "pose.json: morph_weights.jawOpn: the rig has no morph target")) << message;
+  EXPECT_TRUE(contains(message, "did you mean \"jawOpen\"")) << message;
+  message = poseError(&doc, R"({"joints": {"jw": [1, 0, 0]}})");
+  EXPECT_TRUE(contains(message, "pose.json: joints.jw: the rig has no joint")) << message;
+  EXPECT_TRUE(contains(message, "did you mean \"jaw\"")) << message;
+
+  message = poseError(nullptr, R"({"preset": "up"})");
+  EXPECT_TRUE(contains(message, "pose.json: preset: needs a components document")) << message;
+  message = poseError(nullptr, R"({"controls": {"raise": 1}})");
+  EXPECT_TRUE(contains(message, "pose.json: controls: need a components document")) << message;
+
+  // A control driving a morph target the rig lacks: named in the document's file.
+  core::Rig no_shapes = quadRig();
+  no_shapes.morph_targets.clear();
+  no_shapes.morph_default_weights.resize(0);
+  no_shapes.parts.clear();
+  message = poseError(&doc, R"({"preset": "up"})", no_shapes);
+  EXPECT_TRUE(contains(message, "quad.components.json: controls drive morph target \"jawOpen\"")) << message;
+}
+
+}  // namespace
