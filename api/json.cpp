@@ -67,6 +67,7 @@ json toJson(const JobInfo& job) {
             {"progress", job.progress},
             {"attempts", job.attempts},
             {"cache_hit", job.cache_hit},
+            {"has_components", job.has_components},
             {"created_at", job.created_at},
             {"started_at", nullIfEmpty(job.started_at)},
             {"finished_at", nullIfEmpty(job.finished_at)},
@@ -159,7 +160,7 @@ Parsed<JobInfo> jobInfoFromJson(const json& j) {
         readString(j, "rig", job.rig, "job", false), readString(j, "status", status, "job", true),
         readString(j, "stage", job.stage, "job", false), readNumber(j, "progress", job.progress, "job", false),
         readNumber(j, "attempts", job.attempts, "job", false), readBool(j, "cache_hit", job.cache_hit, "job"),
-        readString(j, "created_at", job.created_at, "job", false),
+        readBool(j, "has_components", job.has_components, "job"), readString(j, "created_at", job.created_at, "job", false),
         readString(j, "started_at", job.started_at, "job", false),
         readString(j, "finished_at", job.finished_at, "job", false)}) {
     if (!e.empty()) return e;

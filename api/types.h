@@ -72,6 +72,7 @@ struct JobInfo {
   double progress = 0.0;       // 0..1
   int attempts = 0;            // runs started (> 1 after a restart requeued it)
   bool cache_hit = false;      // the prepared rig came from the cache
+  bool has_components = false; // succeeded with a rig components document (GET /v1/jobs/{id}/components)
   std::string created_at, started_at, finished_at;  // RFC 3339 UTC, empty when not yet
   std::map<std::string, double> timings_ms;          // per stage, when finished
   std::map<std::string, std::string> files;          // the uploaded files' names, by field ("target": "actor_07.glb")

@@ -95,6 +95,28 @@ core::Result<LandmarkedInputs> readLandmarkedInputs(const std::filesystem::path&
   return in;
 }
 
+// The rig's components document (--source-components, --reference-components)
+// checked against its face; nullopt when none was given.
+core::Result<std::optional<core::ComponentsDocument>> readComponentsOf(const std::filesystem::path& file,
+                                                                       const core::Rig& rig) {
+  if (file.empty()) return std::optional<core::ComponentsDocument>();
+  auto doc = core::readRigComponents(file, rig.mesh);
+  if (!doc) return doc.error();
+  spdlog::info("read components {} ({} muscles, {} wires, {} clusters, {} controls, {} presets)",
+               file.filename().string(), doc->muscles.size(), doc->wires.size(), doc->clusters.size(),
+               doc->controls.size(), doc->presets.size());
+  return std::optional<core::ComponentsDocument>(std::move(*doc));
+}
+
+// The result's components document at --components-out (CLI11 makes it need
+// the rig's document, so the job carried one).
+core::Status writeComponentsOut(const std::filesystem::path& file, const std::string& components) {
+  if (file.empty()) return core::Ok{};
+  if (auto ok = writeText(file, components); !ok) return ok;
+  spdlog::info("wrote {}", file.string());
+  return core::Ok{};
+}
+
 }  // namespace
 
 int runWarp(const WarpArgs& args) {
@@ -163,6 +185,8 @@ int runTransfer(const TransferArgs& args) {
   auto t0 = Clock::now();
   auto source = core::readRig(args.source);
   if (!source) return fail(source.error());
+  auto components = readComponentsOf(args.source_components, source->rig);
+  if (!components) return fail(components.error());
   auto in = readLandmarkedInputs(args.source_landmarks, args.target, args.target_landmarks);
   if (!in) return fail(in.error());
   run.read_ms = msSince(t0);
@@ -177,12 +201,14 @@ int runTransfer(const TransferArgs& args) {
   const core::PrepareRigSource prepare = [&]() -> core::Result<core::PreparedRigSource> {
     auto prepared = core::prepareRig(std::move(source->rig), in->source_landmarks, args.source.filename().string());
     if (!prepared) return prepared.error();
+    prepared->components = std::move(*components);
     return core::PreparedRigSource{std::make_shared<const core::PreparedRig>(std::move(*prepared)), &source->report, false};
   };
   const std::size_t target_vertices = input.target.mesh.vertexCount();
   auto job = core::runTransferJob(prepare, std::move(input), run);
   if (!job) return fail(job.error());
   if (auto ok = core::writeFileBytes(args.output, job->output.glb); !ok) return fail(ok.error());
+  if (auto ok = writeComponentsOut(args.components_out, job->output.components); !ok) return fail(ok.error());
 
   const auto& r = job->report;
   if (auto ok = emitDiagnostics(job->output.diagnostics, args.diagnostics, args.print_diagnostics, r.warp, r.warnings);
@@ -221,6 +247,8 @@ int runFit(const FitArgs& args) {
   if (!reference) return fail(reference.error());
   auto reference_landmarks = core::readLandmarks(args.reference_landmarks);
   if (!reference_landmarks) return fail(reference_landmarks.error());
+  auto components = readComponentsOf(args.reference_components, reference->rig);
+  if (!components) return fail(components.error());
   auto scan = core::readMesh(args.scan);
   if (!scan) return fail(scan.error());
   if (!args.scan_landmarks.empty()) {
@@ -240,6 +268,7 @@ int runFit(const FitArgs& args) {
     const std::string label = args.reference.filename().string();
     auto rig = core::prepareRig(std::move(reference->rig), std::move(*reference_landmarks), label);
     if (!rig) return rig.error();
+    rig->components = std::move(*components);
     auto fit_reference = core::prepareFitReference(std::make_shared<const core::PreparedRig>(std::move(*rig)));
     if (!fit_reference) return fit_reference.error();
     return core::PreparedFitSource{std::make_shared<const core::FitReference>(std::move(*fit_reference)),
@@ -261,6 +290,7 @@ int runFit(const FitArgs& args) {
   for (const std::string& reason : r.reasons) spdlog::warn("{}", reason);
   if (job->output.refused) return fail(*job->output.refused);
   if (auto ok = core::writeFileBytes(args.output, job->output.glb); !ok) return fail(ok.error());
+  if (auto ok = writeComponentsOut(args.components_out, job->output.components); !ok) return fail(ok.error());
   spdlog::info("wrote {}{}", args.output.string(), args.diagnostics.empty() ? "" : " and " + args.diagnostics.string());
   return 0;
 }

@@ -23,7 +23,9 @@ int runWarp(const WarpArgs& args);
 
 struct TransferArgs {
   std::filesystem::path source, source_landmarks, target, target_landmarks;
+  std::filesystem::path source_components;  // the rig's components JSON; empty = none
   std::filesystem::path output;       // rigged target GLB
+  std::filesystem::path components_out;     // the target's components JSON (needs source_components)
   std::filesystem::path diagnostics;  // JSON; empty = none
   std::filesystem::path options;      // transfer options JSON; empty = defaults
   int threads = 0;
@@ -34,7 +36,9 @@ int runTransfer(const TransferArgs& args);
 
 struct FitArgs {
   std::filesystem::path reference, reference_landmarks, scan, scan_landmarks;  // scan_landmarks empty: searched
+  std::filesystem::path reference_components;  // the reference's components JSON; empty = none
   std::filesystem::path output;       // rigged fitted GLB
+  std::filesystem::path components_out;        // the fitted rig's components JSON (needs reference_components)
   std::filesystem::path diagnostics;  // JSON; empty = none
   std::filesystem::path options;      // fit options JSON; empty = defaults
   int threads = 0;

@@ -64,6 +64,14 @@ int main(int argc, char** argv) {
                            "Target landmarks JSON (without: found by a fit of the rig's face)")
       ->check(CLI::ExistingFile);
   transfer_cmd->add_option("-o,--output", transfer.output, "Rigged target GLB")->required()->check(client::kGlbPath);
+  auto* source_components =
+      transfer_cmd->add_option("--source-components", transfer.source_components,
+                               "The rig's components document (rigport.components JSON, docs/COMPONENTS.md): carried "
+                               "to the target")
+          ->check(CLI::ExistingFile);
+  transfer_cmd->add_option("--components-out", transfer.components_out,
+                           "The target's components document to write (bound to the target's mesh)")
+      ->needs(source_components);
   transfer_cmd->add_option("--diagnostics", transfer.diagnostics, "Diagnostics JSON");
   transfer_cmd->add_option("--options", transfer.options, "Transfer options JSON (see core/jobs/transfer_options.h)")->check(CLI::ExistingFile);
   transfer_cmd->add_option("--threads", transfer.threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
@@ -80,6 +88,13 @@ int main(int argc, char** argv) {
   fit_cmd->add_option("--scan-landmarks", fit.scan_landmarks, "Scan landmarks JSON (>= 4 of the reference's names); "
                       "without them the alignment is searched (head roughly upright)")->check(CLI::ExistingFile);
   fit_cmd->add_option("-o,--output", fit.output, "Rigged fitted GLB")->required()->check(client::kGlbPath);
+  auto* reference_components =
+      fit_cmd->add_option("--reference-components", fit.reference_components,
+                          "The reference's components document (rigport.components JSON): rebuilt by vertex index "
+                          "on the fitted mesh")
+          ->check(CLI::ExistingFile);
+  fit_cmd->add_option("--components-out", fit.components_out, "The fitted rig's components document to write")
+      ->needs(reference_components);
   fit_cmd->add_option("--diagnostics", fit.diagnostics, "Diagnostics JSON (written also when the gate refuses the fit)");
   fit_cmd->add_option("--options", fit.options, "Fit options JSON (see core/jobs/fit_options.h)")->check(CLI::ExistingFile);
   fit_cmd->add_option("--threads", fit.threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);

@@ -404,23 +404,19 @@ api::Result<api::JobInfo> RemoteClient::cancelJob(const std::string& id) {
   return http_->parseBody<api::JobInfo>("POST", path, *res, api::jobInfoFromJson);
 }
 
-api::Result<std::string> RemoteClient::fetchDiagnostics(const std::string& id) {
+// GET /v1/jobs/{id}/<file>: result, diagnostics or components.
+api::Result<std::string> RemoteClient::fetchJobFile(const std::string& id, const char* file) {
   RIGPORT_REQUIRE_CLIENT();
-  const std::string path = "/v1/jobs/" + escape(id) + "/diagnostics";
+  const std::string path = "/v1/jobs/" + escape(id) + "/" + file;
   auto res = getWithRetries(*http_->client, options_, path);
   if (!res) return http_->transportProblem("GET", path, res.error());
   if (!isSuccess(res->status)) return http_->responseProblem("GET", path, *res);
   return std::move(res->body);
 }
 
-api::Result<std::string> RemoteClient::fetchResult(const std::string& id) {
-  RIGPORT_REQUIRE_CLIENT();
-  const std::string path = "/v1/jobs/" + escape(id) + "/result";
-  auto res = getWithRetries(*http_->client, options_, path);
-  if (!res) return http_->transportProblem("GET", path, res.error());
-  if (!isSuccess(res->status)) return http_->responseProblem("GET", path, *res);
-  return std::move(res->body);
-}
+api::Result<std::string> RemoteClient::fetchDiagnostics(const std::string& id) { return fetchJobFile(id, "diagnostics"); }
+api::Result<std::string> RemoteClient::fetchResult(const std::string& id) { return fetchJobFile(id, "result"); }
+api::Result<std::string> RemoteClient::fetchComponents(const std::string& id) { return fetchJobFile(id, "components"); }
 
 api::Result<std::int64_t> RemoteClient::downloadResult(const std::string& id, const std::filesystem::path& file) {
   auto bytes = fetchResult(id);
@@ -430,6 +426,12 @@ api::Result<std::int64_t> RemoteClient::downloadResult(const std::string& id, co
 
 api::Result<std::int64_t> RemoteClient::downloadDiagnostics(const std::string& id, const std::filesystem::path& file) {
   auto text = fetchDiagnostics(id);
+  if (!text) return text.error();
+  return writeFile(file, *text);
+}
+
+api::Result<std::int64_t> RemoteClient::downloadComponents(const std::string& id, const std::filesystem::path& file) {
+  auto text = fetchComponents(id);
   if (!text) return text.error();
   return writeFile(file, *text);
 }

@@ -117,13 +117,15 @@ class RemoteClient {
   api::Result<api::JobInfo> cancelJob(const std::string& id);
   api::Result<Done> deleteJob(const std::string& id);  // a final job, its result and the inputs only it used
 
-  // Writes the body of GET /v1/jobs/{id}/result (or /diagnostics) to `path`
-  // (through `path`.part, renamed when complete); returns the bytes written.
+  // Writes the body of GET /v1/jobs/{id}/result (or /diagnostics, /components)
+  // to `path` (through `path`.part, renamed when complete); returns the bytes written.
   api::Result<std::int64_t> downloadResult(const std::string& id, const std::filesystem::path& path);
   api::Result<std::int64_t> downloadDiagnostics(const std::string& id, const std::filesystem::path& path);
-  // The bodies themselves (GLB bytes; diagnostics JSON text).
+  api::Result<std::int64_t> downloadComponents(const std::string& id, const std::filesystem::path& path);
+  // The bodies themselves (GLB bytes; diagnostics and components JSON text).
   api::Result<std::string> fetchResult(const std::string& id);
   api::Result<std::string> fetchDiagnostics(const std::string& id);
+  api::Result<std::string> fetchComponents(const std::string& id);
 
   // Polls GET /v1/jobs/{id} until the job is final (succeeded, failed or
   // cancelled) and returns its last state; a failed job is a value, not a
@@ -137,6 +139,7 @@ class RemoteClient {
 
  private:
   api::Result<Done> deleteAt(const std::string& path);
+  api::Result<std::string> fetchJobFile(const std::string& id, const char* file);
   struct Http;
   RemoteOptions options_;
   std::unique_ptr<Http> http_;

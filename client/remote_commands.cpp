@@ -150,7 +150,8 @@ bool writeDiagnosticsFile(const std::filesystem::path& path, const std::string& 
 }
 
 JobOutputs fetchOutputs(RemoteClient& client, const std::string& id, const std::filesystem::path& output,
-                        const std::filesystem::path& diagnostics_file, bool print_diagnostics) {
+                        const std::filesystem::path& diagnostics_file, bool print_diagnostics,
+                        const std::filesystem::path& components_file) {
   JobOutputs out;
   const auto failed = [](int exit_code) {
     JobOutputs f;
@@ -160,6 +161,12 @@ JobOutputs fetchOutputs(RemoteClient& client, const std::string& id, const std::
   auto written = client.downloadResult(id, output);
   if (!written) return failed(fail(written.error()));
   out.bytes = *written;
+  if (!components_file.empty()) {
+    if (auto components = client.downloadComponents(id, components_file); !components) {
+      return failed(fail(components.error()));
+    }
+    spdlog::info("wrote {}", components_file.string());
+  }
   auto diagnostics = client.fetchDiagnostics(id);
   if (!diagnostics) {
     if (!diagnostics_file.empty() || print_diagnostics) return failed(fail(diagnostics.error()));
@@ -197,7 +204,7 @@ int runRemoteTransfer(const TransferArgs& args, const Connection& connection) {
   const json options = std::move(*read_options);
   RemoteClient client(remoteOptions(connection));
 
-  auto rig = client.uploadRig({args.source, args.source_landmarks, {}});
+  auto rig = client.uploadRig({args.source, args.source_landmarks, args.source_components});
   if (!rig) return fail(rig.error());
   spdlog::info("rig {} {} ({} vertices, {} joints, {} shapes)", rig->rig.id,
                rig->uploaded ? "uploaded" : "already on the service", rig->rig.vertices, rig->rig.joints,
@@ -216,7 +223,7 @@ int runRemoteTransfer(const TransferArgs& args, const Connection& connection) {
   if (!job) return fail(job.error());
   if (job->status != api::JobStatus::kSucceeded) return failJob(*job);
 
-  const JobOutputs fetched = fetchOutputs(client, id, args.output, args.diagnostics, args.print_diagnostics);
+  const JobOutputs fetched = fetchOutputs(client, id, args.output, args.diagnostics, args.print_diagnostics, args.components_out);
   if (fetched.exit_code != 0) return fetched.exit_code;
   const std::optional<std::string>& diagnostics = fetched.diagnostics;
 
@@ -286,7 +293,7 @@ int runRemoteFit(const FitArgs& args, const Connection& connection) {
   RemoteClient client(remoteOptions(connection));
 
   // The reference is a rig like a transfer's source: uploaded once, prepared once.
-  auto rig = client.uploadRig({args.reference, args.reference_landmarks, {}});
+  auto rig = client.uploadRig({args.reference, args.reference_landmarks, args.reference_components});
   if (!rig) return fail(rig.error());
   spdlog::info("reference {} {} ({} vertices, {} shapes)", rig->rig.id,
                rig->uploaded ? "uploaded" : "already on the service", rig->rig.vertices, rig->rig.morph_targets);
@@ -312,7 +319,7 @@ int runRemoteFit(const FitArgs& args, const Connection& connection) {
     return failJob(*job);
   }
 
-  const JobOutputs fetched = fetchOutputs(client, id, args.output, args.diagnostics, args.print_diagnostics);
+  const JobOutputs fetched = fetchOutputs(client, id, args.output, args.diagnostics, args.print_diagnostics, args.components_out);
   if (fetched.exit_code != 0) return fetched.exit_code;
   const std::optional<std::string>& diagnostics = fetched.diagnostics;
 
@@ -375,7 +382,7 @@ struct RemoteCommands::State {
   std::string idempotency_key;
   JobQuery query;
   double wait_timeout_s = 0.0;
-  std::filesystem::path result_output, result_diagnostics;
+  std::filesystem::path result_output, result_diagnostics, result_components;
 
   CLI::App* bench = nullptr;
   BenchArgs bench_args;
@@ -430,6 +437,8 @@ RemoteCommands::RemoteCommands(CLI::App& app, CLI::App& transfer, CLI::App& fit)
   s.jobs_result->add_option("id", s.job_id, "Job id")->required();
   s.jobs_result->add_option("-o,--output", s.result_output, "GLB to write")->required()->check(kGlbPath);
   s.jobs_result->add_option("--diagnostics", s.result_diagnostics, "Diagnostics JSON to write");
+  s.jobs_result->add_option("--components", s.result_components,
+                            "The result's components JSON to write (a job whose rig has a components document)");
   s.jobs_delete = jobs->add_subcommand("delete", "Delete a finished job: its result, diagnostics and the inputs only it used");
   s.jobs_delete->add_option("id", s.job_id, "Job id")->required();
   for (auto* cmd : {s.jobs_submit, s.jobs_get, s.jobs_wait, s.jobs_list, s.jobs_cancel, s.jobs_result, s.jobs_delete}) {
@@ -564,6 +573,11 @@ int RemoteCommands::State::runJobs() const {
     auto diagnostics = client.downloadDiagnostics(job_id, result_diagnostics);
     if (!diagnostics) return fail(diagnostics.error());
     out["diagnostics"] = result_diagnostics.string();
+  }
+  if (!result_components.empty()) {
+    auto components = client.downloadComponents(job_id, result_components);
+    if (!components) return fail(components.error());
+    out["components"] = result_components.string();
   }
   printJson(out);
   return 0;

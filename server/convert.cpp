@@ -105,14 +105,8 @@ api::Result<api::RigInfo> checkRigUpload(Bytes rig_bytes, const std::string& rig
   for (const auto& l : landmarks->landmarks) names.push_back(l.name);
   if (auto ok = core::checkTpsCentres(*positions, {}, names); !ok) return problemFromCoreError(ok.error(), "/v1/rigs");
   if (components) {  // the document read and checked against the rig's face (docs/COMPONENTS.md)
-    auto doc = core::parseComponents(asText(*components), "components");
+    auto doc = core::parseRigComponents(asText(*components), "components", rig->rig.mesh);
     if (!doc) return api::makeProblem(api::WireError::kMalformedFile, doc.error().message, "/v1/rigs");
-    core::ComponentsMeshCounts counts;
-    counts.vertex_count = rig->rig.mesh.vertexCount();
-    counts.triangle_count = rig->rig.mesh.triangleCount();
-    if (auto ok = core::validateComponents(*doc, "components", counts); !ok) {
-      return api::makeProblem(api::WireError::kMalformedFile, ok.error().message, "/v1/rigs");
-    }
   }
   api::RigInfo info;
   info.name = rig_name;
@@ -323,7 +317,18 @@ core::Result<RigCache::Lookup> preparedRig(const RigRecord& rig_record, const Bl
     if (!source_landmark_bytes) return source_landmark_bytes.error();
     auto source_landmarks = core::parseLandmarks(asText(*source_landmark_bytes), "landmarks");
     if (!source_landmarks) return source_landmarks.error();
-    return core::prepareRig(std::move(rig->rig), std::move(*source_landmarks), rig_record.info.name);
+    std::optional<core::ComponentsDocument> components;
+    if (!rig_record.components_blob.empty()) {  // checked at upload; read again as any stored input
+      auto bytes = blobs.read(rig_record.components_blob);
+      if (!bytes) return bytes.error();
+      auto doc = core::parseRigComponents(asText(*bytes), rig_record.info.name + " components", rig->rig.mesh);
+      if (!doc) return doc.error();
+      components = std::move(*doc);
+    }
+    auto prepared = core::prepareRig(std::move(rig->rig), std::move(*source_landmarks), rig_record.info.name);
+    if (!prepared) return prepared.error();
+    prepared->components = std::move(components);
+    return prepared;
   });
 }
 
@@ -387,9 +392,6 @@ core::Result<core::JobOutput> runTransferJob(const JobFiles& in, const RigRecord
     input.target_landmarks = std::move(*target_landmarks);
   }
   input.target_label = in.name("target");
-  if (rig_record.info.has_components) {
-    input.warnings.push_back("rig components (components JSON) are stored but not transferred yet");
-  }
   run.read_ms = msSince(run.started);
 
   // Cached per tenant and rig content id: a hit skips all source-only work.

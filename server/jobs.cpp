@@ -30,6 +30,7 @@ api::JobInfo jobInfoOf(const JobRecord& job, const std::optional<LiveProgress>& 
   }
   info.attempts = job.attempts;
   info.cache_hit = job.cache_hit;
+  info.has_components = job.status == api::JobStatus::kSucceeded && !job.components_blob.empty();
   info.files = job.input_names;
   info.created_at = formatTimestamp(job.created_ms);
   info.started_at = formatTimestamp(job.started_ms);
@@ -291,14 +292,21 @@ JobManager::Retry JobManager::runOne(const std::string& tenant, const std::strin
     auto result_blob = out->refused ? core::Result<std::string>(std::string()) : blobs_.put(out->glb);
     auto diagnostics_blob = blobs_.put(std::span(reinterpret_cast<const std::uint8_t*>(out->diagnostics.data()),
                                                  out->diagnostics.size()));
-    if (!result_blob || !diagnostics_blob) {
-      const core::Error& e = !result_blob ? result_blob.error() : diagnostics_blob.error();
+    auto components_blob = out->refused || out->components.empty()
+                               ? core::Result<std::string>(std::string())
+                               : blobs_.put(std::span(reinterpret_cast<const std::uint8_t*>(out->components.data()),
+                                                      out->components.size()));
+    if (!result_blob || !diagnostics_blob || !components_blob) {
+      const core::Error& e = !result_blob        ? result_blob.error()
+                             : !diagnostics_blob ? diagnostics_blob.error()
+                                                 : components_blob.error();
       return storageFault(tenant, id, "job_result", e.message, Retry::kRunning);
     }
     job->status = api::JobStatus::kSucceeded;
     job->stage = "done";
     job->result_blob = *result_blob;
     job->diagnostics_blob = *diagnostics_blob;
+    job->components_blob = *components_blob;
     job->cache_hit = out->cache_hit;
     job->timings_json = nlohmann::json(out->timings_ms).dump();
     if (out->refused) recordFailure(*job, *out->refused, run);

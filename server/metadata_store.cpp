@@ -27,7 +27,7 @@ using core::makeError;
 
 namespace {
 
-constexpr int kSchemaVersion = 4;
+constexpr int kSchemaVersion = 5;
 constexpr int kBusyTimeoutMs = 5000;
 
 // Schema version 1. Rig created_at is stored as RFC 3339 UTC text (the wire
@@ -107,6 +107,13 @@ CREATE TABLE storage_probe (
 );
 )sql";
 
+// Version 5: a job's result may come with a rig components document
+// (transfer and fit of a rig that has one).
+constexpr const char* kMigrateV4ToV5 = R"sql(
+ALTER TABLE jobs ADD COLUMN components_blob TEXT NOT NULL DEFAULT '';
+CREATE INDEX jobs_components_blob ON jobs(components_blob) WHERE components_blob <> '';
+)sql";
+
 constexpr const char* kRigColumns =
     "tenant, id, name, size_bytes, vertices, joints, morph_targets, landmarks, has_components, created_at, "
     "rig_blob, landmarks_blob, components_blob, region_labels";
@@ -114,7 +121,7 @@ constexpr const char* kRigColumns =
 constexpr const char* kJobColumns =
     "sequence, id, tenant, kind, rig, spec_json, inputs_json, input_names_json, idempotency_key, status, stage, "
     "attempts, cache_hit, error_json, result_blob, diagnostics_blob, timings_json, created_ms, started_ms, "
-    "finished_ms";
+    "finished_ms, components_blob";
 
 std::int64_t nowMs() {
   return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch())
@@ -286,6 +293,7 @@ JobRecord readJob(const Stmt& s) {
   j.created_ms = s.int64(17);
   j.started_ms = s.int64(18);
   j.finished_ms = s.int64(19);
+  j.components_blob = s.text(20);
   return j;
 }
 
@@ -430,6 +438,12 @@ core::Result<std::unique_ptr<MetadataStore>> MetadataStore::open(const std::file
     // 3 -> 4: no table changes; jobs of kind "fit" may be stored, which
     // builds of schema 3 could not read (see readJob).
     if (now_version == 3) now_version = 4;
+    if (now_version == 4) {
+      if (auto st = c->exec(kMigrateV4ToV5); !st) {
+        return Error{st.error().code, "database " + file.string() + ": upgrading schema 4 to 5: " + st.error().message};
+      }
+      now_version = 5;
+    }
     if (auto st = c->exec(("PRAGMA user_version=" + std::to_string(now_version)).c_str()); !st) return st.error();
     if (auto st = tx.commit(); !st) return st.error();
   }
@@ -558,7 +572,8 @@ core::Result<std::pair<JobRecord, bool>> MetadataStore::insertJob(const JobRecor
   static const char* kInsert =
       "INSERT INTO jobs (id, tenant, kind, rig, spec_json, inputs_json, input_names_json, idempotency_key, status, "
       "stage, attempts, cache_hit, error_json, result_blob, diagnostics_blob, timings_json, created_ms, started_ms, "
-      "finished_ms) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19)";
+      "finished_ms, components_blob) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, "
+      "?18, ?19, ?20)";
   {
     auto stmt = c.prepare(kInsert);
     if (!stmt) return stmt.error();
@@ -568,7 +583,7 @@ core::Result<std::pair<JobRecord, bool>> MetadataStore::insertJob(const JobRecor
     s.bind(9, api::jobStatusName(stored.status)).bind(10, stored.stage).bind(11, stored.attempts);
     s.bind(12, stored.cache_hit).bind(13, stored.error_json).bind(14, stored.result_blob);
     s.bind(15, stored.diagnostics_blob).bind(16, stored.timings_json).bind(17, stored.created_ms);
-    s.bind(18, stored.started_ms).bind(19, stored.finished_ms);
+    s.bind(18, stored.started_ms).bind(19, stored.finished_ms).bind(20, stored.components_blob);
     if (s.step() != SQLITE_DONE) {
       if (sqlite3_extended_errcode(c.db) == SQLITE_CONSTRAINT_UNIQUE) {
         return makeError(ErrorCode::kInvalidArgument, "database " + c.file.string() + ": job id " + stored.id +
@@ -660,14 +675,15 @@ core::Status MetadataStore::markFinished(const JobRecord& job) {
   }
   auto stmt = c.prepare(
       "UPDATE jobs SET status = ?2, stage = COALESCE(NULLIF(?3, ''), stage), error_json = ?4, result_blob = ?5, diagnostics_blob = ?6, "
-      "timings_json = ?7, finished_ms = ?8, cache_hit = ?9 WHERE id = ?1 AND status IN ('queued', 'running')");
+      "timings_json = ?7, finished_ms = ?8, cache_hit = ?9, components_blob = ?10 WHERE id = ?1 AND status IN ('queued', "
+      "'running')");
   if (!stmt) return stmt.error();
   {
     Stmt s(*stmt);
     s.bind(1, job.id).bind(2, api::jobStatusName(job.status)).bind(3, job.stage).bind(4, job.error_json);
     s.bind(5, job.result_blob).bind(6, job.diagnostics_blob).bind(7, job.timings_json);
     s.bind(8, job.finished_ms != 0 ? job.finished_ms : nowMs());
-    s.bind(9, job.cache_hit);
+    s.bind(9, job.cache_hit).bind(10, job.components_blob);
     if (s.step() != SQLITE_DONE) return c.error("cannot mark job " + job.id + " finished");
   }
   if (sqlite3_changes(c.db) == 0) return transitionRefused(c, job.id, "finish");
@@ -755,6 +771,7 @@ bool MetadataStore::blobReferenced(const std::string& hash) {
       " OR EXISTS (SELECT 1 FROM rigs WHERE components_blob = ?1 AND components_blob <> '')"
       " OR EXISTS (SELECT 1 FROM jobs WHERE result_blob = ?1 AND result_blob <> '')"
       " OR EXISTS (SELECT 1 FROM jobs WHERE diagnostics_blob = ?1 AND diagnostics_blob <> '')"
+      " OR EXISTS (SELECT 1 FROM jobs WHERE components_blob = ?1 AND components_blob <> '')"
       " OR EXISTS (SELECT 1 FROM job_inputs WHERE blob = ?1)");
   // Fail safe: a garbage collector must not delete what it cannot check.
   if (!stmt) return valueOr<bool>(stmt.error(), true);

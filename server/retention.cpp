@@ -19,7 +19,7 @@ JobDeletion deleteJob(MetadataStore& store, BlobStore& blobs, std::shared_mutex&
     return JobDeletion::kStoreError;
   }
   if (!*deleted) return JobDeletion::kAbsent;  // deleted by a concurrent request (a final job never changes)
-  std::set<std::string> hashes{job->result_blob, job->diagnostics_blob};
+  std::set<std::string> hashes{job->result_blob, job->diagnostics_blob, job->components_blob};
   for (const auto& [field, hash] : job->inputs) hashes.insert(hash);
   int removed = 0;
   for (const std::string& hash : hashes) {

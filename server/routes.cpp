@@ -436,14 +436,17 @@ void cancelJob(const Request& req, Response& res, RouteContext& ctx) {
   sendJson(res, 202, api::toJson(jobInfoOf(*cancelled, ctx.jobs.live(id))));
 }
 
-// GET result / diagnostics: the stored blob, verified against its hash.
-void getJobBlob(const Request& req, Response& res, RouteContext& ctx, bool diagnostics) {
+enum class JobBlob { kResult, kDiagnostics, kComponents };
+
+// GET result / diagnostics / components: the stored blob, verified against its hash.
+void getJobBlob(const Request& req, Response& res, RouteContext& ctx, JobBlob which) {
   const auto tenant = authenticate(req, res, ctx);
   if (!tenant) return;
   const std::string id = req.matches[1];
   std::shared_lock collection(ctx.blob_collection);  // a concurrent DELETE of this job waits for the read
   auto job = ctx.store.getJob(*tenant, id);
   if (!job) return sendProblem(res, api::makeProblem(api::WireError::kNotFound, "no job " + id, req.path), ctx);
+  const bool diagnostics = which == JobBlob::kDiagnostics;
   // A failed fit its gate refused keeps its diagnostics (why it failed, in full).
   const bool served = job->status == api::JobStatus::kSucceeded || (diagnostics && !job->diagnostics_blob.empty());
   if (!served) {
@@ -454,14 +457,23 @@ void getJobBlob(const Request& req, Response& res, RouteContext& ctx, bool diagn
                                                               : "; the result exists once it has succeeded"),
                                              req.path), ctx);
   }
-  auto blob = ctx.blobs.read(diagnostics ? job->diagnostics_blob : job->result_blob);
+  if (which == JobBlob::kComponents && job->components_blob.empty()) {
+    return sendProblem(res, api::makeProblem(api::WireError::kNotFound,
+                                             "job " + id + " has no components document: its rig was uploaded without "
+                                                           "one (POST /v1/rigs, part components)",
+                                             req.path), ctx);
+  }
+  const std::string& hash = which == JobBlob::kResult        ? job->result_blob
+                            : which == JobBlob::kDiagnostics ? job->diagnostics_blob
+                                                             : job->components_blob;
+  auto blob = ctx.blobs.read(hash);
   collection.unlock();
   if (!blob) {
     ctx.storage.reportFault("job_result_read", "job " + id + ": " + blob.error().message);
     return sendProblem(res, api::makeProblem(api::WireError::kInternal, "the stored result of job " + id + " is unreadable", req.path), ctx);
   }
   res.status = 200;
-  res.set_content(std::string(asText(*blob)), diagnostics ? "application/json" : "model/gltf-binary");
+  res.set_content(std::string(asText(*blob)), which == JobBlob::kResult ? "model/gltf-binary" : "application/json");
 }
 
 void deleteJobRoute(const Request& req, Response& res, RouteContext& ctx) {
@@ -527,9 +539,11 @@ void registerRoutes(httplib::Server& http, RouteContext& ctx) {
   http.Get(R"(/v1/jobs/([0-9a-f]{32}))", [&ctx](const Request& req, Response& res) { getJob(req, res, ctx); });
   http.Delete(R"(/v1/jobs/([0-9a-f]{32}))", [&ctx](const Request& req, Response& res) { deleteJobRoute(req, res, ctx); });
   http.Post(R"(/v1/jobs/([0-9a-f]{32}):cancel)", [&ctx](const Request& req, Response& res) { cancelJob(req, res, ctx); });
-  http.Get(R"(/v1/jobs/([0-9a-f]{32})/result)", [&ctx](const Request& req, Response& res) { getJobBlob(req, res, ctx, false); });
+  http.Get(R"(/v1/jobs/([0-9a-f]{32})/result)", [&ctx](const Request& req, Response& res) { getJobBlob(req, res, ctx, JobBlob::kResult); });
   http.Get(R"(/v1/jobs/([0-9a-f]{32})/diagnostics)",
-           [&ctx](const Request& req, Response& res) { getJobBlob(req, res, ctx, true); });
+           [&ctx](const Request& req, Response& res) { getJobBlob(req, res, ctx, JobBlob::kDiagnostics); });
+  http.Get(R"(/v1/jobs/([0-9a-f]{32})/components)",
+           [&ctx](const Request& req, Response& res) { getJobBlob(req, res, ctx, JobBlob::kComponents); });
 
   // Every other 4xx/5xx without a body (unknown route, 413 from the payload
   // limit, a method not served) becomes problem+json too.

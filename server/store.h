@@ -80,6 +80,7 @@ struct JobRecord {
   std::string error_json;            // problem details JSON when failed/cancelled
   std::string result_blob;           // GLB, when succeeded
   std::string diagnostics_blob;      // diagnostics JSON, when succeeded
+  std::string components_blob;       // the result's rig components JSON, when succeeded with one
   std::string timings_json;          // {"stage": ms}, when finished
   std::int64_t created_ms = 0, started_ms = 0, finished_ms = 0;  // unix epoch milliseconds
   std::int64_t sequence = 0;         // insertion order (set by the store), the list cursor
@@ -98,7 +99,8 @@ class MetadataStore {
   // version checked); errors name the file. A store of an older schema is
   // upgraded in place, in one transaction (schema 1 -> 2: rigs gain their
   // region labels, unknown for the rigs already stored; 2 -> 3: the storage
-  // probe's row); a newer one is refused.
+  // probe's row; 3 -> 4: fit jobs; 4 -> 5: jobs' components results); a newer
+  // one is refused.
   static core::Result<std::unique_ptr<MetadataStore>> open(const std::filesystem::path& file);
   // Where the read functions (which return empty results on a SQLite error)
   // report the error: the server passes its structured log. Default: dropped.

@@ -401,7 +401,7 @@ Result<FitResult> fitScan(const FitReference& reference, const Mesh& scan_mesh, 
     return Error{ErrorCode::kCancelled, scan_label + ": fit stopped before stage 'rebuild'"};
   }
   const auto t = Clock::now();
-  auto rig = rebuildRig(reference, frame, fitted.positions, run->unit_scale, options, report);
+  auto rig = rebuildRig(reference, frame, fitted.positions, run->unit_scale, options, report, result.components);
   if (!rig) return rig.error();
   result.rig = std::move(*rig);
   if (options.diagnostic_attributes) {

@@ -135,6 +135,7 @@ struct FitReport {
 
 struct FitResult {
   Rig rig;             // the reference rig rebuilt on the fitted mesh (reference topology and vertex order)
+  std::optional<ComponentsDocument> components;  // the reference's document rebuilt, when it has one
   FitReport report;
 };
 

@@ -91,8 +91,9 @@ void gateFit(const FitReference& reference, const FrameMap& frame, const NonRigi
              FitReport& report);
 
 // The rig rebuilt by vertex index (paper 001 4.3) on `fitted` (reference
-// frame).
+// frame); the reference's components document too, when it has one.
 Result<Rig> rebuildRig(const FitReference& reference, const FrameMap& frame, const Eigen::MatrixX3d& fitted,
-                       double unit_scale, const FitOptions& options, FitReport& report);
+                       double unit_scale, const FitOptions& options, FitReport& report,
+                       std::optional<ComponentsDocument>& components);
 
 }  // namespace core

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/fit/fit_stages.h"
+#include "core/transfer/components_transfer.h"
 #include "core/transfer/skeleton.h"
 
 namespace core {
@@ -40,7 +41,8 @@ Result<TpsWarp> fittedDenseMap(const PreparedSource& surface, const Eigen::Matri
 }  // namespace
 
 Result<Rig> rebuildRig(const FitReference& reference, const FrameMap& frame, const Eigen::MatrixX3d& fitted,
-                       double unit_scale, const FitOptions& options, FitReport& report) {
+                       double unit_scale, const FitOptions& options, FitReport& report,
+                       std::optional<ComponentsDocument>& components) {
   const PreparedRig& prepared = *reference.rig;
   const Mesh& rest_mesh = prepared.surface.mesh;
   const bool scan_frame = options.frame == FitFrame::kScan;
@@ -125,6 +127,12 @@ Result<Rig> rebuildRig(const FitReference& reference, const FrameMap& frame, con
   rig.parts = std::move(parts.parts);
   dropPartChannels(rig.parts, rebuild.shapes, rig.skin.has_value());
   report.parts = std::move(parts.report);
+  // The components document by vertex index (001 4.3); its lengths follow
+  // the head's size, as the similarity adaptation's deltas do.
+  if (prepared.components) {
+    components = rebuildComponents(*prepared.components, *dense_map, rotation,
+                                   scan_frame ? s.scale : s.scale / unit_scale);
+  }
   return rig;
 }
 

@@ -650,6 +650,21 @@ Result<ComponentsDocument> readComponents(const std::filesystem::path& path) {
   return parseComponents(std::string(bytes->begin(), bytes->end()), path.filename().string());
 }
 
+Result<ComponentsDocument> parseRigComponents(std::string_view json_text, const std::string& label, const Mesh& face) {
+  auto doc = parseComponents(json_text, label);
+  if (!doc) return doc.error();
+  const ComponentsMeshCounts counts{static_cast<long long>(face.vertexCount()),
+                                    static_cast<long long>(face.triangleCount())};
+  if (auto ok = validateComponents(*doc, label, counts); !ok) return ok.error();
+  return doc;
+}
+
+Result<ComponentsDocument> readRigComponents(const std::filesystem::path& path, const Mesh& face) {
+  auto bytes = readFileBytes(path);
+  if (!bytes) return bytes.error();
+  return parseRigComponents(std::string(bytes->begin(), bytes->end()), path.filename().string(), face);
+}
+
 std::string formatComponents(const ComponentsDocument& doc) {
   OrderedJson out;
   out["format"] = kComponentsFormat;

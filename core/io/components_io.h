@@ -12,6 +12,7 @@
 
 #include "core/base/error.h"
 #include "core/components/components.h"
+#include "core/geometry/mesh.h"
 
 namespace core {
 
@@ -19,6 +20,11 @@ namespace core {
 // ranges against a mesh with validate()). `label` (the file name) starts every message.
 Result<ComponentsDocument> parseComponents(std::string_view json_text, const std::string& label);
 Result<ComponentsDocument> readComponents(const std::filesystem::path& path);
+
+// A rig's document: parsed and checked against the rig's face (vertex and
+// face indices in range), as an upload, a transfer or a fit takes it.
+Result<ComponentsDocument> parseRigComponents(std::string_view json_text, const std::string& label, const Mesh& face);
+Result<ComponentsDocument> readRigComponents(const std::filesystem::path& path, const Mesh& face);
 
 // The document as JSON (deterministic; defaults written out; rotations as
 // quaternions). parseComponents(formatComponents(doc)) == doc.

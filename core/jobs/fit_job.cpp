@@ -1,6 +1,7 @@
 #include "core/jobs/fit_job.h"
 
 #include "core/base/parallel.h"
+#include "core/io/components_io.h"
 #include "core/io/rig_io.h"
 #include "core/jobs/diagnostics_json.h"
 
@@ -41,6 +42,7 @@ Result<FitJobOutput> runFitJob(const PrepareFitSource& prepare, FitJobInput inpu
     auto glb = encodeRigGlb(result->rig, settings.write);
     if (!glb) return makeError(glb.error().code, run.output_label + ": " + glb.error().message);
     out.output.glb = std::move(*glb);
+    if (result->components) out.output.components = formatComponents(*result->components);
     write_ms = msSince(t0);
   }
   out.output.cache_hit = source->cache_hit;

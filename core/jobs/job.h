@@ -35,6 +35,7 @@ struct JobRun {
 struct JobOutput {
   std::vector<std::uint8_t> glb;
   std::string diagnostics;                   // JSON (docs/DIAGNOSTICS.md)
+  std::string components;                    // the result's rig components JSON (docs/COMPONENTS.md); empty: none
   std::map<std::string, double> timings_ms;  // per stage and "total", as the service reports them
   bool cache_hit = false;                    // the source-only work came from a cache
   // The job ran but its output failed its gate (a fit's verdict): no GLB, the

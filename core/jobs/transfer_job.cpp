@@ -1,6 +1,7 @@
 #include "core/jobs/transfer_job.h"
 
 #include "core/base/parallel.h"
+#include "core/io/components_io.h"
 #include "core/io/rig_io.h"
 #include "core/jobs/diagnostics_json.h"
 
@@ -124,6 +125,7 @@ Result<TransferJobOutput> runTransferJob(const PrepareRigSource& prepare, Transf
 
   TransferJobOutput out;
   out.output.glb = std::move(*glb);
+  if (result->components) out.output.components = formatComponents(*result->components);
   out.output.cache_hit = source->cache_hit;
   if (source->cache_hit) r.prepare_ms = 0.0;  // the cached preparation was paid by an earlier job
   const double total_prepare_ms = (source->cache_hit ? 0.0 : prepare_ms) + fit_prepare_ms;

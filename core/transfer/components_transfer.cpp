@@ -15,38 +15,52 @@ constexpr double kMemberWeightFloor = 1e-4;
 // A set member (0/1) stays one where at least half its location's corners are.
 constexpr double kSetMemberThreshold = 0.5;
 
+// How the document's geometry moves to the target. With a target index,
+// bound points are bound again on the target's surface (transfer); without
+// one the target is a copy of the source's topology (fit), so bindings by
+// vertex and face and lone vertices stay exactly as they are.
 class ComponentsMapper {
  public:
-  explicit ComponentsMapper(const ComponentsCorrespondence& map) : map_(map) {}
+  ComponentsMapper(const TpsWarp& dense_map, const Eigen::Matrix3d& rotation, double scale, const Mesh* source_mesh,
+                   const Mesh* target_mesh, const ClosestPointIndex* target_index)
+      : dense_map_(dense_map), rotation_(rotation), scale_(scale), source_mesh_(source_mesh),
+        target_mesh_(target_mesh), target_index_(target_index) {}
 
-  Eigen::Vector3d point(const Eigen::Vector3d& p) const { return map_.dense_map.apply(p); }
-  Eigen::Vector3d direction(const Eigen::Vector3d& d) const { return map_.rotation * d; }
-  double length(double l) const { return map_.scale * l; }
+  Eigen::Vector3d point(const Eigen::Vector3d& p) const { return dense_map_.apply(p); }
+  Eigen::Vector3d direction(const Eigen::Vector3d& d) const { return rotation_ * d; }
+  double length(double l) const { return scale_ * l; }
   Eigen::Quaterniond rotation(const Eigen::Quaterniond& q) const {
-    const Eigen::Quaterniond r(map_.rotation);
+    const Eigen::Quaterniond r(rotation_);
     return (r * q * r.conjugate()).normalized();
   }
+  const Eigen::Matrix3d& rotationMatrix() const { return rotation_; }
 
   Binding binding(const Binding& b) const {
-    const Eigen::Vector3d at =
-        point(resolveBinding(b, map_.source_mesh.positions, map_.source_mesh.triangles));
-    if (b.kind == BindingKind::kPosition) return Binding::atPosition(at);
-    const SurfacePoint sp = map_.target_index.closestPoint(at);
+    if (b.kind == BindingKind::kPosition) return Binding::atPosition(point(b.position));
+    if (!target_index_) return b;
+    const Eigen::Vector3d at = point(resolveBinding(b, source_mesh_->positions, source_mesh_->triangles));
+    const SurfacePoint sp = target_index_->closestPoint(at);
     return sp.found() ? Binding::onFace(sp.face, sp.barycentric) : Binding::atPosition(at);
   }
 
   // The target vertex nearest where the map puts source vertex v.
   int vertex(int v) const {
-    const Eigen::Vector3d at = point(map_.source_mesh.positions.row(v).transpose());
-    const SurfacePoint sp = map_.target_index.closestPoint(at);
+    if (!target_index_) return v;
+    const Eigen::Vector3d at = point(source_mesh_->positions.row(v).transpose());
+    const SurfacePoint sp = target_index_->closestPoint(at);
     if (!sp.found()) return 0;
     int corner = 0;
     sp.barycentric.maxCoeff(&corner);
-    return map_.target_mesh.triangles(sp.face, corner);
+    return target_mesh_->triangles(sp.face, corner);
   }
 
  private:
-  const ComponentsCorrespondence& map_;
+  const TpsWarp& dense_map_;
+  Eigen::Matrix3d rotation_;
+  double scale_;
+  const Mesh* source_mesh_;
+  const Mesh* target_mesh_;
+  const ClosestPointIndex* target_index_;
 };
 
 // Every member set of the document as one field of the source (#Vs by 1),
@@ -113,10 +127,55 @@ void mapCollision(CollisionShape& s, const ComponentsMapper& m) {
   s.rotation = m.rotation(s.rotation);
 }
 
+// Everything but member sets: points, bindings, lone vertices, lengths, frames.
+void mapGeometry(ComponentsDocument& doc, const ComponentsMapper& m) {
+  for (Locator& l : doc.locators) l.binding = m.binding(l.binding);
+  for (Cluster& c : doc.clusters) {
+    c.pivot = m.binding(c.pivot);
+    c.translate = m.length(1.0) * m.direction(c.translate);
+    c.rotate = m.rotation(c.rotate);
+  }
+  for (PointConstraint& p : doc.point_constraints) mapTargets(p.targets, m);
+  for (AimConstraint& a : doc.aim_constraints) {
+    mapTargets(a.targets, m);
+    a.world_up = m.direction(a.world_up);
+  }
+  for (NurbsCurve& c : doc.curves) {
+    for (Binding& b : c.points) b = m.binding(b);
+  }
+  for (NurbsSurface& s : doc.surfaces) {
+    for (Binding& b : s.points) b = m.binding(b);
+  }
+  for (Wire& w : doc.wires) w.dropoff_distance = m.length(w.dropoff_distance);
+  for (Lattice& l : doc.lattices) {
+    l.origin = m.point(l.origin);
+    l.axes = m.length(1.0) * (m.rotationMatrix() * l.axes);
+    for (Eigen::Vector3d& p : l.points) p = m.point(p);
+  }
+  for (PushToSurface& p : doc.push_to_surfaces) {
+    mapCollision(p.surface, m);
+    p.vector = m.direction(p.vector);
+  }
+  for (Muscle& mu : doc.muscles) {
+    mu.origin = m.binding(mu.origin);
+    mu.insertion = m.binding(mu.insertion);
+  }
+  // Controls driving a cluster's translation move it in model units.
+  for (Control& c : doc.controls) {
+    for (ControlDrive& d : c.drives) {
+      const bool translate = d.kind == DriveTargetKind::kCluster && (d.cluster_channel == ClusterChannel::kTranslateX ||
+                                                                     d.cluster_channel == ClusterChannel::kTranslateY ||
+                                                                     d.cluster_channel == ClusterChannel::kTranslateZ);
+      if (translate) d.gain = m.length(d.gain);
+    }
+  }
+}
+
 }  // namespace
 
 ComponentsDocument transferComponents(const ComponentsDocument& source, const ComponentsCorrespondence& map) {
-  const ComponentsMapper m(map);
+  const ComponentsMapper m(map.dense_map, map.rotation, map.scale, &map.source_mesh, &map.target_mesh,
+                           &map.target_index);
   ComponentsDocument out = source;
   // Member sets first: one attribute transfer for all. An empty set means
   // "every vertex" and stays empty.
@@ -132,53 +191,24 @@ ComponentsDocument transferComponents(const ComponentsDocument& source, const Co
     if (!p.members.empty()) fields.add("push:" + p.name, asWeighted(p.members));
   }
   fields.carry(map);
-
-  for (Locator& l : out.locators) l.binding = m.binding(l.binding);
-  for (Cluster& c : out.clusters) {
-    c.pivot = m.binding(c.pivot);
-    c.members = fields.weighted("cluster:" + c.name);
-    c.translate = m.length(1.0) * m.direction(c.translate);
-    c.rotate = m.rotation(c.rotate);
-  }
-  for (PointConstraint& p : out.point_constraints) mapTargets(p.targets, m);
-  for (AimConstraint& a : out.aim_constraints) {
-    mapTargets(a.targets, m);
-    a.world_up = m.direction(a.world_up);
-  }
-  for (NurbsCurve& c : out.curves) {
-    for (Binding& b : c.points) b = m.binding(b);
-  }
-  for (NurbsSurface& s : out.surfaces) {
-    for (Binding& b : s.points) b = m.binding(b);
-  }
+  for (Cluster& c : out.clusters) c.members = fields.weighted("cluster:" + c.name);
   for (Wire& w : out.wires) {
-    w.dropoff_distance = m.length(w.dropoff_distance);
     if (!w.members.empty()) w.members = fields.set("wire:" + w.name);
   }
   for (Lattice& l : out.lattices) {
-    l.origin = m.point(l.origin);
-    l.axes = m.length(1.0) * (map.rotation * l.axes);
-    for (Eigen::Vector3d& p : l.points) p = m.point(p);
     if (!l.members.empty()) l.members = fields.set("lattice:" + l.name);
   }
   for (PushToSurface& p : out.push_to_surfaces) {
-    mapCollision(p.surface, m);
-    p.vector = m.direction(p.vector);
     if (!p.members.empty()) p.members = fields.set("push:" + p.name);
   }
-  for (Muscle& mu : out.muscles) {
-    mu.origin = m.binding(mu.origin);
-    mu.insertion = m.binding(mu.insertion);
-  }
-  // Controls driving a cluster's translation move it in model units.
-  for (Control& c : out.controls) {
-    for (ControlDrive& d : c.drives) {
-      const bool translate = d.kind == DriveTargetKind::kCluster && (d.cluster_channel == ClusterChannel::kTranslateX ||
-                                                                     d.cluster_channel == ClusterChannel::kTranslateY ||
-                                                                     d.cluster_channel == ClusterChannel::kTranslateZ);
-      if (translate) d.gain = m.length(d.gain);
-    }
-  }
+  mapGeometry(out, m);
+  return out;
+}
+
+ComponentsDocument rebuildComponents(const ComponentsDocument& reference, const TpsWarp& dense_map,
+                                     const Eigen::Matrix3d& rotation, double scale) {
+  ComponentsDocument out = reference;
+  mapGeometry(out, ComponentsMapper(dense_map, rotation, scale, nullptr, nullptr, nullptr));
   return out;
 }
 

@@ -40,6 +40,14 @@ struct ComponentsCorrespondence {
 
 ComponentsDocument transferComponents(const ComponentsDocument& source, const ComponentsCorrespondence& map);
 
+// The reference's document on a copy of its own topology (the fit, paper 001
+// 4.3): bindings by vertex or face, member sets and lone vertices kept
+// exactly, so they follow the fitted mesh; free points (position bindings,
+// lattice boxes) through `dense_map`; lengths scaled and frames turned by
+// the similarity (`rotation`, `scale`), as in a transfer.
+ComponentsDocument rebuildComponents(const ComponentsDocument& reference, const TpsWarp& dense_map,
+                                     const Eigen::Matrix3d& rotation, double scale);
+
 // Target vertices appended as copies (UV seams carried over: `copy_of[i]` is
 // the vertex that vertex `first + i` copies) join every member set their
 // original is in, with its weight.

@@ -440,6 +440,14 @@ std::size_t PreparedRig::memoryBytes() const {
     for (const auto& t : part.morph_targets) bytes += static_cast<std::size_t>(t.position_deltas.size() + t.normal_deltas.size()) * sizeof(double);
     bytes += static_cast<std::size_t>(part.weights.nonZeros()) * (sizeof(double) + sizeof(int));
   }
+  if (components) {  // its bulk: member lists and control points
+    for (const Cluster& c : components->clusters) bytes += c.members.size() * sizeof(ClusterMember);
+    for (const Wire& w : components->wires) bytes += w.members.size() * sizeof(int);
+    for (const Lattice& l : components->lattices) bytes += l.members.size() * sizeof(int) + l.points.size() * sizeof(Eigen::Vector3d);
+    for (const PushToSurface& p : components->push_to_surfaces) bytes += p.members.size() * sizeof(int) + p.surface.triangles.size() * sizeof(Eigen::Vector3i);
+    for (const NurbsCurve& c : components->curves) bytes += c.points.size() * sizeof(Binding);
+    for (const NurbsSurface& s : components->surfaces) bytes += s.points.size() * sizeof(Binding);
+  }
   return bytes;
 }
 

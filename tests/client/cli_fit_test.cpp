@@ -75,6 +75,58 @@ TEST(CliFit, FindsAScanWithoutLandmarksBySearch) {
   EXPECT_NEAR(d["alignment"]["scale"].get<double>(), 1000.0, 10.0);
 }
 
+// --reference-components: the document rebuilt by vertex index on the fitted
+// mesh (bindings and members as they were, lengths in the scan's units);
+// a document that does not fit the reference is refused naming its field.
+TEST(CliFit, ComponentsAreRebuiltByVertexIndex) {
+  const auto dir = makeTempDir("cli_fit_components");
+  writeInputs(dir, 3);
+  const nlohmann::json doc = {
+      {"format", "rigport.components"},
+      {"version", 1},
+      {"locators", {{{"name", "nose"}, {"binding", {{"vertex", 120}}}}, {{"name", "free"}, {"binding", {{"position", {0.01, 0.02, 0.03}}}}}}},
+      {"clusters", {{{"name", "lip_c"}, {"pivot", {{"face", 10}, {"barycentric", {0.2, 0.3, 0.5}}}},
+                     {"members", {{{"vertex", 49}, {"weight", 1.0}}, {{"vertex", 38}, {"weight", 0.5}}}}}}},
+      {"curves", {{{"name", "lip_base"}, {"degree", 1}, {"knots", {0, 0, 1, 1}}, {"points", {{{"vertex", 66}}, {{"vertex", 74}}}}},
+                  {{"name", "lip"}, {"degree", 1}, {"knots", {0, 0, 1, 1}}, {"points", {{{"vertex", 66}}, {{"vertex", 74}}}}}}},
+      {"wires", {{{"name", "upper_lip"}, {"base_curve", "lip_base"}, {"curve", "lip"}, {"dropoff_distance", 0.03}}}}};
+  std::ofstream(dir / "rig.components.json") << doc.dump();
+  const std::string components = " --reference-components " + quoted(dir / "rig.components.json") +
+                                 " --components-out " + quoted(dir / "fitted.components.json");
+  const std::string landmarks = " --scan-landmarks " + quoted(dir / "scan.landmarks.json");
+  const CliRun run = runRigportCli(fitArguments(dir, dir / "scan.glb", landmarks + components));
+  ASSERT_EQ(run.exit_code, 0) << run.log;
+  EXPECT_GLTF_VALID(dir / "fitted.glb");
+  const nlohmann::json out = readJson(dir / "fitted.components.json");
+  ASSERT_TRUE(out.is_object()) << run.log;
+  EXPECT_EQ(out["locators"][0]["binding"], doc["locators"][0]["binding"]);
+  EXPECT_EQ(out["clusters"][0]["pivot"], doc["clusters"][0]["pivot"]);
+  EXPECT_EQ(out["clusters"][0]["members"], doc["clusters"][0]["members"]);
+  EXPECT_EQ(out["curves"][1]["points"], doc["curves"][1]["points"]);
+  // The scan is in millimetres, the reference in metres: lengths follow.
+  const double dropoff = out["wires"][0]["dropoff_distance"].get<double>();
+  EXPECT_GT(dropoff, 0.03 * 1000.0 * 0.8) << out["wires"].dump();
+  EXPECT_LT(dropoff, 0.03 * 1000.0 * 1.25) << out["wires"].dump();
+
+  // Out of range for the reference: refused before anything runs.
+  nlohmann::json bad = doc;
+  bad["locators"][0]["binding"]["vertex"] = 99999999;
+  std::ofstream(dir / "bad.components.json") << bad.dump();
+  std::filesystem::remove(dir / "fitted.glb");
+  const CliRun refused = runRigportCli(fitArguments(dir, dir / "scan.glb", landmarks) + " --reference-components " +
+                                       quoted(dir / "bad.components.json"));
+  EXPECT_EQ(refused.exit_code, 1) << refused.log;
+  EXPECT_NE(refused.log.find("bad.components.json"), std::string::npos) << refused.log;
+  EXPECT_NE(refused.log.find("nose"), std::string::npos) << refused.log;
+  EXPECT_FALSE(std::filesystem::exists(dir / "fitted.glb"));
+
+  // --components-out needs the reference's document.
+  const CliRun alone = runRigportCli(fitArguments(dir, dir / "scan.glb", landmarks) + " --components-out " +
+                                     quoted(dir / "x.json"));
+  EXPECT_NE(alone.exit_code, 0) << alone.log;
+  EXPECT_NE(alone.log.find("--reference-components"), std::string::npos) << alone.log;
+}
+
 TEST(CliFit, BadInputIsAClearErrorAndWritesNothing) {
   const auto dir = makeTempDir("cli_fit_bad");
   writeInputs(dir, 3);

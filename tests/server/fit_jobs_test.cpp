@@ -28,7 +28,7 @@ namespace {
 
 struct FitFiles {
   std::filesystem::path rig, landmarks, scan, scan_landmarks;
-  TransferFiles reference() const { return {rig, landmarks, {}, {}}; }  // what uploadRig sends
+  TransferFiles reference() const { return {rig, landmarks, {}, {}, {}}; }  // what uploadRig sends
 };
 
 std::string fileText(const std::filesystem::path& p) {
@@ -370,7 +370,7 @@ TransferFiles writeFitTransferFiles(const FitFiles& f, const std::filesystem::pa
   res.jitter = 0.2;
   res.seed = 5;
   const core::SyntheticHead head = core::generateHead(core::randomHeadShape(3, 0.15), res);
-  TransferFiles t{f.rig, f.landmarks, dir / "target.glb", dir / "target.landmarks.json"};
+  TransferFiles t{f.rig, f.landmarks, dir / "target.glb", dir / "target.landmarks.json", {}};
   EXPECT_TRUE(core::writeMeshGlb(head.mesh, t.target).ok());
   writeText(t.target_landmarks, core::formatLandmarks(head.landmarks));
   auto at = core::resolveLandmarks(head.landmarks, head.mesh, "target");

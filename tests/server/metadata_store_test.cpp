@@ -74,10 +74,11 @@ TEST(MetadataStore, SchemaOneIsUpgradedKeepingItsRigs) {
     old_rig.info.region_labels = std::vector<int>{1, 2};
     ASSERT_TRUE(store->insertRig(old_rig).ok());
   }
-  // Back to what schema 1 wrote (without what versions 2 and 3 added).
+  // Back to what schema 1 wrote (without what versions 2, 3 and 5 added).
   sqlite3* db = nullptr;
   ASSERT_EQ(sqlite3_open(file.c_str(), &db), SQLITE_OK);
-  ASSERT_EQ(sqlite3_exec(db, "ALTER TABLE rigs DROP COLUMN region_labels; DROP TABLE storage_probe; PRAGMA user_version=1;", nullptr, nullptr,
+  ASSERT_EQ(sqlite3_exec(db, "ALTER TABLE rigs DROP COLUMN region_labels; DROP TABLE storage_probe; DROP INDEX jobs_components_blob; "
+                         "ALTER TABLE jobs DROP COLUMN components_blob; PRAGMA user_version=1;", nullptr, nullptr,
                          nullptr),
             SQLITE_OK)
       << sqlite3_errmsg(db);
@@ -105,11 +106,17 @@ TEST(MetadataStore, SchemaOneIsUpgradedKeepingItsRigs) {
   EXPECT_FALSE(reopened->getRig("acme", "old")->info.region_labels.has_value());
   EXPECT_EQ(reopened->listRigs("acme").size(), 3u);
   EXPECT_TRUE(reopened->probeWrite().ok()) << "version 3's probe table must exist";
+  const JobRecord job = makeJob("acme", "after-upgrade");
+  ASSERT_TRUE(reopened->insertJob(job).ok());
+  ASSERT_TRUE(reopened->markRunning("after-upgrade", 1, false).ok());
+  ASSERT_TRUE(reopened->markFinished(finished(job, JobStatus::kSucceeded)).ok());
+  EXPECT_EQ(reopened->getJob("acme", "after-upgrade")->components_blob, std::string(64, '3'))
+      << "version 5's components column must exist";
   ASSERT_EQ(sqlite3_open(file.c_str(), &db), SQLITE_OK);
   sqlite3_stmt* stmt = nullptr;
   ASSERT_EQ(sqlite3_prepare_v2(db, "PRAGMA user_version", -1, &stmt, nullptr), SQLITE_OK);
   ASSERT_EQ(sqlite3_step(stmt), SQLITE_ROW);
-  EXPECT_EQ(sqlite3_column_int(stmt, 0), 4) << "upgraded to the current version (4: fit jobs)";
+  EXPECT_EQ(sqlite3_column_int(stmt, 0), 5) << "upgraded to the current version (5: jobs' components results)";
   sqlite3_finalize(stmt);
   sqlite3_close(db);
 }
@@ -423,9 +430,10 @@ TEST(MetadataStore, BlobReferencedSeesEveryReferencingColumn) {
   JobRecord job = makeJob("acme", "job1");  // inputs d, e
   ASSERT_TRUE(store->insertJob(job).ok());
   ASSERT_TRUE(store->markRunning("job1", 1, false).ok());
-  ASSERT_TRUE(store->markFinished(finished(job, JobStatus::kSucceeded)).ok());  // 1, 2
+  ASSERT_TRUE(store->markFinished(finished(job, JobStatus::kSucceeded)).ok());  // 1, 2, 3
+  EXPECT_EQ(store->getJob("acme", "job1")->components_blob, h('3'));
 
-  for (char c : {'a', 'b', 'c', 'd', 'e', '1', '2'}) EXPECT_TRUE(store->blobReferenced(h(c))) << c;
+  for (char c : {'a', 'b', 'c', 'd', 'e', '1', '2', '3'}) EXPECT_TRUE(store->blobReferenced(h(c))) << c;
   EXPECT_FALSE(store->blobReferenced(h('9')));
   EXPECT_FALSE(store->blobReferenced(""));
 

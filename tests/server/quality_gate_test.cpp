@@ -30,7 +30,7 @@ void writeFile(const std::filesystem::path& path, const std::string& text) {
 TransferFiles writeCrossingFiles(const std::filesystem::path& dir) {
   std::filesystem::create_directories(dir);
   TransferFiles f{dir / "touching_rig.glb", dir / "touching_rig.landmarks.json", dir / "sagging.glb",
-                  dir / "sagging.landmarks.json"};
+                  dir / "sagging.landmarks.json", {}};
   const core::SyntheticRig& rig = touchingLipsSource();
   EXPECT_TRUE(core::writeRigGlb(rig.rig, f.rig).ok());
   writeFile(f.landmarks, core::formatLandmarks(rig.landmarks));

@@ -58,7 +58,7 @@ CliRun runRigportCli(const std::string& arguments) {
 TransferFiles writeTransferFiles(const std::filesystem::path& dir, int target_cells) {
   std::filesystem::create_directories(dir);
   TransferFiles f{dir / "source_rig.glb", dir / "source_rig.landmarks.json", dir / "target_head.glb",
-                  dir / "target_head.landmarks.json"};
+                  dir / "target_head.landmarks.json", {}};
   core::HeadResolution source_res;
   source_res.columns = 48;
   source_res.rows = 40;
@@ -83,7 +83,11 @@ std::vector<std::uint8_t> runCliTransfer(const TransferFiles& files, const std::
   const std::filesystem::path out = out_dir / "cli_out.glb";
   const std::string cmd = std::string("'") + RIGPORT_CLI_PATH + "' -q transfer --source '" + files.rig.string() +
                           "' --source-landmarks '" + files.landmarks.string() + "' --target '" + files.target.string() +
-                          "' --target-landmarks '" + files.target_landmarks.string() + "' -o '" + out.string() + "'";
+                          "' --target-landmarks '" + files.target_landmarks.string() + "' -o '" + out.string() + "'" +
+                          (files.components.empty() ? std::string()
+                                                    : " --source-components '" + files.components.string() +
+                                                          "' --components-out '" +
+                                                          (out_dir / "cli_components.json").string() + "'");
   EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
   auto bytes = core::readFileBytes(out);
   EXPECT_TRUE(bytes.ok());
@@ -150,6 +154,9 @@ Reply uploadRig(httplib::Client& client, const TransferFiles& f) {
       {"rig", readText(f.rig), f.rig.filename().string(), "model/gltf-binary"},
       {"landmarks", readText(f.landmarks), f.landmarks.filename().string(), "application/json"},
   };
+  if (!f.components.empty()) {
+    items.push_back({"components", readText(f.components), f.components.filename().string(), "application/json"});
+  }
   return toReply(client.Post("/v1/rigs", items));
 }
 

@@ -23,6 +23,7 @@ namespace rigport_test {
 // tens of milliseconds.
 struct TransferFiles {
   std::filesystem::path rig, landmarks, target, target_landmarks;
+  std::filesystem::path components;  // the rig's components JSON; empty = none (writeTransferFiles writes none)
 };
 // `target_cells` sets the target's grid (columns; rows follow): larger = slower jobs.
 TransferFiles writeTransferFiles(const std::filesystem::path& dir, int target_cells = 40);
@@ -36,6 +37,7 @@ struct CliRun {
 CliRun runRigportCli(const std::string& arguments);
 
 // The rigport CLI's in-process transfer of `files` (the reference bytes).
+// With `files.components` the CLI also writes out_dir/cli_components.json.
 std::vector<std::uint8_t> runCliTransfer(const TransferFiles& files, const std::filesystem::path& out_dir);
 
 // A self-signed certificate for 127.0.0.1 and localhost, and its private

@@ -6,7 +6,9 @@
 #include <atomic>
 #include <thread>
 
+#include "core/io/components_io.h"
 #include "core/io/mesh_io.h"
+#include "core/io/rig_io.h"
 #include "tests/server/service_fixture.h"
 #include "tests/test_support.h"
 
@@ -73,6 +75,82 @@ TEST(TransferJobs, UploadSubmitPollFetchGivesTheCliBytes) {
   EXPECT_TRUE(second_done["cache_hit"].get<bool>());
   EXPECT_EQ(second_done["timings_ms"]["prepare"], 0.0);
   EXPECT_TRUE(get(*client, "/v1/jobs/" + second.body["id"].get<std::string>() + "/diagnostics").body["cache"]["hit"].get<bool>());
+}
+
+// A rig uploaded with its components document: transfer jobs carry it to
+// the target, GET /v1/jobs/{id}/components gives the same bytes as the CLI's
+// --components-out, bound to the result's mesh. A rig without one: 404.
+TEST(TransferJobs, ComponentsUploadedWithTheRigComeBackWithTheResult) {
+  const auto dir = makeTempDir("components_jobs");
+  TransferFiles files = writeTransferFiles(dir);
+  files.components = dir / "rig.components.json";
+  const nlohmann::json doc = {
+      {"format", "rigport.components"},
+      {"version", 1},
+      {"locators", {{{"name", "nose"}, {"binding", {{"vertex", 120}}}}}},
+      {"clusters", {{{"name", "lip_c"},
+                     {"pivot", {{"face", 10}, {"barycentric", {0.2, 0.3, 0.5}}}},
+                     {"members", {{{"vertex", 49}, {"weight", 1.0}}, {{"vertex", 38}, {"weight", 0.5}}}}}}},
+      {"curves", {{{"name", "lip_base"}, {"degree", 1}, {"knots", {0, 0, 1, 1}}, {"points", {{{"vertex", 66}}, {{"vertex", 74}}}}},
+                  {{"name", "lip"}, {"degree", 1}, {"knots", {0, 0, 1, 1}}, {"points", {{{"vertex", 66}}, {{"vertex", 74}}}},
+                   {"drivers", {{{"point", 1}, {"cluster", "lip_c"}}}}}}},
+      {"wires", {{{"name", "upper_lip"}, {"base_curve", "lip_base"}, {"curve", "lip"}, {"dropoff_distance", 0.03}}}},
+      {"muscles", {{{"name", "zygomatic"}, {"origin", {{"position", {0.05, 0.1, 0.02}}}}, {"insertion", {{"vertex", 60}}},
+                    {"range", {0, 0.5}}, {"drives", {{{"cluster", "lip_c"}, {"mode", "translate"}}}}}}},
+      {"controls", {{{"name", "smile"}, {"range", {0, 1}}, {"default", 0}, {"drives", {{{"muscle", "zygomatic"}, {"gain", 0.4}}}}}}},
+      {"presets", {{"smile", {{"controls", {{"smile", 1.0}}}}}}}};
+  ASSERT_TRUE(core::writeFileBytes(files.components, std::span(reinterpret_cast<const std::uint8_t*>(doc.dump().data()),
+                                                               doc.dump().size()))
+                  .ok());
+  ASSERT_FALSE(runCliTransfer(files, dir).empty());
+  auto cli_components = core::readFileBytes(dir / "cli_components.json");
+  ASSERT_TRUE(cli_components.ok()) << "the CLI wrote no --components-out";
+
+  InProcessService service(testConfig(dir / "data"));
+  auto client = service.client();
+  Reply rig = uploadRig(*client, files);
+  ASSERT_EQ(rig.status, 201) << rig.raw;
+  EXPECT_TRUE(rig.body["has_components"].get<bool>());
+  Reply job = submitTransfer(*client, rig.body["id"], files);
+  ASSERT_EQ(job.status, 202) << job.raw;
+  const std::string id = job.body["id"];
+  const nlohmann::json done = waitForJob(*client, id);
+  ASSERT_EQ(done["status"], "succeeded") << done.dump();
+  EXPECT_TRUE(done["has_components"].get<bool>()) << done.dump();
+  Reply components = get(*client, "/v1/jobs/" + id + "/components");
+  ASSERT_EQ(components.status, 200) << components.raw;
+  EXPECT_EQ(components.content_type, "application/json");
+  EXPECT_TRUE(components.raw == std::string(cli_components->begin(), cli_components->end()))
+      << "service components differ from the CLI's --components-out";
+  // Bound to the result's mesh (the target's vertices), not the rig's.
+  Reply result = get(*client, "/v1/jobs/" + id + "/result");
+  ASSERT_EQ(result.status, 200);
+  const auto glb = dir / "with_components.glb";
+  ASSERT_TRUE(core::writeFileBytes(glb, std::span(reinterpret_cast<const std::uint8_t*>(result.raw.data()), result.raw.size())).ok());
+  auto target_rig = core::readRig(glb);
+  ASSERT_TRUE(target_rig.ok()) << target_rig.error().message;
+  auto carried = core::parseRigComponents(components.raw, "job components", target_rig->rig.mesh);
+  ASSERT_TRUE(carried.ok()) << carried.error().message;
+  EXPECT_EQ(carried->clusters.size(), 1u);
+  EXPECT_FALSE(carried->clusters[0].members.empty());
+  ASSERT_EQ(carried->muscles.size(), 1u);
+  EXPECT_GT((carried->muscles[0].origin.position - Eigen::Vector3d(0.05, 0.1, 0.02)).norm(), 0.0)
+      << "a free point goes through the dense map";
+
+  // The same rig without its document: no components.
+  TransferFiles bare = files;
+  bare.components.clear();
+  Reply bare_rig = uploadRig(*client, bare);
+  ASSERT_EQ(bare_rig.status, 201) << bare_rig.raw;
+  EXPECT_NE(bare_rig.body["id"], rig.body["id"]) << "the document is part of the rig's content id";
+  Reply bare_job = submitTransfer(*client, bare_rig.body["id"], bare);
+  ASSERT_EQ(bare_job.status, 202) << bare_job.raw;
+  const nlohmann::json bare_done = waitForJob(*client, bare_job.body["id"]);
+  ASSERT_EQ(bare_done["status"], "succeeded") << bare_done.dump();
+  EXPECT_FALSE(bare_done["has_components"].get<bool>());
+  Reply none = get(*client, "/v1/jobs/" + bare_job.body["id"].get<std::string>() + "/components");
+  EXPECT_EQ(none.status, 404) << none.raw;
+  EXPECT_NE(none.raw.find("no components document"), std::string::npos) << none.raw;
 }
 
 TEST(TransferJobs, SixtyFourJobsFromEightClientsAllSucceedWithOnePreparation) {
