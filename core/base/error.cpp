@@ -59,4 +59,9 @@ std::string closestName(const std::string& typo, const std::vector<std::string>&
   return best;
 }
 
+std::string didYouMean(const std::string& typo, const std::vector<std::string>& names, char quote) {
+  const std::string guess = closestName(typo, names);
+  return guess.empty() ? std::string() : " (did you mean " + (quote + guess + quote) + "?)";
+}
+
 }  // namespace core

@@ -51,4 +51,8 @@ std::string joinNames(const std::vector<std::string>& names);
 // when none is that close: for "did you mean ...?" in messages.
 std::string closestName(const std::string& typo, const std::vector<std::string>& names);
 
+// ` (did you mean "name"?)` with closestName's pick quoted by `quote`, or ""
+// when none is close: appended to an "unknown ..." message.
+std::string didYouMean(const std::string& typo, const std::vector<std::string>& names, char quote = '"');
+
 }  // namespace core

@@ -10,13 +10,6 @@ namespace core {
 
 namespace {
 
-int targetIndex(const Rig& rig, const std::string& name) {
-  for (std::size_t t = 0; t < rig.morph_targets.size(); ++t) {
-    if (rig.morph_targets[t].name == name) return static_cast<int>(t);
-  }
-  return -1;
-}
-
 bool isBakedPreset(const Rig& rig, const std::string& name) {
   return std::find(rig.baked_presets.begin(), rig.baked_presets.end(), name) != rig.baked_presets.end();
 }
@@ -34,14 +27,12 @@ Result<MorphTarget> bakePreset(const Rig& rig, const ComponentsDocument& doc, co
   target.position_deltas = pose->positions - rig.mesh.positions;
   for (const auto& [shape, weight] : pose->morph_weights) {
     if (weight == 0.0) continue;
-    const int t = targetIndex(rig, shape);
+    const int t = indexByName(rig.morph_targets, shape);
     if (t < 0) {
       std::vector<std::string> names;
       for (const MorphTarget& m : rig.morph_targets) names.push_back(m.name);
-      const std::string near = closestName(shape, names);
       return makeError(ErrorCode::kInvalidArgument, "preset '" + name + "' drives morph target '" + shape +
-                                                        "', which the rig does not have" +
-                                                        (near.empty() ? "" : " (did you mean '" + near + "'?)"));
+                                                        "', which the rig does not have" + didYouMean(shape, names, '\''));
     }
     if (isBakedPreset(rig, shape)) continue;  // a baked preset is not a shape of the rig's own
     target.position_deltas += weight * rig.morph_targets[static_cast<std::size_t>(t)].position_deltas;
@@ -80,7 +71,7 @@ Result<BakeReport> bakePresets(Rig& rig, const ComponentsDocument& doc, const st
   BakeReport report;
   std::vector<MorphTarget> baked;
   for (const std::string& name : names) {
-    if (targetIndex(rig, name) >= 0 && !isBakedPreset(rig, name)) {
+    if (indexByName(rig.morph_targets, name) >= 0 && !isBakedPreset(rig, name)) {
       return makeError(ErrorCode::kInvalidArgument, "preset '" + name +
                                                         "' has the name of a morph target of the rig that is not a "
                                                         "baked preset; rename the preset or the target");
@@ -93,7 +84,7 @@ Result<BakeReport> bakePresets(Rig& rig, const ComponentsDocument& doc, const st
   Eigen::Index added = 0;
   for (MorphTarget& target : baked) {
     report.baked.push_back(target.name);
-    const int t = targetIndex(rig, target.name);
+    const int t = indexByName(rig.morph_targets, target.name);
     if (t >= 0) {
       rig.morph_targets[static_cast<std::size_t>(t)] = std::move(target);
       continue;

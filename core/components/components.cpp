@@ -75,10 +75,7 @@ Result<std::map<std::string, double>> presetControls(const ComponentsDocument& d
   if (found == doc.presets.end()) {
     std::vector<std::string> names;
     for (const auto& [preset_name, preset] : doc.presets) names.push_back(preset_name);
-    std::string message = "presets: no preset \"" + name + "\"";
-    const std::string guess = closestName(name, names);
-    if (!guess.empty()) message += " (did you mean \"" + guess + "\"?)";
-    return makeError(ErrorCode::kInvalidArgument, message);
+    return makeError(ErrorCode::kInvalidArgument, "presets: no preset \"" + name + "\"" + didYouMean(name, names));
   }
   std::map<std::string, double> values;
   for (const Control& control : doc.controls) values[control.name] = control.default_value;

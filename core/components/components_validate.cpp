@@ -44,10 +44,7 @@ class Checker {
   // "unknown locator "mouht" (did you mean "mouth"?)"
   Error unknown(const std::string& where, const std::string& field, const char* kind, const std::string& name,
                 const std::vector<std::string>& known) const {
-    std::string what = field + ": unknown " + kind + " \"" + name + "\"";
-    const std::string guess = closestName(name, known);
-    if (!guess.empty()) what += " (did you mean \"" + guess + "\"?)";
-    return fail(where, what);
+    return fail(where, field + ": unknown " + kind + " \"" + name + "\"" + didYouMean(name, known));
   }
   Status checkFinite(const std::string& where, const std::string& field, double v) const {
     if (!std::isfinite(v)) return fail(where, field + " is not finite");

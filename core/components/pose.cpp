@@ -47,10 +47,7 @@ Status applyControls(PoseState& s, const std::map<std::string, double>& control_
   for (const Control& c : doc.controls) names.push_back(c.name);
   for (const auto& [name, value] : control_values) {
     if (indexByName(doc.controls, name) < 0) {
-      std::string message = "controls: unknown control \"" + name + "\"";
-      const std::string guess = closestName(name, names);
-      if (!guess.empty()) message += " (did you mean \"" + guess + "\"?)";
-      return makeError(ErrorCode::kInvalidArgument, message);
+      return makeError(ErrorCode::kInvalidArgument, "controls: unknown control \"" + name + "\"" + didYouMean(name, names));
     }
     if (!std::isfinite(value)) {
       return makeError(ErrorCode::kInvalidArgument, "controls: \"" + name + "\" is not a finite number");

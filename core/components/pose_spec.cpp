@@ -25,11 +25,6 @@ Error fieldError(const std::string& label, const std::string& field, const std::
   return makeError(ErrorCode::kInvalidArgument, label + ": " + field + ": " + what);
 }
 
-std::string didYouMean(const std::string& name, const std::vector<std::string>& known) {
-  const std::string guess = closestName(name, known);
-  return guess.empty() ? "" : " (did you mean \"" + guess + "\"?)";
-}
-
 Result<double> readFinite(const nlohmann::json& value, const std::string& label, const std::string& field) {
   if (!value.is_number()) return fieldError(label, field, "must be a number");
   const double number = value.get<double>();

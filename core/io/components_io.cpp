@@ -35,10 +35,7 @@ void checkKeys(const Json& object, const std::string& where, std::initializer_li
     for (const char* a : allowed) known = known || key == a;
     if (!known) {
       std::vector<std::string> names(allowed.begin(), allowed.end());
-      std::string what = "unknown key \"" + key + "\"";
-      const std::string guess = closestName(key, names);
-      if (!guess.empty()) what += " (did you mean \"" + guess + "\"?)";
-      fail(where, what);
+      fail(where, "unknown key \"" + key + "\"" + didYouMean(key, names));
     }
   }
 }

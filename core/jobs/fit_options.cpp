@@ -168,9 +168,7 @@ Result<FitSettings> parseFitOptions(const std::string& text, const std::string& 
                                         "max_yaw_deg", "max_tilt_deg", "schedule", "components"};
       for (const auto& [name, member] : kSwitches) known.push_back(name);
       for (const auto& [name, range] : kNumbers) known.push_back(name);
-      const std::string near = closestName(key, known);
-      return makeError(ErrorCode::kInvalidArgument,
-                       where + " is not a known option" + (near.empty() ? "" : " (did you mean '" + near + "'?)"));
+      return makeError(ErrorCode::kInvalidArgument, where + " is not a known option" + didYouMean(key, known, '\''));
     }
   }
   f.rebuild.weight_options.max_influences = s.write.max_influences;

@@ -62,10 +62,9 @@ Result<RetargetSettings> parseRetargetOptions(const std::string& text, const std
       if (!value.is_boolean()) return bad("true or false");
       s.clip.fill_long_gaps = value.get<bool>();
     } else {
-      const std::string near = closestName(key, {"method", "kernel", "gamma", "rest_frame", "tolerance", "exact",
-                                                 "keep_head_motion", "max_gap_frames", "fill_long_gaps"});
-      return makeError(ErrorCode::kInvalidArgument,
-                       where + " is not a known option" + (near.empty() ? "" : " (did you mean '" + near + "'?)"));
+      const std::vector<std::string> known = {"method",    "kernel",           "gamma",          "rest_frame",    "tolerance",
+                                              "exact",     "keep_head_motion", "max_gap_frames", "fill_long_gaps"};
+      return makeError(ErrorCode::kInvalidArgument, where + " is not a known option" + didYouMean(key, known, '\''));
     }
   }
   return s;

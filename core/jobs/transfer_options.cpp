@@ -136,9 +136,7 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
                                         "joint_exaggeration", "refine_iterations"};
       for (const auto& [name, member] : kWarpSwitches) known.push_back(name);
       for (const auto& [name, member] : kTransferSwitches) known.push_back(name);
-      const std::string near = closestName(key, known);
-      return makeError(ErrorCode::kInvalidArgument,
-                       where + " is not a known option" + (near.empty() ? "" : " (did you mean '" + near + "'?)"));
+      return makeError(ErrorCode::kInvalidArgument, where + " is not a known option" + didYouMean(key, known, '\''));
     }
     if (!ok) return ok.error();
   }
