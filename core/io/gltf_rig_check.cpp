@@ -37,6 +37,15 @@ Status checkRigNodes(const Rig& rig) {
   return Ok{};
 }
 
+// Skin weights (of the face or a part) are #V by #joints.
+Status checkWeightsShape(const SkinWeights& weights, Eigen::Index nv, std::size_t joints) {
+  if (weights.rows() != nv || weights.cols() != static_cast<Eigen::Index>(joints)) {
+    return invalidRig("skin weights are " + std::to_string(weights.rows()) + " by " + std::to_string(weights.cols()) +
+                      ", expected #V " + std::to_string(nv) + " by #joints " + std::to_string(joints));
+  }
+  return Ok{};
+}
+
 Status checkRigSkin(const Rig& rig) {
   const Eigen::Index nv = rig.mesh.vertexCount();
   if (!rig.skin) {
@@ -75,19 +84,15 @@ Status checkRigSkin(const Rig& rig) {
   if (skin.skeleton < -1 || skin.skeleton >= static_cast<int>(rig.nodes.size())) {
     return invalidRig("skin skeleton " + std::to_string(skin.skeleton) + " is not a node index (or -1)");
   }
-  if (rig.weights.rows() != nv || rig.weights.cols() != static_cast<Eigen::Index>(count)) {
-    return invalidRig("skin weights are " + std::to_string(rig.weights.rows()) + " by " +
-                      std::to_string(rig.weights.cols()) + ", expected #V " + std::to_string(nv) + " by #joints " +
-                      std::to_string(count));
-  }
-  return Ok{};
+  return checkWeightsShape(rig.weights, nv, count);
 }
 
-Status checkRigMorphTargets(const Rig& rig) {
-  const Eigen::Index nv = rig.mesh.vertexCount();
-  const std::size_t count = rig.morph_targets.size();
+// The morph targets of one mesh (the face or a part) and their default weights.
+Status checkMorphTargets(const Mesh& mesh, const std::vector<MorphTarget>& targets, const Eigen::VectorXd& defaults) {
+  const Eigen::Index nv = mesh.vertexCount();
+  const std::size_t count = targets.size();
   for (std::size_t t = 0; t < count; ++t) {
-    const MorphTarget& target = rig.morph_targets[t];
+    const MorphTarget& target = targets[t];
     const std::string what = "morph target " + std::to_string(t) + quoted(target.name);
     if (target.position_deltas.rows() != nv) {
       return invalidRig(what + " has " + std::to_string(target.position_deltas.rows()) + " position deltas for " +
@@ -97,19 +102,23 @@ Status checkRigMorphTargets(const Rig& rig) {
       return invalidRig(what + " has " + std::to_string(target.normal_deltas.rows()) + " normal deltas for " +
                         std::to_string(nv) + " vertices");
     }
-    if (target.normal_deltas.rows() > 0 && rig.mesh.normals.rows() == 0) {
+    if (target.normal_deltas.rows() > 0 && mesh.normals.rows() == 0) {
       return invalidRig(what + " has normal deltas but the mesh has no normals");
     }
   }
+  if ((defaults.size() != 0 && defaults.size() != static_cast<Eigen::Index>(count)) || !defaults.allFinite()) {
+    return invalidRig("morph_default_weights has " + std::to_string(defaults.size()) + " values for " +
+                      std::to_string(count) + " morph targets (or is not finite)");
+  }
+  return Ok{};
+}
+
+Status checkRigMorphTargets(const Rig& rig) {
+  if (auto ok = checkMorphTargets(rig.mesh, rig.morph_targets, rig.morph_default_weights); !ok) return ok;
   for (const std::string& baked : rig.baked_presets) {
     const bool known = std::any_of(rig.morph_targets.begin(), rig.morph_targets.end(),
                                    [&](const MorphTarget& t) { return t.name == baked; });
     if (!known) return invalidRig("baked preset '" + baked + "' is not a morph target of the face");
-  }
-  const Eigen::Index defaults = rig.morph_default_weights.size();
-  if ((defaults != 0 && defaults != static_cast<Eigen::Index>(count)) || !rig.morph_default_weights.allFinite()) {
-    return invalidRig("morph_default_weights has " + std::to_string(defaults) + " values for " + std::to_string(count) +
-                      " morph targets (or is not finite)");
   }
   return Ok{};
 }
@@ -133,9 +142,15 @@ Status checkRig(const Rig& rig, const RigWriteOptions& options) {
     }
     if (part.weights.size() > 0 && !rig.skin) return invalidRig(what + " has skin weights but the rig has no skin");
     if (auto ok = validateMesh(part.mesh, kRigLabel + " " + what); !ok) return ok.error();
-    const Rig view = partAsRig(rig, part);
-    if (auto ok = checkRigSkin(view); !ok) return makeError(ok.error().code, what + ": " + ok.error().message);
-    if (auto ok = checkRigMorphTargets(view); !ok) return makeError(ok.error().code, what + ": " + ok.error().message);
+    // The skin is the face's (checked above); a part without weights follows its node.
+    if (part.weights.size() > 0) {
+      if (auto ok = checkWeightsShape(part.weights, part.mesh.vertexCount(), rig.skin->joints.size()); !ok) {
+        return makeError(ok.error().code, what + ": " + ok.error().message);
+      }
+    }
+    if (auto ok = checkMorphTargets(part.mesh, part.morph_targets, part.morph_default_weights); !ok) {
+      return makeError(ok.error().code, what + ": " + ok.error().message);
+    }
   }
   for (std::size_t p = 0; p < rig.parts.size(); ++p) {
     for (std::size_t q = 0; q < p; ++q) {
