@@ -287,10 +287,11 @@ Status readCustomAttribute(const tinygltf::Model& model, const tinygltf::Mesh& g
                            std::vector<std::string>& warnings);
 
 // Skin and weights of a skinned mesh node (JOINTS/WEIGHTS of an unskinned
-// mesh are ignored with a warning).
+// mesh are ignored with a warning). With `shared` (a part on the face's skin,
+// already read) only the weights are read, against its joints.
 Status readSkinning(const tinygltf::Model& model, const MeshChoice& choice, const std::vector<PrimitiveRange>& ranges,
                     const std::string& mesh_name, const std::string& label, Rig& rig,
-                    std::vector<std::string>& warnings);
+                    std::vector<std::string>& warnings, const Skin* shared = nullptr);
 
 // The chosen mesh of a parsed file (buildMesh) with its region labels.
 Result<LoadedMesh> chosenMesh(const ParsedGltf& parsed, const std::string& label, LoadedMesh loaded);

@@ -431,8 +431,8 @@ Status checkRigSize(const tinygltf::Model& model, const tinygltf::Mesh& gmesh, E
 }
 
 // One of the rig's other meshes (readOtherMeshes), read like the face.
-Result<RigPart> readPart(const tinygltf::Model& model, const MeshChoice& choice, const std::string& label,
-                         std::vector<std::string>& warnings) {
+Result<RigPart> readPart(const tinygltf::Model& model, const MeshChoice& choice, const Skin* face_skin,
+                         const std::string& label, std::vector<std::string>& warnings) {
   const tinygltf::Mesh& gmesh = model.meshes[static_cast<std::size_t>(choice.mesh)];
   const std::string mesh_name = "mesh " + std::to_string(choice.mesh) + quoted(gmesh.name);
   const std::vector<PrimitiveRange> ranges = primitiveRanges(model, gmesh);
@@ -442,7 +442,7 @@ Result<RigPart> readPart(const tinygltf::Model& model, const MeshChoice& choice,
   if (!built) return built.error();
   for (std::string& warning : built->report.warnings) warnings.push_back(std::move(warning));
   Rig read;
-  if (auto ok = readSkinning(model, choice, ranges, mesh_name, label, read, warnings); !ok) return ok.error();
+  if (auto ok = readSkinning(model, choice, ranges, mesh_name, label, read, warnings, face_skin); !ok) return ok.error();
   if (auto ok = readMorphing(model, choice, ranges, mesh_name, label, read, warnings); !ok) return ok.error();
   auto attributes = readVertexAttributes(model, gmesh, ranges, mesh_name, label, warnings);
   if (!attributes) return attributes.error();
@@ -485,7 +485,7 @@ Status readOtherMeshes(const tinygltf::Model& model, const MeshChoice& face, con
       continue;
     }
     MeshChoice choice{node.mesh, static_cast<int>(n), skinned, what};
-    auto part = readPart(model, choice, label, warnings);
+    auto part = readPart(model, choice, rig.skin ? &*rig.skin : nullptr, label, warnings);
     if (!part) return part.error();
     rig.parts.push_back(std::move(*part));
   }

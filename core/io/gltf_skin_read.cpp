@@ -328,12 +328,18 @@ Result<SkinWeights> readSkinWeights(const tinygltf::Model& model, const tinygltf
 
 Status readSkinning(const tinygltf::Model& model, const MeshChoice& choice, const std::vector<PrimitiveRange>& ranges,
                     const std::string& mesh_name, const std::string& label, Rig& rig,
-                    std::vector<std::string>& warnings) {
+                    std::vector<std::string>& warnings, const Skin* shared) {
   const tinygltf::Mesh& gmesh = model.meshes[static_cast<std::size_t>(choice.mesh)];
   if (!choice.skinned) {
     if (presentInAny(attributeAccessors(gmesh, "JOINTS_0"))) {
       warnings.push_back("JOINTS/WEIGHTS of " + mesh_name + " ignored: no node uses it with a skin");
     }
+    return Ok{};
+  }
+  if (shared) {
+    auto weights = readSkinWeights(model, gmesh, ranges, shared->joints.size(), mesh_name, label, warnings);
+    if (!weights) return weights.error();
+    rig.weights = std::move(*weights);
     return Ok{};
   }
   auto skin = readSkin(model, model.nodes[static_cast<std::size_t>(choice.node)].skin, label, warnings);
