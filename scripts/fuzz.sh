@@ -67,8 +67,9 @@ echo '{"kind": "transfer", "rig": "'"$(printf '%064d' 0)"'", "options": {"influe
 echo '{"kind": "retarget", "options": {"method": "geodesic"}}' > "$GEN/spec_retarget.json"
 echo '{"kind": "fit", "rig": "'"$(printf '%064d' 0)"'", "options": {"alignment": "landmarks"}}' > "$GEN/spec_fit.json"
 for f in "$GEN"/spec_*.json; do seed fuzz_job_spec "$f"; done
-# The components document's example (docs/COMPONENTS.md, its one json block).
-sed -n '/^```json$/,/^```$/p' "$ROOT/docs/COMPONENTS.md" | sed '1d;$d' > "$GEN/components.json"
+# The components document's example (docs/COMPONENTS.md, its first json block;
+# the pose JSON's example comes after it).
+awk '/^```json$/ { n++; inside = (n == 1); next } /^```$/ { inside = 0 } inside' "$ROOT/docs/COMPONENTS.md" > "$GEN/components.json"
 seed fuzz_components "$GEN/components.json"
 SHARED="$ROOT/../shared/data"
 if [ -d "$SHARED" ]; then
