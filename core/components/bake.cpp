@@ -29,10 +29,9 @@ Result<MorphTarget> bakePreset(const Rig& rig, const ComponentsDocument& doc, co
     if (weight == 0.0) continue;
     const int t = indexByName(rig.morph_targets, shape);
     if (t < 0) {
-      std::vector<std::string> names;
-      for (const MorphTarget& m : rig.morph_targets) names.push_back(m.name);
       return makeError(ErrorCode::kInvalidArgument, "preset '" + name + "' drives morph target '" + shape +
-                                                        "', which the rig does not have" + didYouMean(shape, names, '\''));
+                                                        "', which the rig does not have" +
+                                                        didYouMean(shape, namesOf(rig.morph_targets), '\''));
     }
     if (isBakedPreset(rig, shape)) continue;  // a baked preset is not a shape of the rig's own
     target.position_deltas += weight * rig.morph_targets[static_cast<std::size_t>(t)].position_deltas;

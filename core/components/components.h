@@ -303,6 +303,26 @@ int indexByName(const std::vector<T>& items, const std::string& name) {
   return -1;
 }
 
+// The `.name` of each element, in order.
+template <class T>
+std::vector<std::string> namesOf(const std::vector<T>& items) {
+  std::vector<std::string> names;
+  names.reserve(items.size());
+  for (const T& item : items) names.push_back(item.name);
+  return names;
+}
+
+// Calls deform(v) for each member vertex, or for every vertex when `members`
+// is empty (a deformer's "all").
+template <class F>
+void forEachMember(const std::vector<int>& members, Eigen::Index vertex_count, F&& deform) {
+  if (members.empty()) {
+    for (Eigen::Index v = 0; v < vertex_count; ++v) deform(v);
+  } else {
+    for (const int v : members) deform(static_cast<Eigen::Index>(v));
+  }
+}
+
 // The mesh a document is checked against; -1: not known (ranges unchecked).
 struct ComponentsMeshCounts {
   long long vertex_count = -1;

@@ -27,12 +27,9 @@ std::string formatNumber(double v) {
 class Checker {
  public:
   Checker(const ComponentsDocument& doc, const std::string& label, const ComponentsMeshCounts& counts)
-      : doc_(doc), label_(label), counts_(counts) {
-    for (const auto& l : doc.locators) locator_names_.push_back(l.name);
-    for (const auto& c : doc.clusters) cluster_names_.push_back(c.name);
-    for (const auto& c : doc.curves) curve_names_.push_back(c.name);
-    for (const auto& m : doc.muscles) muscle_names_.push_back(m.name);
-    for (const auto& c : doc.controls) control_names_.push_back(c.name);
+      : doc_(doc), label_(label), counts_(counts), locator_names_(namesOf(doc.locators)),
+        cluster_names_(namesOf(doc.clusters)), curve_names_(namesOf(doc.curves)), muscle_names_(namesOf(doc.muscles)),
+        control_names_(namesOf(doc.controls)) {
   }
 
   Status run();
@@ -501,24 +498,12 @@ Status Checker::run() {
     return makeError(ErrorCode::kUnsupported, label_ + ": version " + std::to_string(doc_.version) +
                                                   " is not supported (expected " + std::to_string(kComponentsVersion) + ")");
   }
-  std::vector<std::string> names;
-  for (const auto& w : doc_.wires) names.push_back(w.name);
-  if (auto ok = checkNames("wires", names); !ok) return ok;
-  names.clear();
-  for (const auto& l : doc_.lattices) names.push_back(l.name);
-  if (auto ok = checkNames("lattices", names); !ok) return ok;
-  names.clear();
-  for (const auto& p : doc_.push_to_surfaces) names.push_back(p.name);
-  if (auto ok = checkNames("push_to_surfaces", names); !ok) return ok;
-  names.clear();
-  for (const auto& s : doc_.surfaces) names.push_back(s.name);
-  if (auto ok = checkNames("surfaces", names); !ok) return ok;
-  names.clear();
-  for (const auto& c : doc_.point_constraints) names.push_back(c.name);
-  if (auto ok = checkNames("point_constraints", names); !ok) return ok;
-  names.clear();
-  for (const auto& c : doc_.aim_constraints) names.push_back(c.name);
-  if (auto ok = checkNames("aim_constraints", names); !ok) return ok;
+  if (auto ok = checkNames("wires", namesOf(doc_.wires)); !ok) return ok;
+  if (auto ok = checkNames("lattices", namesOf(doc_.lattices)); !ok) return ok;
+  if (auto ok = checkNames("push_to_surfaces", namesOf(doc_.push_to_surfaces)); !ok) return ok;
+  if (auto ok = checkNames("surfaces", namesOf(doc_.surfaces)); !ok) return ok;
+  if (auto ok = checkNames("point_constraints", namesOf(doc_.point_constraints)); !ok) return ok;
+  if (auto ok = checkNames("aim_constraints", namesOf(doc_.aim_constraints)); !ok) return ok;
   if (auto ok = checkNames("locators", locator_names_); !ok) return ok;
   if (auto ok = checkNames("clusters", cluster_names_); !ok) return ok;
   if (auto ok = checkNames("curves", curve_names_); !ok) return ok;

@@ -66,11 +66,7 @@ Eigen::MatrixX3d evaluateLattice(const Eigen::MatrixX3d& positions, const Lattic
     }
     out.row(v) += move.transpose();
   };
-  if (lattice.members.empty()) {
-    for (Eigen::Index v = 0; v < positions.rows(); ++v) deform(v);
-  } else {
-    for (int v : lattice.members) deform(v);
-  }
+  forEachMember(lattice.members, positions.rows(), deform);
   return out;
 }
 

@@ -43,11 +43,10 @@ struct PoseState {
 
 Status applyControls(PoseState& s, const std::map<std::string, double>& control_values) {
   const ComponentsDocument& doc = s.doc;
-  std::vector<std::string> names;
-  for (const Control& c : doc.controls) names.push_back(c.name);
   for (const auto& [name, value] : control_values) {
     if (indexByName(doc.controls, name) < 0) {
-      return makeError(ErrorCode::kInvalidArgument, "controls: unknown control \"" + name + "\"" + didYouMean(name, names));
+      return makeError(ErrorCode::kInvalidArgument,
+                       "controls: unknown control \"" + name + "\"" + didYouMean(name, namesOf(doc.controls)));
     }
     if (!std::isfinite(value)) {
       return makeError(ErrorCode::kInvalidArgument, "controls: \"" + name + "\" is not a finite number");

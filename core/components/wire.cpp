@@ -38,11 +38,7 @@ Eigen::MatrixX3d evaluateWire(const Eigen::MatrixX3d& positions, const CurveGeom
     }
     out.row(v) += (wire.envelope * f * move).transpose();
   };
-  if (wire.members.empty()) {
-    for (Eigen::Index v = 0; v < positions.rows(); ++v) deform(v);
-  } else {
-    for (int v : wire.members) deform(v);
-  }
+  forEachMember(wire.members, positions.rows(), deform);
   return out;
 }
 

@@ -98,18 +98,22 @@ Eigen::Vector3d vec3(const Json& object, const char* key, const std::string& whe
   return object.contains(key) ? toVector<3>(object[key], where, key) : fallback;
 }
 
-std::vector<double> numbers(const Json& object, const char* key, const std::string& where) {
-  std::vector<double> out;
+// Each item of the array at `key`, read by read(item, "key[i]").
+template <class T, class Read>
+std::vector<T> arrayOf(const Json& object, const char* key, const std::string& where, Read&& read) {
+  std::vector<T> out;
   const Json& values = array(object, key, where);
-  for (std::size_t i = 0; i < values.size(); ++i) out.push_back(toNumber(values[i], where, std::string(key) + "[" + std::to_string(i) + "]"));
+  out.reserve(values.size());
+  for (std::size_t i = 0; i < values.size(); ++i) out.push_back(read(values[i], std::string(key) + "[" + std::to_string(i) + "]"));
   return out;
 }
 
+std::vector<double> numbers(const Json& object, const char* key, const std::string& where) {
+  return arrayOf<double>(object, key, where, [&](const Json& v, const std::string& field) { return toNumber(v, where, field); });
+}
+
 std::vector<int> integers(const Json& object, const char* key, const std::string& where) {
-  std::vector<int> out;
-  const Json& values = array(object, key, where);
-  for (std::size_t i = 0; i < values.size(); ++i) out.push_back(toInt(values[i], where, std::string(key) + "[" + std::to_string(i) + "]"));
-  return out;
+  return arrayOf<int>(object, key, where, [&](const Json& v, const std::string& field) { return toInt(v, where, field); });
 }
 
 // [x, y, z, w], normalised unless already unit to rounding (so a written
@@ -198,10 +202,7 @@ std::vector<PointDriver> pointDrivers(const Json& e, const std::string& where) {
 }
 
 std::vector<Binding> bindings(const Json& e, const char* key, const std::string& where) {
-  std::vector<Binding> out;
-  const Json& items = array(e, key, where);
-  for (std::size_t i = 0; i < items.size(); ++i) out.push_back(binding(items[i], where, std::string(key) + "[" + std::to_string(i) + "]"));
-  return out;
+  return arrayOf<Binding>(e, key, where, [&](const Json& v, const std::string& field) { return binding(v, where, field); });
 }
 
 std::pair<double, double> range(const Json& e, const std::string& where, double lo, double hi) {
