@@ -102,10 +102,14 @@ Json vectorJson(const Eigen::Vector3d& v) { return Json::array({v(0), v(1), v(2)
 Json partsJson(const std::vector<CarriedPart>& parts) {
   Json out = Json::array();
   for (const CarriedPart& p : parts) {
+    // -1: not checked (the landmarks gave no forward axis).
+    auto count = [](int n) { return n >= 0 ? Json(n) : Json(nullptr); };
     out.push_back({{"name", p.name},
                    {"carried", p.rigid ? "rigid" : "deformed"},
                    {"scale", p.scale},
-                   {"fit_residual", p.fit_residual}});
+                   {"fit_residual", p.fit_residual},
+                   {"vertices_in_front", count(p.vertices_in_front)},
+                   {"source_vertices_in_front", count(p.source_vertices_in_front)}});
   }
   return out;
 }

@@ -21,6 +21,11 @@ struct CarriedPart {
   bool rigid = false;         // moved as one rigid body (all its pieces closed)
   double scale = 1.0;         // a rigid part's similarity scale
   double fit_residual = 0.0;  // rms of the dense map about that similarity, model units (0 when deformed)
+  // At rest, vertices standing in front of the face's skin (core/transfer/
+  // parts_occlusion.h): the carried part on the target's face, and the rig's
+  // part on its own. -1: not checked (no forward axis from the landmarks).
+  int vertices_in_front = -1;
+  int source_vertices_in_front = -1;
 };
 
 struct CarriedParts {
