@@ -73,7 +73,10 @@ Result<Rig> rebuildRig(const FitReference& reference, const FrameMap& frame, con
   auto dense_map = fittedDenseMap(prepared.surface, rest_mesh.positions, output, to_output);
   if (!dense_map) return dense_map.error();
 
+  // kLocal: deltas by the Jacobian of the dense map smoothed, as a transfer
+  // maps them (the face's per vertex; animations and parts at their points).
   std::vector<Eigen::Matrix3d> local;
+  std::optional<TpsWarp> smooth_map;
   if (rebuild.adaptation == ShapeAdaptation::kLocal) {
     TpsOptions smooth;
     smooth.regularization = rebuild.local_smoothing * prepared.surface.diagonal;
@@ -81,7 +84,11 @@ Result<Rig> rebuildRig(const FitReference& reference, const FrameMap& frame, con
     auto smoothed = fitTps(prepared.surface.dense_centres, dense_map->apply(prepared.surface.dense_centres), smooth);
     if (!smoothed) return smoothed.error();
     local = smoothed->jacobians(rest_mesh.positions);
+    smooth_map = std::move(*smoothed);
   }
+  const auto adaptation = [&](const Eigen::Vector3d& p) -> Eigen::Matrix3d {
+    return smooth_map ? smooth_map->jacobian(p) : deltas;
+  };
   if (rebuild.shapes) {
     for (MorphTarget& t : rig.morph_targets) {
       if (local.empty()) {
@@ -110,9 +117,6 @@ Result<Rig> rebuildRig(const FitReference& reference, const FrameMap& frame, con
     rig.weights = SkinWeights();
   }
   if (rebuild.animations) {
-    auto adaptation = [&](const Eigen::Vector3d& p) -> Eigen::Matrix3d {
-      return local.empty() ? deltas : dense_map->jacobian(p);
-    };
     rig.animations = transferAnimations(prepared.rig, rig.nodes, rotation, adaptation);
     report.animations = static_cast<int>(rig.animations.size());
   } else {
@@ -120,10 +124,7 @@ Result<Rig> rebuildRig(const FitReference& reference, const FrameMap& frame, con
   }
   if (!rebuild.attributes) rig.attributes = VertexAttributes{};
   // The rig's other meshes by vertex index through the same dense map.
-  CarriedParts parts = carryParts(
-      prepared.rig.parts, *dense_map,
-      [&](const Eigen::Vector3d& p) -> Eigen::Matrix3d { return local.empty() ? deltas : dense_map->jacobian(p); },
-      rotation);
+  CarriedParts parts = carryParts(prepared.rig.parts, *dense_map, adaptation, rotation);
   rig.parts = std::move(parts.parts);
   dropPartChannels(rig.parts, rebuild.shapes, rig.skin.has_value());
   report.parts = std::move(parts.report);
