@@ -228,13 +228,30 @@ std::vector<int> countsInFront(const Mesh& face, const Eigen::Vector3d& forward,
 
 }  // namespace
 
-std::vector<std::string> checkPartsBehindSkin(const Mesh& source_face, const Eigen::Vector3d& source_forward,
+SourcePartsOcclusion prepareSourcePartsOcclusion(const Mesh& face, const Eigen::MatrixX3d& landmark_positions,
+                                                 const std::vector<int>& landmark_vertices,
+                                                 const std::vector<RigPart>& parts, const OcclusionOptions& options) {
+  SourcePartsOcclusion out;
+  if (parts.empty()) return out;
+  Eigen::Vector3d toward = Eigen::Vector3d::Zero();
+  for (const int v : landmark_vertices) {
+    if (v >= 0 && v < face.normals.rows()) toward += face.normals.row(v).transpose();
+  }
+  out.forward = faceForward(landmark_positions, toward);
+  if (out.forward.norm() > 0.0) out.in_front = countsInFront(face, out.forward, parts, options);
+  return out;
+}
+
+std::vector<std::string> checkPartsBehindSkin(const SourcePartsOcclusion& source_check,
                                               const std::vector<RigPart>& source_parts, const Mesh& target_face,
-                                              const Eigen::Vector3d& target_forward, CarriedParts& carried,
+                                              const Eigen::MatrixX3d& target_landmark_positions,
+                                              const Eigen::Matrix3d& rotation, CarriedParts& carried,
                                               const OcclusionOptions& options) {
   std::vector<std::string> warnings;
-  if (source_parts.empty() || !(source_forward.norm() > 0.0) || !(target_forward.norm() > 0.0)) return warnings;
-  const std::vector<int> source = countsInFront(source_face, source_forward, source_parts, options);
+  if (source_parts.empty() || source_check.in_front.size() != source_parts.size()) return warnings;
+  const Eigen::Vector3d target_forward = faceForward(target_landmark_positions, rotation * source_check.forward);
+  if (!(target_forward.norm() > 0.0)) return warnings;
+  const std::vector<int>& source = source_check.in_front;
   const std::vector<int> target = countsInFront(target_face, target_forward, carried.parts, options);
   for (std::size_t p = 0; p < carried.report.size() && p < source.size(); ++p) {
     CarriedPart& report = carried.report[p];

@@ -75,17 +75,31 @@ class SkinOcclusion {
 std::vector<int> partsInFront(const SkinOcclusion& skin, const Eigen::MatrixX3d& face_positions,
                               const std::vector<const Eigen::MatrixX3d*>& parts);
 
+// The rig's side of the check, source-only and so prepared once per rig
+// (PreparedRig::parts_occlusion): its face's forward (from its landmarks,
+// on the side its skin normals there face) and each part's vertices in
+// front of its own skin at rest.
+struct SourcePartsOcclusion {
+  Eigen::Vector3d forward = Eigen::Vector3d::Zero();  // zero: no check (landmarks span no plane)
+  std::vector<int> in_front;                          // per part
+};
+
+// `landmark_vertices`: the vertex of each landmark (its normal gives the side).
+SourcePartsOcclusion prepareSourcePartsOcclusion(const Mesh& face, const Eigen::MatrixX3d& landmark_positions,
+                                                 const std::vector<int>& landmark_vertices,
+                                                 const std::vector<RigPart>& parts,
+                                                 const OcclusionOptions& options = {});
+
 // A transfer's check of its parts, at rest: fills each report's
-// vertices_in_front (carried part on the target face) and
-// source_vertices_in_front (rig's part on the source face). Faces: rest
-// positions and triangles; forwards from faceForward (zero: no check).
-// Returns, per part the rig keeps behind its skin (at most 1% of its
-// vertices in front: eyeballs, teeth, a tongue, not lashes) that stands in
-// front of the target's skin at more vertices than of the rig's, a warning
-// naming it and the counts.
-std::vector<std::string> checkPartsBehindSkin(const Mesh& source_face, const Eigen::Vector3d& source_forward,
-                                              const std::vector<RigPart>& source_parts, const Mesh& target_face,
-                                              const Eigen::Vector3d& target_forward, CarriedParts& carried,
+// vertices_in_front (carried part on the target face, rest positions and
+// triangles; its forward from its landmarks on the side the rig's turns to
+// by `rotation`) and source_vertices_in_front. Returns, per part the rig
+// keeps behind its skin (at most 1% of its vertices in front: eyeballs,
+// teeth, a tongue, not lashes) that stands in front of the target's skin at
+// more vertices than of the rig's, a warning naming it and the counts.
+std::vector<std::string> checkPartsBehindSkin(const SourcePartsOcclusion& source, const std::vector<RigPart>& source_parts,
+                                              const Mesh& target_face, const Eigen::MatrixX3d& target_landmark_positions,
+                                              const Eigen::Matrix3d& rotation, CarriedParts& carried,
                                               const OcclusionOptions& options = {});
 
 }  // namespace core

@@ -490,6 +490,8 @@ Result<PreparedRig> prepareRig(Rig rig, LandmarkSet landmarks, const std::string
     if (!uv_layout) return uv_layout.error();
     prepared.uv_layout = std::move(*uv_layout);
   }
+  prepared.parts_occlusion = prepareSourcePartsOcclusion(prepared.surface.mesh, prepared.surface.landmark_positions,
+                                                         prepared.surface.landmark_vertices, prepared.rig.parts);
   return prepared;
 }
 
@@ -597,20 +599,10 @@ Result<TransferResult> transferThroughCorrespondence(const PreparedRig& source, 
   CarriedParts parts = carryParts(
       src.parts, adaptation->dense_map, [&](const Eigen::Vector3d& p) { return adaptation->at(p); },
       adaptation->global.rotation);
-  if (!src.parts.empty()) {
-    // Eyeballs behind the lids, teeth behind the lips, at rest: each face's
-    // forward from its landmarks, the target's on the side the source's turns to.
-    const Eigen::MatrixX3d& source_normals = source.surface.mesh.normals;
-    Eigen::Vector3d toward = Eigen::Vector3d::Zero();
-    for (int v : source.surface.landmark_vertices) {
-      if (v >= 0 && v < source_normals.rows()) toward += source_normals.row(v).transpose();
-    }
-    const Eigen::Vector3d source_forward = faceForward(source.surface.landmark_positions, toward);
-    const Eigen::Vector3d target_forward =
-        faceForward(warp->target.landmark_positions, adaptation->global.rotation * source_forward);
-    for (std::string& warning : checkPartsBehindSkin(src.mesh, source_forward, src.parts, out.mesh, target_forward, parts)) {
-      report.warnings.push_back(target_label + ": " + warning);
-    }
+  // Eyeballs behind the lids, teeth behind the lips, at rest.
+  for (std::string& warning : checkPartsBehindSkin(source.parts_occlusion, src.parts, out.mesh,
+                                                   warp->target.landmark_positions, adaptation->global.rotation, parts)) {
+    report.warnings.push_back(target_label + ": " + warning);
   }
   out.parts = std::move(parts.parts);
   dropPartChannels(out.parts, options.shapes, out.skin.has_value());

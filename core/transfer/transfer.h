@@ -15,6 +15,7 @@
 #include "core/components/components.h"
 #include "core/transfer/blendshapes.h"
 #include "core/transfer/parts.h"
+#include "core/transfer/parts_occlusion.h"
 #include "core/rig/rig.h"
 #include "core/transfer/skeleton.h"
 #include "core/transfer/skin_weights.h"
@@ -84,6 +85,7 @@ struct PreparedRig {
   // The rig's components document (docs/COMPONENTS.md), when it has one:
   // carried to each target (core/transfer/components_transfer.h).
   std::optional<ComponentsDocument> components;
+  SourcePartsOcclusion parts_occlusion;  // the rig's parts against its own skin (core/transfer/parts_occlusion.h)
   std::size_t memoryBytes() const;
 };
 
