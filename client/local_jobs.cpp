@@ -24,6 +24,7 @@
 #include "core/correspond/warp_job.h"
 #include "core/jobs/retarget_job.h"
 #include "core/jobs/fit_job.h"
+#include "core/components/bake.h"
 #include "core/components/pose_spec.h"
 #include "core/io/components_io.h"
 #include "core/jobs/transfer_job.h"
@@ -423,6 +424,23 @@ int runPose(const PoseArgs& args) {
   spdlog::info("pose{}: {} morph weights, {} joints turned; {} of {} face vertices moved; {:.1f} ms",
                spec->preset.empty() ? "" : " '" + spec->preset + "'", r.morph_weights.size(), r.joint_rotations.size(),
                r.moved_face_vertices, posed->rig.mesh.vertexCount(), msSince(t_start));
+  spdlog::info("wrote {}", args.output.string());
+  return 0;
+}
+
+int runBake(const BakeArgs& args) {
+  const auto t_start = Clock::now();
+  auto loaded = core::readRig(args.rig);
+  if (!loaded) return fail(loaded.error());
+  core::Rig& rig = loaded->rig;
+  auto components = readComponentsOf(args.components, rig);
+  if (!components) return fail(components.error());
+  auto baked = core::bakePresets(rig, **components, args.presets);
+  if (!baked) return fail(core::makeError(baked.error().code, args.components.filename().string() + ": " + baked.error().message));
+  for (const std::string& warning : baked->warnings) spdlog::warn("{}", warning);
+  if (auto ok = core::writeRigGlb(rig, args.output); !ok) return fail(ok.error());
+  spdlog::info("baked {} preset{} as morph targets ({} in all); {:.1f} ms", baked->baked.size(),
+               baked->baked.size() == 1 ? "" : "s", rig.morph_targets.size(), msSince(t_start));
   spdlog::info("wrote {}", args.output.string());
   return 0;
 }

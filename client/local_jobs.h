@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace client {
 
@@ -90,6 +91,14 @@ struct PoseArgs {
   std::filesystem::path output;       // static posed GLB
 };
 int runPose(const PoseArgs& args);
+
+struct BakeArgs {
+  std::filesystem::path rig;          // GLB/glTF
+  std::filesystem::path components;   // the rig's rigport.components JSON
+  std::vector<std::string> presets;   // names to bake; empty = every preset of the document
+  std::filesystem::path output;       // the rig with the presets as morph targets
+};
+int runBake(const BakeArgs& args);
 
 // Generates a source rig and a target head of other proportions and topology
 // in `dir`, transfers the rig (out.glb) and prints the diagnostics; with

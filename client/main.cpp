@@ -21,7 +21,7 @@ int main(int argc, char** argv) {
   // (docs/journal/BENCHMARKS_HISTORY.md, 2026-11-23: one transfer 101.6 -> 93.7 ms).
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
-  CLI::App app{"rigport: facial rig transfer (warp, transfer, fit, retarget, pose; rigs, jobs and bench on the service)"};
+  CLI::App app{"rigport: facial rig transfer (warp, transfer, fit, retarget, pose, bake; rigs, jobs and bench on the service)"};
   app.set_version_flag("--version", std::string("rigport ") + RIGPORT_VERSION);
   app.require_subcommand(1);
   bool verbose = false, quiet = false;
@@ -152,6 +152,17 @@ int main(int argc, char** argv) {
   pose_cmd->add_option("-o,--output", pose.output, "Posed static GLB (no skin, morph targets or animations)")
       ->required()->check(client::kGlbPath);
 
+  client::BakeArgs bake;
+  auto* bake_cmd = app.add_subcommand("bake", "Bake a rig's component presets into morph targets of its face, so any glTF "
+                                              "consumer plays them (the GLB records which targets are baked presets)");
+  bake_cmd->add_option("--rig", bake.rig, "Rig (GLB/glTF)")->required()->check(CLI::ExistingFile);
+  bake_cmd->add_option("--components", bake.components, "The rig's components document (rigport.components JSON)")
+      ->required()->check(CLI::ExistingFile);
+  bake_cmd->add_option("--presets", bake.presets, "Presets to bake, comma-separated (default: every preset)")
+      ->delimiter(',');
+  bake_cmd->add_option("-o,--output", bake.output, "The rig with the presets as morph targets (baked again: replaced)")
+      ->required()->check(client::kGlbPath);
+
   std::string demo_dir = "demo-out";
   int demo_threads = 0;
   bool demo_inputs_only = false;
@@ -181,6 +192,7 @@ int main(int argc, char** argv) {
   if (*head_cmd) return client::runGenerateHead(head);
   if (*retarget_cmd) return client::runRetarget(retarget);
   if (*pose_cmd) return client::runPose(pose);
+  if (*bake_cmd) return client::runBake(bake);
   if (*demo_cmd) return client::runDemo(demo_dir, demo_threads, demo_inputs_only);
   return 2;
 }

@@ -171,5 +171,45 @@ TEST(CliPose, UnknownNamesAndPresetsWithoutComponentsAreClearErrors) {
   EXPECT_FALSE(std::filesystem::exists(dir / "posed.glb"));
 }
 
+// `rigport bake`: the preset becomes a morph target of the face (valid
+// glTF, recorded as a baked preset) whose delta is the preset's raise on
+// its members only; baking again replaces it; an unknown preset is an error
+// naming the file and the preset, and writes nothing.
+TEST(CliBake, PresetsBecomeMorphTargetsOfTheFace) {
+  const auto dir = makeTempDir("cli_bake");
+  const core::Rig rig = writeInputs(dir);
+  const std::string inputs = "bake --rig " + quoted(dir / "rig.glb") + " --components " + quoted(dir / "components.json");
+  const CliRun run = runRigportCli(inputs + " -o " + quoted(dir / "baked.glb"));
+  ASSERT_EQ(run.exit_code, 0) << run.log;
+  EXPECT_NE(run.log.find("baked 1 preset as morph targets"), std::string::npos) << run.log;
+  EXPECT_GLTF_VALID(dir / "baked.glb");
+  auto baked = core::readRig(dir / "baked.glb");
+  ASSERT_TRUE(baked) << baked.error().message;
+  ASSERT_EQ(baked->rig.morph_targets.size(), rig.morph_targets.size() + 1);
+  const core::MorphTarget& preset = baked->rig.morph_targets.back();
+  EXPECT_EQ(preset.name, "chin_raised");
+  EXPECT_EQ(baked->rig.baked_presets, std::vector<std::string>{"chin_raised"});
+  for (Eigen::Index v = 0; v < preset.position_deltas.rows(); ++v) {
+    const bool member = v >= kFirstMember && v < kFirstMember + kMemberCount;
+    EXPECT_NEAR(preset.position_deltas(v, 1), member ? kRaise : 0.0, 1e-6) << "vertex " << v;
+  }
+  EXPECT_EQ(baked->rig.parts.size(), rig.parts.size()) << "the rig's other meshes are kept";
+
+  // Baked again (from the baked rig): replaced, not added.
+  const CliRun again = runRigportCli("bake --rig " + quoted(dir / "baked.glb") + " --components " +
+                                     quoted(dir / "components.json") + " --presets chin_raised -o " +
+                                     quoted(dir / "again.glb"));
+  ASSERT_EQ(again.exit_code, 0) << again.log;
+  auto twice = core::readRig(dir / "again.glb");
+  ASSERT_TRUE(twice) << twice.error().message;
+  EXPECT_EQ(twice->rig.morph_targets.size(), baked->rig.morph_targets.size());
+
+  const CliRun unknown = runRigportCli(inputs + " --presets chin_riased -o " + quoted(dir / "bad.glb"));
+  EXPECT_EQ(unknown.exit_code, 1) << unknown.log;
+  EXPECT_NE(unknown.log.find("components.json"), std::string::npos) << unknown.log;
+  EXPECT_NE(unknown.log.find("did you mean \"chin_raised\""), std::string::npos) << unknown.log;
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad.glb"));
+}
+
 }  // namespace
 }  // namespace rigport_test
