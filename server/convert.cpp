@@ -125,12 +125,21 @@ api::Result<api::RigInfo> checkRigUpload(Bytes rig_bytes, const std::string& rig
 
 std::optional<api::Problem> checkJobInputs(api::JobSpec& spec,
                                            const std::map<std::string, std::pair<std::string, Bytes>>& files,
-                                           const core::LandmarkSet* rig_landmarks, const ServerConfig& limits) {
+                                           const core::LandmarkSet* rig_landmarks, bool rig_has_components,
+                                           const ServerConfig& limits) {
   const std::string instance = "/v1/jobs";
+  const auto bakeWithoutComponents = [&](const core::PresetBake& bake) -> std::optional<api::Problem> {
+    if (!bake.enabled || rig_has_components) return std::nullopt;
+    return api::makeProblem(api::WireError::kInvalidOption,
+                            "spec.options: 'bake_presets': rig " + spec.rig +
+                                " was uploaded without a components document (POST /v1/rigs, part components)",
+                            instance);
+  };
   if (spec.kind == api::JobKind::kTransfer) {
     auto settings = core::parseTransferOptions(spec.options.dump(), "spec.options");
     if (!settings) return problemFromCoreError(settings.error(), instance);
     spec.options = nlohmann::json::parse(core::transferOptionsJson(*settings));
+    if (auto p = bakeWithoutComponents(settings->bake)) return p;
     const auto& [target_name, target_bytes] = files.at("target");
     auto target = core::readMeshFromMemory(target_bytes, target_name, "target '" + target_name + "'");
     if (!target) return problemFromCoreError(target.error(), instance);
@@ -194,6 +203,7 @@ std::optional<api::Problem> checkJobInputs(api::JobSpec& spec,
     auto settings = core::parseFitOptions(spec.options.dump(), "spec.options");
     if (!settings) return problemFromCoreError(settings.error(), instance);
     spec.options = nlohmann::json::parse(core::fitOptionsJson(*settings));
+    if (auto p = bakeWithoutComponents(settings->bake)) return p;
     const auto& [scan_name, scan_bytes] = files.at("scan");
     auto scan = core::readMeshFromMemory(scan_bytes, scan_name, "scan '" + scan_name + "'");
     if (!scan) return problemFromCoreError(scan.error(), instance);

@@ -42,12 +42,14 @@ api::Result<api::RigInfo> checkRigUpload(Bytes rig, const std::string& rig_name,
 // surface mesh; landmarks sharing >= 4 names with the rig's `rig_landmarks`
 // and spanning 3D; markers on the mesh; stiffness 1-9 of known markers).
 // `files` maps multipart field -> (file name, bytes); `rig_landmarks` is null
-// for kinds without a rig. On success `spec.options` holds the options
-// normalised (every option with its value): what is stored and what the job
-// runs with, whatever defaults a later build has.
+// for kinds without a rig; `rig_has_components`: the rig was uploaded with a
+// components document (options that bake its presets need one). On success
+// `spec.options` holds the options normalised (every option with its value):
+// what is stored and what the job runs with, whatever defaults a later build has.
 std::optional<api::Problem> checkJobInputs(api::JobSpec& spec,
                                            const std::map<std::string, std::pair<std::string, Bytes>>& files,
-                                           const core::LandmarkSet* rig_landmarks, const ServerConfig& limits);
+                                           const core::LandmarkSet* rig_landmarks, bool rig_has_components,
+                                           const ServerConfig& limits);
 
 // Runs a queued job on the calling (worker) thread. `rig` is the job's rig
 // record (nullptr for kinds without one).

@@ -289,6 +289,7 @@ void postJob(const Request& req, Response& res, const httplib::ContentReader& re
   api::JobSpec& spec = *parsed_spec;
   const api::JobKindInfo& kind = api::jobKindInfo(spec.kind);
   std::optional<core::LandmarkSet> rig_landmarks;
+  bool rig_has_components = false;
   if (kind.needs_rig) {
     if (!isHexId(spec.rig, 64)) {
       return sendProblem(res, api::makeProblem(api::WireError::kMalformedRequest,
@@ -307,6 +308,7 @@ void postJob(const Request& req, Response& res, const httplib::ContentReader& re
       return sendProblem(res, api::makeProblem(api::WireError::kInternal, "the stored rig " + spec.rig + " is unreadable", req.path), ctx);
     }
     rig_landmarks = std::move(*landmarks);
+    rig_has_components = rig->info.has_components;
   }
   std::set<std::string> required(kind.required_files.begin(), kind.required_files.end());
   required.insert("spec");
@@ -319,7 +321,7 @@ void postJob(const Request& req, Response& res, const httplib::ContentReader& re
     const std::string& filename = upload.parts.at(field).filename;
     files[field] = {filename.empty() ? field : filename, Bytes(data)};
   }
-  if (auto p = checkJobInputs(spec, files, rig_landmarks ? &*rig_landmarks : nullptr, ctx.config)) {
+  if (auto p = checkJobInputs(spec, files, rig_landmarks ? &*rig_landmarks : nullptr, rig_has_components, ctx.config)) {
     return sendProblem(res, *p, ctx);
   }
 

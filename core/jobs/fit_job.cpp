@@ -39,6 +39,9 @@ Result<FitJobOutput> runFitJob(const PrepareFitSource& prepare, FitJobInput inpu
   } else {
     if (!run.stage("write", 0.92)) return run.stoppedBefore("write");
     t0 = Clock::now();
+    if (auto ok = applyPresetBake(settings.bake, result->rig, result->components, r.warnings); !ok) {
+      return makeError(ok.error().code, input.scan_label + ": " + ok.error().message);
+    }
     auto glb = encodeRigGlb(result->rig, settings.write);
     if (!glb) return makeError(glb.error().code, run.output_label + ": " + glb.error().message);
     out.output.glb = std::move(*glb);

@@ -156,6 +156,10 @@ Result<FitSettings> parseFitOptions(const std::string& text, const std::string& 
         if (!flag.is_boolean()) return makeError(ErrorCode::kInvalidArgument, where + "." + name + " must be true or false");
         f.rebuild.*(it->second) = flag.get<bool>();
       }
+    } else if (key == "bake_presets") {
+      auto bake = parsePresetBake(value, where);
+      if (!bake) return bake.error();
+      s.bake = std::move(*bake);
     } else if (const auto sw = kSwitches.find(key); sw != kSwitches.end()) {
       if (!value.is_boolean()) return bad("true or false");
       f.*(sw->second) = value.get<bool>();
@@ -165,7 +169,7 @@ Result<FitSettings> parseFitOptions(const std::string& text, const std::string& 
       f.*(num->second.member) = *x;
     } else {
       std::vector<std::string> known = {"alignment", "units", "frame", "adaptation", "weight_encoding", "max_influences",
-                                        "max_yaw_deg", "max_tilt_deg", "schedule", "components"};
+                                        "max_yaw_deg", "max_tilt_deg", "schedule", "components", "bake_presets"};
       for (const auto& [name, member] : kSwitches) known.push_back(name);
       for (const auto& [name, range] : kNumbers) known.push_back(name);
       return makeError(ErrorCode::kInvalidArgument, where + " is not a known option" + didYouMean(key, known, '\''));
@@ -196,6 +200,7 @@ std::string fitOptionsJson(const FitSettings& settings) {
   nlohmann::json components;
   for (const auto& [name, member] : kComponents) components[name] = f.rebuild.*member;
   doc["components"] = components;
+  doc["bake_presets"] = presetBakeJson(settings.bake);
   for (const auto& [name, member] : kSwitches) doc[name] = f.*member;
   for (const auto& [name, range] : kNumbers) doc[name] = f.*(range.member);
   return doc.dump();

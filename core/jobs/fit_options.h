@@ -17,6 +17,7 @@
 
 #include "core/base/error.h"
 #include "core/fit/fit.h"
+#include "core/jobs/preset_bake.h"
 #include "core/io/rig_io.h"
 
 namespace core {
@@ -24,6 +25,7 @@ namespace core {
 struct FitSettings {
   FitOptions fit;
   RigWriteOptions write;
+  PresetBake bake;  // "bake_presets"
 };
 
 // `label` names the options' source (file name, or "spec.options") in every message.

@@ -119,6 +119,9 @@ Result<TransferJobOutput> runTransferJob(const PrepareRigSource& prepare, Transf
   // --- assemble
   if (!run.stage("write", 0.92)) return run.stoppedBefore("write");
   t0 = Clock::now();
+  if (auto ok = applyPresetBake(settings.bake, result->rig, result->components, r.warnings); !ok) {
+    return makeError(ok.error().code, input.target_label + ": " + ok.error().message);
+  }
   auto glb = encodeRigGlb(result->rig, settings.write);
   if (!glb) return makeError(glb.error().code, run.output_label + ": " + glb.error().message);
   const double write_ms = msSince(t0);

@@ -126,6 +126,10 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
       auto b = boolean(value, where);
       if (!b) return b.error();
       t.warp.*(it->second) = *b;
+    } else if (key == "bake_presets") {
+      auto bake = parsePresetBake(value, where);
+      if (!bake) return bake.error();
+      s.bake = std::move(*bake);
     } else if (key == "refine_iterations") {
       auto x = number(value, where, 0, 20);
       if (!x) return x.error();
@@ -133,7 +137,7 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
     } else {
       std::vector<std::string> known = {"components", "max_influences", "weight_encoding", "low_confidence_distance",
                                         "low_confidence_angle_deg", "adaptation", "correspondence", "exaggeration", "shape_exaggeration",
-                                        "joint_exaggeration", "refine_iterations"};
+                                        "joint_exaggeration", "refine_iterations", "bake_presets"};
       for (const auto& [name, member] : kWarpSwitches) known.push_back(name);
       for (const auto& [name, member] : kTransferSwitches) known.push_back(name);
       return makeError(ErrorCode::kInvalidArgument, where + " is not a known option" + didYouMean(key, known, '\''));
@@ -162,6 +166,7 @@ std::string transferOptionsJson(const TransferSettings& settings) {
   doc["shape_exaggeration"] = t.shape_exaggeration;
   doc["joint_exaggeration"] = t.joint_exaggeration;
   doc["refine_iterations"] = t.warp.refine_iterations;
+  doc["bake_presets"] = presetBakeJson(settings.bake);
   return doc.dump();
 }
 

@@ -9,7 +9,8 @@
 //    "diagnostic_attributes": false, "refine_iterations": 2,
 //    "region_matching": true, "rim_matching": true, "slide_centres": true,
 //    "target_pulls": true, "smooth_guide": true, "side_matching": true,
-//    "strict": false, "repair_unsure": true, "correspondence": "warp"}
+//    "strict": false, "repair_unsure": true, "correspondence": "warp",
+//    "bake_presets": false}   (true, or ["joy", ...]: core/jobs/preset_bake.h)
 // Unknown keys are errors (a typo must not be silently ignored). nlohmann is
 // used privately in the .cpp, as in core/jobs/diagnostics_json.cpp.
 #pragma once
@@ -18,6 +19,7 @@
 
 #include "core/base/error.h"
 #include "core/io/rig_io.h"
+#include "core/jobs/preset_bake.h"
 #include "core/transfer/transfer.h"
 
 namespace core {
@@ -32,6 +34,7 @@ struct TransferSettings {
   TransferOptions transfer;
   RigWriteOptions write;
   CorrespondenceMethod correspondence = CorrespondenceMethod::kWarp;
+  PresetBake bake;  // "bake_presets"
 };
 
 // `label` names the source (file name, or "spec.options") in every message.

@@ -137,6 +137,25 @@ TEST(TransferJobs, ComponentsUploadedWithTheRigComeBackWithTheResult) {
   EXPECT_GT((carried->muscles[0].origin.position - Eigen::Vector3d(0.05, 0.1, 0.02)).norm(), 0.0)
       << "a free point goes through the dense map";
 
+  // "bake_presets": the carried document's presets as morph targets of the result.
+  Reply baking = submitTransfer(*client, rig.body["id"], files, "", {{"bake_presets", true}});
+  ASSERT_EQ(baking.status, 202) << baking.raw;
+  const nlohmann::json baked_done = waitForJob(*client, baking.body["id"]);
+  ASSERT_EQ(baked_done["status"], "succeeded") << baked_done.dump();
+  Reply baked_result = get(*client, "/v1/jobs/" + baking.body["id"].get<std::string>() + "/result");
+  ASSERT_EQ(baked_result.status, 200);
+  const auto baked_glb = dir / "baked.glb";
+  ASSERT_TRUE(core::writeFileBytes(baked_glb, std::span(reinterpret_cast<const std::uint8_t*>(baked_result.raw.data()),
+                                                        baked_result.raw.size()))
+                  .ok());
+  EXPECT_GLTF_VALID(baked_glb);
+  auto baked_rig = core::readRig(baked_glb);
+  ASSERT_TRUE(baked_rig.ok()) << baked_rig.error().message;
+  EXPECT_EQ(baked_rig->rig.baked_presets, std::vector<std::string>{"smile"});
+  ASSERT_EQ(baked_rig->rig.morph_targets.size(), target_rig->rig.morph_targets.size() + 1);
+  EXPECT_GT(baked_rig->rig.morph_targets.back().position_deltas.rowwise().norm().maxCoeff(), 0.0)
+      << "the smile moves the target's face";
+
   // The same rig without its document: no components.
   TransferFiles bare = files;
   bare.components.clear();
@@ -151,6 +170,12 @@ TEST(TransferJobs, ComponentsUploadedWithTheRigComeBackWithTheResult) {
   Reply none = get(*client, "/v1/jobs/" + bare_job.body["id"].get<std::string>() + "/components");
   EXPECT_EQ(none.status, 404) << none.raw;
   EXPECT_NE(none.raw.find("no components document"), std::string::npos) << none.raw;
+  // Baking presets needs the document: refused at submission, saying so.
+  Reply cannot_bake = submitTransfer(*client, bare_rig.body["id"], bare, "", {{"bake_presets", {"smile"}}});
+  EXPECT_EQ(cannot_bake.status, 400) << cannot_bake.raw;
+  EXPECT_EQ(cannot_bake.body.value("type", ""), "urn:rigport:problem:invalid-option") << cannot_bake.raw;
+  EXPECT_NE(cannot_bake.raw.find("bake_presets"), std::string::npos) << cannot_bake.raw;
+  EXPECT_NE(cannot_bake.raw.find("without a components document"), std::string::npos) << cannot_bake.raw;
 }
 
 TEST(TransferJobs, SixtyFourJobsFromEightClientsAllSucceedWithOnePreparation) {

@@ -74,3 +74,30 @@ TEST(TransferOptions, TheCorrespondenceIsTheWarpOrTheFit) {
 }
 
 }  // namespace
+
+namespace {
+
+// "bake_presets": false by default, true (all), or names; anything else names the key.
+TEST(TransferOptions, BakePresetsIsAFlagOrNames) {
+  auto defaults = core::parseTransferOptions("{}", "opts.json");
+  ASSERT_TRUE(defaults) << defaults.error().message;
+  EXPECT_FALSE(defaults->bake.enabled);
+  auto all = core::parseTransferOptions(R"({"bake_presets": true})", "opts.json");
+  ASSERT_TRUE(all) << all.error().message;
+  EXPECT_TRUE(all->bake.enabled);
+  EXPECT_TRUE(all->bake.presets.empty());
+  auto named = core::parseTransferOptions(R"({"bake_presets": ["joy", "anger"]})", "opts.json");
+  ASSERT_TRUE(named) << named.error().message;
+  EXPECT_EQ(named->bake.presets, (std::vector<std::string>{"joy", "anger"}));
+  // Read back as written.
+  auto again = core::parseTransferOptions(core::transferOptionsJson(*named), "normalised");
+  ASSERT_TRUE(again) << again.error().message;
+  EXPECT_EQ(again->bake.presets, named->bake.presets);
+  for (const char* bad : {R"({"bake_presets": "joy"})", R"({"bake_presets": []})", R"({"bake_presets": [1]})"}) {
+    auto refused = core::parseTransferOptions(bad, "opts.json");
+    ASSERT_FALSE(refused) << bad;
+    EXPECT_NE(refused.error().message.find("opts.json: 'bake_presets'"), std::string::npos) << refused.error().message;
+  }
+}
+
+}  // namespace
