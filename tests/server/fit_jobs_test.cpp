@@ -246,6 +246,39 @@ TEST(FitJobs, CliWithServerWritesTheInProcessResult) {
   EXPECT_FALSE(std::filesystem::exists(dir / "out.glb"));
 }
 
+// A reference with a components document: `fit --server` uploads it with
+// the reference and writes the service's rebuilt document, the same bytes as
+// the in-process fit's; bindings by vertex stay as they were.
+TEST(FitJobs, ComponentsUploadedWithTheReferenceComeBackRebuilt) {
+  const auto dir = makeTempDir("fit_components");
+  const FitFiles files = writeFitFiles(dir);
+  writeText(dir / "reference.components.json",
+            R"({"format": "rigport.components", "version": 1,
+                "locators": [{"name": "nose", "binding": {"vertex": 120}},
+                             {"name": "free", "binding": {"position": [0.01, 0.02, 0.03]}}],
+                "clusters": [{"name": "lip_c", "pivot": {"face": 10, "barycentric": [0.2, 0.3, 0.5]},
+                              "members": [{"vertex": 49, "weight": 1.0}, {"vertex": 38, "weight": 0.5}]}],
+                "controls": [{"name": "lift", "drives": [{"cluster": "lip_c", "channel": "translate_y", "gain": 0.01}]}],
+                "presets": {"lifted": {"controls": {"lift": 1}}}})");
+  const std::string flags = "--reference-components " + quoted(dir / "reference.components.json") +
+                            " --components-out " + quoted(dir / "out.components.json");
+  const CliRun local = runCliFit(files, dir, flags);
+  ASSERT_EQ(local.exit_code, 0) << local.log;
+  const std::string expected = fileText(dir / "out.components.json");
+  const auto doc = nlohmann::json::parse(expected, nullptr, false);
+  ASSERT_TRUE(doc.is_object()) << local.log;
+  EXPECT_EQ(doc["locators"][0]["binding"], nlohmann::json::parse(R"({"vertex": 120})"));
+  EXPECT_EQ(doc["clusters"][0]["members"].size(), 2u);
+
+  InProcessService service(testConfig(dir / "data"));
+  std::filesystem::remove(dir / "out.components.json");
+  const CliRun remote =
+      runCliFit(files, dir, flags + " --server http://127.0.0.1:" + std::to_string(service.port()));
+  ASSERT_EQ(remote.exit_code, 0) << remote.log;
+  EXPECT_TRUE(fileText(dir / "out.components.json") == expected)
+      << "`fit --server --components-out` wrote another document than the in-process fit";
+}
+
 void expectRefused(const Reply& r, int status, const std::string& slug, const std::string& detail_part) {
   EXPECT_EQ(r.status, status) << r.raw;
   EXPECT_EQ(r.content_type, "application/problem+json") << r.raw;
