@@ -240,6 +240,7 @@ std::string formatTransferDiagnostics(const TransferReport& r, const Diagnostics
   t["joints"] = r.joints_ms;
   t["shapes"] = r.shapes_ms;
   t["parts"] = r.parts_ms;
+  t["components"] = r.components_ms;
   t["animations"] = r.animations_ms;
   t["attributes"] = r.attributes_ms;
   t["quality"] = r.quality_ms;

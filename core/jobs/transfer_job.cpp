@@ -147,7 +147,8 @@ Result<TransferJobOutput> runTransferJob(const PrepareRigSource& prepare, Transf
                            {"fit", fit_ms},
                            {"warp", r.warp.warp_ms},
                            {"correspond", r.warp.correspond_ms},
-                           {"transfer", r.dense_map_ms + r.weights_ms + r.joints_ms + r.shapes_ms + r.parts_ms + r.attributes_ms},
+                           {"transfer", r.dense_map_ms + r.weights_ms + r.joints_ms + r.shapes_ms + r.parts_ms + r.attributes_ms +
+                                            r.components_ms},
                            {"write", write_ms},
                            {"total", context.total_ms}};
   out.report = std::move(r);

@@ -622,14 +622,19 @@ Result<TransferResult> transferThroughCorrespondence(const PreparedRig& source, 
                                         inpainting->mismatchedOrNull());
   }
   if (options.diagnostic_attributes) addDiagnosticAttributes(warp->locations, weights, report.quality, out);
+  report.attributes_ms = msSince(t0);
+  // --- the rig's components document (influence objects), then the UV layout
+  t0 = Clock::now();
   if (source.components) {
     const ComponentsCorrespondence map{source.surface.mesh,        adaptation->dense_map, warp->target.mesh,
                                        warp->target.index,         warp->locations,       inpainting->laplacian,
                                        inpainting->mismatchedOrNull(), adaptation->global.rotation, report.global_scale};
     result.components = transferComponents(*source.components, map);
   }
+  report.components_ms = msSince(t0);
+  t0 = Clock::now();
   if (auto ok = transferUvs(source, *warp, options, out, report, result.components); !ok) return ok.error();
-  report.attributes_ms = msSince(t0);
+  report.attributes_ms += msSince(t0);
   report.total_ms = msSince(t_start);
   return result;
 }

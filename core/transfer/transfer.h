@@ -142,6 +142,7 @@ struct TransferReport {
   double joints_ms = 0.0;
   double shapes_ms = 0.0;
   double parts_ms = 0.0;
+  double components_ms = 0.0;  // the components document carried (0 without one)
   double animations_ms = 0.0;
   double attributes_ms = 0.0;
   double quality_ms = 0.0;
