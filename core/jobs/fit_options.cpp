@@ -157,7 +157,7 @@ Result<FitSettings> parseFitOptions(const std::string& text, const std::string& 
         f.rebuild.*(it->second) = flag.get<bool>();
       }
     } else if (key == "bake_presets") {
-      auto bake = parsePresetBake(value, where);
+      auto bake = parsePresetBake(value.dump(), where);
       if (!bake) return bake.error();
       s.bake = std::move(*bake);
     } else if (const auto sw = kSwitches.find(key); sw != kSwitches.end()) {
@@ -200,7 +200,7 @@ std::string fitOptionsJson(const FitSettings& settings) {
   nlohmann::json components;
   for (const auto& [name, member] : kComponents) components[name] = f.rebuild.*member;
   doc["components"] = components;
-  doc["bake_presets"] = presetBakeJson(settings.bake);
+  doc["bake_presets"] = nlohmann::json::parse(presetBakeJson(settings.bake));
   for (const auto& [name, member] : kSwitches) doc[name] = f.*member;
   for (const auto& [name, range] : kNumbers) doc[name] = f.*(range.member);
   return doc.dump();

@@ -8,7 +8,8 @@
 
 namespace core {
 
-Result<PresetBake> parsePresetBake(const nlohmann::json& value, const std::string& where) {
+Result<PresetBake> parsePresetBake(std::string_view value_json, const std::string& where) {
+  const nlohmann::json value = nlohmann::json::parse(value_json, nullptr, false);
   PresetBake bake;
   if (value.is_boolean()) {
     bake.enabled = value.get<bool>();
@@ -28,9 +29,9 @@ Result<PresetBake> parsePresetBake(const nlohmann::json& value, const std::strin
   return bake;
 }
 
-nlohmann::json presetBakeJson(const PresetBake& bake) {
-  if (!bake.enabled || bake.presets.empty()) return bake.enabled;
-  return bake.presets;
+std::string presetBakeJson(const PresetBake& bake) {
+  if (!bake.enabled || bake.presets.empty()) return nlohmann::json(bake.enabled).dump();
+  return nlohmann::json(bake.presets).dump();
 }
 
 Status applyPresetBake(const PresetBake& bake, Rig& rig, const std::optional<ComponentsDocument>& components,

@@ -9,9 +9,8 @@
 
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
-
-#include <nlohmann/json_fwd.hpp>
 
 #include "core/base/error.h"
 #include "core/components/components.h"
@@ -24,9 +23,11 @@ struct PresetBake {
   std::vector<std::string> presets;  // empty: every preset
 };
 
-// `where` names the option in messages ("opts.json: 'bake_presets'").
-Result<PresetBake> parsePresetBake(const nlohmann::json& value, const std::string& where);
-nlohmann::json presetBakeJson(const PresetBake& bake);
+// The option's value as JSON text (the options parsers hand it over so that
+// no core header sees nlohmann); `where` names the option in messages
+// ("opts.json: 'bake_presets'").
+Result<PresetBake> parsePresetBake(std::string_view value_json, const std::string& where);
+std::string presetBakeJson(const PresetBake& bake);
 
 // Bakes into `rig` when enabled; its warnings (joint turns not bakeable)
 // join `warnings`. Errors: enabled without a document (the rig was given

@@ -127,7 +127,7 @@ Result<TransferSettings> parseTransferOptions(const std::string& text, const std
       if (!b) return b.error();
       t.warp.*(it->second) = *b;
     } else if (key == "bake_presets") {
-      auto bake = parsePresetBake(value, where);
+      auto bake = parsePresetBake(value.dump(), where);
       if (!bake) return bake.error();
       s.bake = std::move(*bake);
     } else if (key == "refine_iterations") {
@@ -166,7 +166,7 @@ std::string transferOptionsJson(const TransferSettings& settings) {
   doc["shape_exaggeration"] = t.shape_exaggeration;
   doc["joint_exaggeration"] = t.joint_exaggeration;
   doc["refine_iterations"] = t.warp.refine_iterations;
-  doc["bake_presets"] = presetBakeJson(settings.bake);
+  doc["bake_presets"] = nlohmann::json::parse(presetBakeJson(settings.bake));
   return doc.dump();
 }
 
