@@ -11,6 +11,7 @@
 
 #include "client/cli_hints.h"
 #include "client/local_jobs.h"
+#include "client/muscle_rig_job.h"
 #include "client/remote_commands.h"
 
 int main(int argc, char** argv) {
@@ -21,7 +22,7 @@ int main(int argc, char** argv) {
   // (docs/journal/BENCHMARKS_HISTORY.md, 2026-11-23: one transfer 101.6 -> 93.7 ms).
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
-  CLI::App app{"rigport: facial rig transfer (warp, transfer, fit, retarget, pose, bake; rigs, jobs and bench on the service)"};
+  CLI::App app{"rigport: facial rig transfer (warp, transfer, fit, retarget, pose, bake, muscle-rig; rigs, jobs and bench on the service)"};
   app.set_version_flag("--version", std::string("rigport ") + RIGPORT_VERSION);
   app.require_subcommand(1);
   bool verbose = false, quiet = false;
@@ -152,6 +153,22 @@ int main(int argc, char** argv) {
   pose_cmd->add_option("-o,--output", pose.output, "Posed static GLB (no skin, morph targets or animations)")
       ->required()->check(client::kGlbPath);
 
+  client::MuscleRigArgs muscle_rig;
+  auto* muscle_rig_cmd = app.add_subcommand("muscle-rig", "Build the reference muscle rig (26 muscles, 16 wires, controls, "
+                                                          "15 expression presets) on a face with the 68 iBUG landmarks; "
+                                                          "writes the rig GLB with the presets baked and its components JSON");
+  muscle_rig_cmd->add_option("--mesh", muscle_rig.mesh, "Face (GLB/glTF)")->required()->check(CLI::ExistingFile);
+  muscle_rig_cmd->add_option("--landmarks", muscle_rig.landmarks, "Landmarks JSON (the 68 iBUG names)")
+      ->required()->check(CLI::ExistingFile);
+  muscle_rig_cmd->add_option("-o,--output", muscle_rig.output, "Rig GLB with every preset baked as a morph target")
+      ->required()->check(client::kGlbPath);
+  muscle_rig_cmd->add_option("--components", muscle_rig.components, "Components JSON of the rig (rigport.components)")
+      ->required();
+  muscle_rig_cmd->add_option("--wire-dropoff", muscle_rig.wire_dropoff, "Scale of every wire's dropoff distance (1 = default)")
+      ->check(CLI::PositiveNumber);
+  muscle_rig_cmd->add_option("--expression-gain", muscle_rig.expression_gain, "Scale of every muscle's travel (1 = default)")
+      ->check(CLI::PositiveNumber);
+
   client::BakeArgs bake;
   auto* bake_cmd = app.add_subcommand("bake", "Bake a rig's component presets into morph targets of its face, so any glTF "
                                               "consumer plays them (the GLB records which targets are baked presets)");
@@ -193,6 +210,7 @@ int main(int argc, char** argv) {
   if (*retarget_cmd) return client::runRetarget(retarget);
   if (*pose_cmd) return client::runPose(pose);
   if (*bake_cmd) return client::runBake(bake);
+  if (*muscle_rig_cmd) return client::runMuscleRig(muscle_rig);
   if (*demo_cmd) return client::runDemo(demo_dir, demo_threads, demo_inputs_only);
   return 2;
 }

@@ -66,12 +66,35 @@ void derivativeCurve(int degree, const std::vector<double>& knots, const Homogen
 
 }  // namespace
 
+// Linear non-rational curves (the muscle rig's wires; paper 001 section 4.3.2
+// chose them for speed): de Boor's single step without building homogeneous
+// copies of the points, the same arithmetic as the general path.
+static bool isPlainPolyline(const CurveGeometry& curve) { return curve.degree == 1 && curve.weights.empty(); }
+
+static Eigen::Vector3d polylinePoint(const CurveGeometry& curve, double u) {
+  const int count = static_cast<int>(curve.points.rows());
+  u = std::clamp(u, curve.knots[1], curve.knots[static_cast<std::size_t>(count)]);
+  const int k = findSpan(1, curve.knots, count, u);
+  const double lo = curve.knots[static_cast<std::size_t>(k)], hi = curve.knots[static_cast<std::size_t>(k) + 1];
+  const double alpha = hi > lo ? (u - lo) / (hi - lo) : 0.0;
+  return (1.0 - alpha) * curve.points.row(k - 1).transpose() + alpha * curve.points.row(k).transpose();
+}
+
 Eigen::Vector3d curvePoint(const CurveGeometry& curve, double u) {
+  if (isPlainPolyline(curve)) return polylinePoint(curve, u);
   const Eigen::Vector4d h = deBoor(curve.degree, curve.knots, homogeneous(curve.points, curve.weights), u);
   return h.head<3>() / h(3);
 }
 
 Eigen::Vector3d curveDerivative(const CurveGeometry& curve, double u) {
+  if (isPlainPolyline(curve)) {  // the degree-0 derivative curve's value: the span's slope
+    const int count = static_cast<int>(curve.points.rows());
+    u = std::clamp(u, curve.knots[1], curve.knots[static_cast<std::size_t>(count)]);
+    const int k = findSpan(1, curve.knots, count, u);
+    const double span = curve.knots[static_cast<std::size_t>(k) + 1] - curve.knots[static_cast<std::size_t>(k)];
+    return span > 0.0 ? Eigen::Vector3d((curve.points.row(k) - curve.points.row(k - 1)).transpose() / span)
+                      : Eigen::Vector3d::Zero();
+  }
   const HomogeneousPoints h = homogeneous(curve.points, curve.weights);
   const Eigen::Vector4d a = deBoor(curve.degree, curve.knots, h, u);
   std::vector<double> d_knots;
@@ -97,7 +120,29 @@ CurveClosestParameter::CurveClosestParameter(const CurveGeometry& curve, int sam
   for (double u : parameters_) samples_.push_back(curvePoint(curve, u));
 }
 
+// Linear non-rational curves: each segment's exact projection, the closest
+// kept (ties: the smaller parameter), what the search below converges to.
+static double polylineClosestParameter(const CurveGeometry& curve, const Eigen::Vector3d& p) {
+  const int count = static_cast<int>(curve.points.rows());
+  double best_u = curve.domainStart();
+  double best_sq = std::numeric_limits<double>::infinity();
+  for (int k = 1; k < count; ++k) {
+    const double lo = curve.knots[static_cast<std::size_t>(k)], hi = curve.knots[static_cast<std::size_t>(k) + 1];
+    if (!(hi > lo)) continue;
+    const Eigen::Vector3d a = curve.points.row(k - 1).transpose(), d = curve.points.row(k).transpose() - a;
+    const double length_sq = d.squaredNorm();
+    const double t = length_sq > 0.0 ? std::clamp((p - a).dot(d) / length_sq, 0.0, 1.0) : 0.0;
+    const double sq = (a + t * d - p).squaredNorm();
+    if (sq < best_sq) {
+      best_sq = sq;
+      best_u = lo + t * (hi - lo);
+    }
+  }
+  return best_u;
+}
+
 double CurveClosestParameter::closestParameter(const Eigen::Vector3d& p) const {
+  if (isPlainPolyline(curve_)) return polylineClosestParameter(curve_, p);
   std::size_t best = 0;
   double best_sq = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < samples_.size(); ++i) {

@@ -1,0 +1,47 @@
+// The stages of buildMuscleRig (muscle_rig.cpp), one concern per file:
+// muscles and wires (muscle_rig.cpp), jaw, eyelids, creases and skull
+// (muscle_rig_regions.cpp), controls and presets (muscle_rig_expressions.cpp).
+// Internal to core/muscle_rig.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/components/components.h"
+#include "core/geometry/mesh.h"
+#include "core/muscle_rig/face_frame.h"
+#include "core/muscle_rig/muscle_rig.h"
+
+namespace core::muscle_rig_detail {
+
+// +1: the subject's left (+right axis), -1: the subject's right.
+inline const char* sideSuffix(int side) { return side > 0 ? "_L" : "_R"; }
+
+// The lip and lid sets of the face (frame coordinates of every vertex).
+struct FaceRegions {
+  Eigen::MatrixX3d local;  // #V by 3: each vertex in frame coordinates (units of iod)
+  MouthLine mouth;
+  double lids_top = 0.0;     // frame y above which the brow wires may act
+  double lids_bottom = 0.0;  // frame y below which the cheek wires may act
+  // Per vertex: above the mouth (upper lip side). Near the mouth, the side of
+  // the nearest lip landmark along the surface (so the lips' inner sheets,
+  // which curl past the mouth line, stay with their lip); elsewhere, the side
+  // of the mouth line.
+  std::vector<char> upper;
+  bool upperLip(Eigen::Index v) const { return upper[static_cast<std::size_t>(v)] != 0; }
+};
+FaceRegions buildFaceRegions(const Mesh& face, const FaceFrame& frame);
+// Whether frame x lies on `side` (+1 left, -1 right): disjoint halves, so a sided wire's members meet at the midline without overlap.
+inline bool onSide(double x, int side) { return side > 0 ? x >= 0.0 : x < 0.0; }
+
+// Jaw and eyelid clusters with their controls (jaw_open, blink_L/R).
+void addJawAndLids(ComponentsDocument& doc, const Mesh& face, const FaceFrame& frame, const FaceRegions& regions,
+                   const MuscleRigOptions& options);
+// Forehead and glabella crease clusters triggered by muscles, and the skull
+// sphere the forehead is pushed out of.
+void addCreasesAndSkull(ComponentsDocument& doc, const Mesh& face, const FaceFrame& frame, const FaceRegions& regions);
+// Descriptive controls of Table 6.2 (one per muscle parameter) and the presets.
+void addExpressionControls(ComponentsDocument& doc);
+void addExpressionPresets(ComponentsDocument& doc);
+
+}  // namespace core::muscle_rig_detail
