@@ -74,6 +74,7 @@ Result<FaceFrame> buildFaceFrame(const Mesh& face, const LandmarkSet& landmarks,
   }
   frame.up = up.normalized();
   frame.forward = frame.right.cross(frame.up);
+  frame.vertices = std::make_shared<const PointCloudIndex>(face.positions);
   return frame;
 }
 
@@ -104,17 +105,6 @@ MouthLine buildMouthLine(const FaceFrame& frame) {
   return line;
 }
 
-int nearestVertex(const Mesh& face, const Eigen::Vector3d& point) {
-  int best = -1;
-  double best_d = std::numeric_limits<double>::infinity();
-  for (Eigen::Index v = 0; v < face.positions.rows(); ++v) {
-    const double d = (face.positions.row(v).transpose() - point).squaredNorm();
-    if (d < best_d) {
-      best_d = d;
-      best = static_cast<int>(v);
-    }
-  }
-  return best;
-}
+int FaceFrame::nearestVertex(const Eigen::Vector3d& point) const { return vertices->nearest(point).index; }
 
 }  // namespace core

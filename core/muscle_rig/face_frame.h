@@ -6,6 +6,7 @@
 #pragma once
 
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -13,6 +14,7 @@
 
 #include "core/base/error.h"
 #include "core/geometry/mesh.h"
+#include "core/geometry/point_cloud_index.h"
 #include "core/io/landmarks.h"
 
 namespace core {
@@ -24,6 +26,7 @@ struct FaceFrame {
   Eigen::Vector3d forward = Eigen::Vector3d::UnitZ();  // unit, out of the face
   double iod = 1.0;                                  // inter-ocular distance, model units (> 0)
   std::map<std::string, Eigen::Vector3d> landmarks;  // resolved positions by name
+  std::shared_ptr<const PointCloudIndex> vertices;   // the face's vertices (shared: frames are copied)
 
   // p in frame coordinates (x right, y up, z forward), in units of iod.
   Eigen::Vector3d toFrame(const Eigen::Vector3d& p) const;
@@ -33,6 +36,8 @@ struct FaceFrame {
   const Eigen::Vector3d& at(const std::string& name) const;
   // The landmark moved by (x, y, z) iod along (side * right, up, forward).
   Eigen::Vector3d offset(const std::string& name, int side, double x, double y, double z = 0.0) const;
+  // The face's vertex nearest to `point` (ties: the lower index).
+  int nearestVertex(const Eigen::Vector3d& point) const;
 };
 
 // Every landmark name the muscle rig reads (the 68 iBUG names as written by
@@ -50,9 +55,5 @@ struct MouthLine {
   double heightAt(double x_frame) const;
 };
 MouthLine buildMouthLine(const FaceFrame& frame);
-
-// The vertex of `face` nearest to `point` (brute force: the builder asks a
-// few hundred times).
-int nearestVertex(const Mesh& face, const Eigen::Vector3d& point);
 
 }  // namespace core

@@ -57,8 +57,8 @@ class Builder {
   // `travel`: skin motion at full contraction, iod.
   void addMuscle(ComponentsDocument& doc, const std::string& name, const Eigen::Vector3d& origin,
                  const Eigen::Vector3d& insertion, double travel) {
-    const int insertion_vertex = nearestVertex(face_, insertion);
-    const Eigen::Vector3d skin_origin = face_.positions.row(nearestVertex(face_, origin)).transpose();
+    const int insertion_vertex = frame_.nearestVertex(insertion);
+    const Eigen::Vector3d skin_origin = face_.positions.row(frame_.nearestVertex(origin)).transpose();
     Muscle muscle;
     muscle.name = name;
     muscle.origin = Binding::atPosition(skin_origin - options_.muscle_depth * frame_.iod * frame_.forward);
@@ -144,7 +144,7 @@ void addWire(ComponentsDocument& doc, const WireSpec& spec, const Mesh& face, co
   base.knots.push_back(static_cast<double>(n - 1));
   std::vector<Eigen::Vector3d> snapped;
   for (const Eigen::Vector3d& p : spec.points) {
-    const int v = nearestVertex(face, p);
+    const int v = f.nearestVertex(p);
     base.points.push_back(Binding::atVertex(v));
     snapped.push_back(face.positions.row(v).transpose());
   }
@@ -278,7 +278,7 @@ void labelLipsAlongSurface(const Mesh& face, const FaceFrame& frame, FaceRegions
   using Item = std::pair<double, int>;
   std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
   auto seed = [&](const char* name, char upper) {
-    const int v = nearestVertex(face, frame.at(name));
+    const int v = frame.nearestVertex(frame.at(name));
     distance[static_cast<std::size_t>(v)] = 0.0;
     label[static_cast<std::size_t>(v)] = upper;
     queue.push({0.0, v});
