@@ -322,6 +322,9 @@ Result<PosedRig> poseRig(Rig rig, const ComponentsDocument* components, const Po
   posed.nodes = posed_nodes;
   posed.mesh_node = rig.mesh_node;
   posed.attributes = std::move(rig.attributes);
+  posed.materials = std::move(rig.materials);
+  posed.images = std::move(rig.images);
+  posed.triangle_materials = std::move(rig.triangle_materials);
   for (const RigPart& part : rig.parts) {
     RigPart static_part;
     static_part.name = part.name;
@@ -329,6 +332,7 @@ Result<PosedRig> poseRig(Rig rig, const ComponentsDocument* components, const Po
     static_part.mesh = staticMesh(part.mesh, posedMeshPositions(partAsRig(rig, part), posed_nodes,
                                                                 report.morph_weights, rest_world, posed_world));
     static_part.attributes = part.attributes;
+    static_part.triangle_materials = part.triangle_materials;
     posed.parts.push_back(std::move(static_part));
   }
   report.moved_face_vertices = countMoved(rest_face, posed.mesh.positions);

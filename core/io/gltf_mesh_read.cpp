@@ -35,6 +35,7 @@ struct PrimitiveData {
   Eigen::MatrixX3d normals;  // 0 rows when the primitive has none
   Eigen::MatrixX2d uvs;      // 0 rows when the primitive has none
   std::vector<std::array<std::int64_t, 3>> triangles;  // primitive-local vertex indices
+  int same_vertices_as = -1;  // an earlier primitive whose vertices these triangles index (no rows here)
 };
 
 // Expands TRIANGLES / TRIANGLE_STRIP / TRIANGLE_FAN element lists (spec,
@@ -181,7 +182,13 @@ Result<std::vector<PrimitiveData>> readPrimitives(const tinygltf::Model& model, 
         }
       }
     }
-    total_vertices += static_cast<std::size_t>(nv);
+    part->same_vertices_as = sameVerticesAs(gmesh, p);
+    if (part->same_vertices_as >= 0) {  // its vertices are the earlier primitive's
+      part->positions.resize(0, 3);
+      part->normals.resize(0, 3);
+      part->uvs.resize(0, 2);
+    }
+    total_vertices += static_cast<std::size_t>(part->positions.rows());
     total_triangles += part->triangles.size();
     if (total_vertices > static_cast<std::size_t>(std::numeric_limits<int>::max()) ||
         total_triangles > static_cast<std::size_t>(std::numeric_limits<int>::max())) {
@@ -192,17 +199,21 @@ Result<std::vector<PrimitiveData>> readPrimitives(const tinygltf::Model& model, 
   return parts;
 }
 
-bool hasNormals(const PrimitiveData& p) { return p.normals.rows() > 0; }
+bool ownsVertices(const PrimitiveData& p) { return p.same_vertices_as < 0; }
 
-bool hasUvs(const PrimitiveData& p) { return p.uvs.rows() > 0; }
+// Of the primitives that own vertices, whether they have normals (UVs); a
+// repeat has what its original has.
+bool hasNormals(const PrimitiveData& p) { return !ownsVertices(p) || p.normals.rows() > 0; }
+
+bool hasUvs(const PrimitiveData& p) { return !ownsVertices(p) || p.uvs.rows() > 0; }
 
 // Concatenates the primitives (vertex offsets added to their triangles).
 // Normals missing on some primitives are left zero (filled later); UVs are
 // kept only when every primitive has them.
 Mesh mergePrimitives(const std::vector<PrimitiveData>& parts, const std::string& mesh_name, MeshReadReport& report) {
-  const bool any_normals = std::any_of(parts.begin(), parts.end(), hasNormals);
+  const bool any_normals = std::any_of(parts.begin(), parts.end(), [](const auto& p) { return ownsVertices(p) && hasNormals(p); });
   const bool all_uvs = std::all_of(parts.begin(), parts.end(), hasUvs);
-  if (!all_uvs && std::any_of(parts.begin(), parts.end(), hasUvs)) {
+  if (!all_uvs && std::any_of(parts.begin(), parts.end(), [](const auto& p) { return ownsVertices(p) && hasUvs(p); })) {
     report.warnings.push_back("TEXCOORD_0 is missing on some primitives of " + mesh_name + "; UVs dropped");
   }
   Eigen::Index nv_total = 0;
@@ -218,16 +229,21 @@ Mesh mergePrimitives(const std::vector<PrimitiveData>& parts, const std::string&
   if (all_uvs) mesh.uvs.resize(nv_total, 2);
   Eigen::Index v0 = 0;
   Eigen::Index t0 = 0;
+  std::vector<Eigen::Index> offsets;
   for (const PrimitiveData& part : parts) {
     const Eigen::Index nv = part.positions.rows();
-    mesh.positions.middleRows(v0, nv) = part.positions;
-    if (hasNormals(part)) mesh.normals.middleRows(v0, nv) = part.normals;
-    if (all_uvs) mesh.uvs.middleRows(v0, nv) = part.uvs;
+    const Eigen::Index offset = ownsVertices(part) ? v0 : offsets[static_cast<std::size_t>(part.same_vertices_as)];
+    offsets.push_back(offset);
+    if (ownsVertices(part)) {
+      mesh.positions.middleRows(v0, nv) = part.positions;
+      if (part.normals.rows() > 0) mesh.normals.middleRows(v0, nv) = part.normals;
+      if (all_uvs) mesh.uvs.middleRows(v0, nv) = part.uvs;
+      v0 += nv;
+    }
     for (const auto& tri : part.triangles) {
-      for (int k = 0; k < 3; ++k) mesh.triangles(t0, k) = static_cast<int>(tri[static_cast<std::size_t>(k)] + v0);
+      for (int k = 0; k < 3; ++k) mesh.triangles(t0, k) = static_cast<int>(tri[static_cast<std::size_t>(k)] + offset);
       ++t0;
     }
-    v0 += nv;
   }
   return mesh;
 }
@@ -265,7 +281,7 @@ void finishNormals(const std::vector<PrimitiveData>& parts, const std::string& m
   }
   Eigen::Index v0 = 0;
   for (const PrimitiveData& part : parts) {
-    const Eigen::Index nv = part.positions.rows();
+    const Eigen::Index nv = part.positions.rows();  // 0 for a repeat
     if (!hasNormals(part)) mesh.normals.middleRows(v0, nv) = computed.middleRows(v0, nv);
     v0 += nv;
   }

@@ -8,6 +8,7 @@
 //   gltf_mesh_read.cpp  primitives -> core::Mesh (readGltf)
 //   gltf_skin_read.cpp  nodes, skin, inverse binds, weights
 //   gltf_rig_read.cpp   morph targets, animations, vertex attributes (readRig)
+//   gltf_material_read.cpp / gltf_material_write.cpp  materials, textures, images
 //   gltf_write.cpp      buffers, accessors, the mesh primitive, GLB (encodeMeshGlb)
 //   gltf_rig_write.cpp  rig checks, nodes, skin, morph targets, animations (encodeRigGlb)
 //
@@ -209,10 +210,29 @@ Result<std::vector<Node>> readNodes(const tinygltf::Model& model, const std::str
                                     std::vector<std::string>& warnings);
 
 // Rows of the merged mesh that come from each primitive (mergePrimitives order).
+// A primitive with the same vertex attributes (accessor for accessor, morph
+// targets too) as an earlier one draws that one's vertices with its own
+// indices and material (how a mesh of several materials is written): it adds
+// no rows and its range is the earlier one's.
 struct PrimitiveRange {
   Eigen::Index offset = 0;
   Eigen::Index count = 0;
 };
+
+// Triangles a primitive draws (0 for points and lines).
+std::size_t primitiveTriangleCount(const tinygltf::Model& model, const tinygltf::Primitive& primitive);
+
+// The file's materials and embedded images into rig.materials / rig.images
+// (glTF indices kept; textures on external images dropped with a warning).
+void readMaterials(const tinygltf::Model& model, Rig& rig, std::vector<std::string>& warnings);
+
+// Per triangle of the merged mesh (`triangles` of them), its primitive's
+// material; empty when no primitive has one.
+std::vector<int> triangleMaterials(const tinygltf::Model& model, const tinygltf::Mesh& gmesh, Eigen::Index triangles,
+                                   const std::string& mesh_name, std::vector<std::string>& warnings);
+
+// The earlier primitive whose vertices primitive `p` draws, or -1.
+int sameVerticesAs(const tinygltf::Mesh& gmesh, std::size_t p);
 
 std::vector<PrimitiveRange> primitiveRanges(const tinygltf::Model& model, const tinygltf::Mesh& gmesh);
 
@@ -351,7 +371,20 @@ inline std::optional<std::size_t> firstNonFinite(const std::vector<float>& value
 
 // POSITION (with min/max), unit NORMAL, TEXCOORD_0 and uint32 indices of a
 // validated `mesh` as one primitive, mode TRIANGLES (POINTS for a point cloud).
-Result<tinygltf::Primitive> addMeshPrimitive(tinygltf::Model& model, const Mesh& mesh, const std::string& label);
+// Without indices when the caller splits the triangles (splitByMaterial).
+Result<tinygltf::Primitive> addMeshPrimitive(tinygltf::Model& model, const Mesh& mesh, const std::string& label,
+                                             bool with_indices = true);
+
+// The rig's images (into buffer 0), samplers, textures and materials, glTF
+// indices those of Rig::materials / Rig::images (gltf_material_write.cpp).
+void addMaterials(tinygltf::Model& model, const Rig& rig);
+
+// One primitive per material of `triangle_materials` (one per triangle of
+// `mesh`; -1: none), each a copy of `primitive` (its vertex attributes and
+// morph targets shared) with the triangles of that material, in order of
+// first use.
+std::vector<tinygltf::Primitive> splitByMaterial(tinygltf::Model& model, const tinygltf::Primitive& primitive,
+                                                 const Mesh& mesh, const std::vector<int>& triangle_materials);
 
 // Serialises `model` as GLB bytes (tinygltf's writer; deterministic since its
 // JSON objects are ordered maps).

@@ -165,8 +165,12 @@ Status checkJsonBeforeTinygltf(std::string_view json_text, const std::string& la
 // tinygltf callbacks
 
 // We never decode pixels: accept every image as is.
-bool skipImageDecoding(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int,
-                       void*) {
+// Images are never decoded (no pixels are needed): the encoded bytes are kept
+// for the rig's materials to write back as they came.
+bool keepEncodedImage(tinygltf::Image* image, const int, std::string*, std::string*, int, int,
+                      const unsigned char* bytes, int size, void*) {
+  if (bytes != nullptr && size > 0) image->image.assign(bytes, bytes + size);
+  image->as_is = true;
   return true;
 }
 
@@ -239,7 +243,7 @@ Result<tinygltf::Model> loadModel(Bytes bytes, const std::string& label, bool bi
     if (fs.root) base = fs.root->string();
   }
   tinygltf::TinyGLTF loader;
-  loader.SetImageLoader(&skipImageDecoding, nullptr);
+  loader.SetImageLoader(&keepEncodedImage, nullptr);
   loader.SetFsCallbacks(
       tinygltf::FsCallbacks{&confinedFileExists, &confinedExpandPath, &confinedReadFile, &refuseWriteFile, &fs});
 
@@ -336,11 +340,9 @@ Result<Eigen::Matrix4d> worldTransform(const tinygltf::Model& model, int node, c
   return world;
 }
 
-namespace {
-
 // Number of elements a primitive draws: its index count, else its vertex count
 // (0 when the accessors are unusable; the real read reports those).
-std::size_t primitiveElementCount(const tinygltf::Model& model, const tinygltf::Primitive& primitive) {
+static std::size_t primitiveElementCount(const tinygltf::Model& model, const tinygltf::Primitive& primitive) {
   auto count_of = [&](int accessor) -> std::size_t {
     return accessor >= 0 && static_cast<std::size_t>(accessor) < model.accessors.size()
                ? model.accessors[static_cast<std::size_t>(accessor)].count
@@ -360,6 +362,8 @@ std::size_t primitiveTriangleCount(const tinygltf::Model& model, const tinygltf:
     default: return 0;
   }
 }
+
+namespace {
 
 std::size_t meshTriangleCount(const tinygltf::Model& model, const tinygltf::Mesh& mesh) {
   std::size_t total = 0;

@@ -123,6 +123,78 @@ Status checkRigMorphTargets(const Rig& rig) {
   return Ok{};
 }
 
+Status checkMaterial(const Rig& rig, const Material& m, const std::string& what) {
+  if (!m.base_color_factor.allFinite() || !m.emissive_factor.allFinite() || !std::isfinite(m.metallic_factor) ||
+      !std::isfinite(m.roughness_factor) || !std::isfinite(m.alpha_cutoff)) {
+    return invalidRig(what + " has a non-finite factor");
+  }
+  if (m.alpha_mode != "OPAQUE" && m.alpha_mode != "MASK" && m.alpha_mode != "BLEND") {
+    return invalidRig(what + " alpha_mode is '" + m.alpha_mode + "' (OPAQUE, MASK or BLEND)");
+  }
+  for (const auto* binding : {&m.base_color_texture, &m.metallic_roughness_texture, &m.normal_texture,
+                              &m.occlusion_texture, &m.emissive_texture}) {
+    if (!*binding) continue;
+    if ((*binding)->image < 0 || (*binding)->image >= static_cast<int>(rig.images.size())) {
+      return invalidRig(what + " uses image " + std::to_string((*binding)->image) + " but the rig has " +
+                        std::to_string(rig.images.size()));
+    }
+    if ((*binding)->texcoord < 0 || !std::isfinite((*binding)->scale)) {
+      return invalidRig(what + " has a texture with texcoord " + std::to_string((*binding)->texcoord) +
+                        " or a non-finite scale");
+    }
+  }
+  return Ok{};
+}
+
+// The UV sets a mesh has: TEXCOORD_0 (Mesh::uvs) and the extra ones.
+int uvSetCount(const Mesh& mesh, const VertexAttributes& attributes) {
+  return mesh.uvs.rows() > 0 ? 1 + static_cast<int>(attributes.extra_uv_sets.size()) : 0;
+}
+
+// One material per triangle (or none), each a material of the rig whose
+// textures read UV sets the mesh has (the validator requires them).
+Status checkTriangleMaterials(const Rig& rig, const Mesh& mesh, const VertexAttributes& attributes,
+                              const std::vector<int>& triangle_materials) {
+  if (triangle_materials.empty()) return Ok{};
+  if (static_cast<Eigen::Index>(triangle_materials.size()) != mesh.triangleCount()) {
+    return invalidRig("triangle_materials has " + std::to_string(triangle_materials.size()) + " entries for " +
+                      std::to_string(mesh.triangleCount()) + " triangles");
+  }
+  std::set<int> used(triangle_materials.begin(), triangle_materials.end());
+  for (const int m : used) {
+    if (m < -1 || m >= static_cast<int>(rig.materials.size())) {
+      return invalidRig("a triangle uses material " + std::to_string(m) + " but the rig has " +
+                        std::to_string(rig.materials.size()));
+    }
+    if (m < 0) continue;
+    const Material& material = rig.materials[static_cast<std::size_t>(m)];
+    for (const auto* binding : {&material.base_color_texture, &material.metallic_roughness_texture,
+                                &material.normal_texture, &material.occlusion_texture, &material.emissive_texture}) {
+      if (*binding && (*binding)->texcoord >= uvSetCount(mesh, attributes)) {
+        return invalidRig("material " + std::to_string(m) + quoted(material.name) + " reads TEXCOORD_" +
+                          std::to_string((*binding)->texcoord) + " but the mesh has " +
+                          std::to_string(uvSetCount(mesh, attributes)) + " UV sets");
+      }
+    }
+  }
+  return Ok{};
+}
+
+Status checkRigMaterials(const Rig& rig) {
+  for (std::size_t i = 0; i < rig.images.size(); ++i) {
+    const TextureImage& image = rig.images[i];
+    if (image.bytes.empty() || (image.mime_type != "image/png" && image.mime_type != "image/jpeg")) {
+      return invalidRig("image " + std::to_string(i) + quoted(image.name) + " is empty or not image/png or image/jpeg");
+    }
+  }
+  for (std::size_t m = 0; m < rig.materials.size(); ++m) {
+    if (auto ok = checkMaterial(rig, rig.materials[m], "material " + std::to_string(m) + quoted(rig.materials[m].name)); !ok) {
+      return ok;
+    }
+  }
+  return checkTriangleMaterials(rig, rig.mesh, rig.attributes, rig.triangle_materials);
+}
+
 }  // namespace
 
 Status checkRig(const Rig& rig, const RigWriteOptions& options) {
@@ -134,6 +206,7 @@ Status checkRig(const Rig& rig, const RigWriteOptions& options) {
   if (auto ok = checkRigNodes(rig); !ok) return ok.error();
   if (auto ok = checkRigSkin(rig); !ok) return ok.error();
   if (auto ok = checkRigMorphTargets(rig); !ok) return ok.error();
+  if (auto ok = checkRigMaterials(rig); !ok) return ok.error();
   for (std::size_t p = 0; p < rig.parts.size(); ++p) {
     const RigPart& part = rig.parts[p];
     const std::string what = "part " + std::to_string(p) + quoted(part.name);
@@ -149,6 +222,9 @@ Status checkRig(const Rig& rig, const RigWriteOptions& options) {
       }
     }
     if (auto ok = checkMorphTargets(part.mesh, part.morph_targets, part.morph_default_weights); !ok) {
+      return makeError(ok.error().code, what + ": " + ok.error().message);
+    }
+    if (auto ok = checkTriangleMaterials(rig, part.mesh, part.attributes, part.triangle_materials); !ok) {
       return makeError(ok.error().code, what + ": " + ok.error().message);
     }
   }

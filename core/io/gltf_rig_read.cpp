@@ -454,6 +454,7 @@ Result<RigPart> readPart(const tinygltf::Model& model, const MeshChoice& choice,
   part.morph_targets = std::move(read.morph_targets);
   part.morph_default_weights = std::move(read.morph_default_weights);
   part.attributes = std::move(*attributes);
+  part.triangle_materials = triangleMaterials(model, gmesh, part.mesh.triangleCount(), mesh_name, warnings);
   return part;
 }
 
@@ -501,6 +502,8 @@ Status readRigData(const tinygltf::Model& model, const MeshChoice& choice, const
   if (auto ok = checkRigSize(model, gmesh, vertexTotal(ranges), label); !ok) return ok.error();
   rig.mesh_name = gmesh.name;
   rig.mesh_node = choice.node;
+  readMaterials(model, rig, warnings);
+  rig.triangle_materials = triangleMaterials(model, gmesh, rig.mesh.triangleCount(), mesh_name, warnings);
   auto nodes = readNodes(model, label, warnings);
   if (!nodes) return nodes.error();
   rig.nodes = std::move(*nodes);

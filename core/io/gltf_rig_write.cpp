@@ -621,6 +621,7 @@ std::size_t rigBufferBound(const Rig& rig) {
   std::size_t per_vertex = 3 * 12 + 2 * 8 + 2 * 16 * 4;  // position, normal, UVs, joints/weights (up to 2 sets)
   per_vertex += 16 * (rig.attributes.extra_uv_sets.size() + rig.attributes.fields.size() + rig.attributes.labels.size() + 1);
   std::size_t bytes = nv * per_vertex + static_cast<std::size_t>(rig.mesh.triangleCount()) * 12;
+  for (const TextureImage& image : rig.images) bytes += image.bytes.size() + 4;
   for (const auto& t : rig.morph_targets) bytes += nv * 12 * (t.normal_deltas.rows() > 0 ? 2 : 1) + 64;
   for (const auto& a : rig.animations) {
     for (const auto& c : a.channels) bytes += static_cast<std::size_t>(c.values.size() + c.times.size()) * 4 + 64;
@@ -636,7 +637,8 @@ Status addRigMesh(tinygltf::Model& model, const Rig& rig, const MeshNodePlan& pl
   if (!space) return space.error();
   std::optional<Mesh> local;
   if (!space->identity) local = meshInNodeSpace(rig.mesh, *space);
-  auto primitive = addMeshPrimitive(model, local ? *local : rig.mesh, kRigLabel);
+  const bool split = !rig.triangle_materials.empty();
+  auto primitive = addMeshPrimitive(model, local ? *local : rig.mesh, kRigLabel, /*with_indices=*/!split);
   if (!primitive) return primitive.error();
   if (auto ok = addVertexAttributes(model, rig, *primitive); !ok) return ok.error();
   if (rig.skin && first) {
@@ -649,7 +651,11 @@ Status addRigMesh(tinygltf::Model& model, const Rig& rig, const MeshNodePlan& pl
   if (auto ok = addMorphTargets(model, rig, *space, options.sparse_morph_targets, *primitive, gmesh); !ok) {
     return ok.error();
   }
-  gmesh.primitives.push_back(std::move(*primitive));
+  if (split) {
+    gmesh.primitives = splitByMaterial(model, *primitive, rig.mesh, rig.triangle_materials);
+  } else {
+    gmesh.primitives.push_back(std::move(*primitive));
+  }
   model.meshes.push_back(std::move(gmesh));
   return Ok{};
 }
@@ -660,6 +666,7 @@ Result<tinygltf::Model> buildRigModel(const Rig& rig, const RigWriteOptions& opt
   model.asset.generator = "rigport";
   model.buffers.emplace_back();
   model.buffers[0].data.reserve(rigBufferBound(rig));
+  addMaterials(model, rig);
   const std::vector<MeshPlacement> meshes = planMeshNodes(rig);
   if (auto ok = addRigMesh(model, rig, meshes[0].plan, options, /*first=*/true); !ok) return ok.error();
   for (std::size_t p = 0; p < rig.parts.size(); ++p) {

@@ -169,11 +169,26 @@ Result<Skin> readSkin(const tinygltf::Model& model, int index, const std::string
 
 }  // namespace
 
+int sameVerticesAs(const tinygltf::Mesh& gmesh, std::size_t p) {
+  const tinygltf::Primitive& primitive = gmesh.primitives[p];
+  for (std::size_t q = 0; q < p; ++q) {
+    const tinygltf::Primitive& earlier = gmesh.primitives[q];
+    if (earlier.attributes == primitive.attributes && earlier.targets == primitive.targets) {
+      return static_cast<int>(q);  // the first such primitive, itself not a repeat
+    }
+  }
+  return -1;
+}
+
 std::vector<PrimitiveRange> primitiveRanges(const tinygltf::Model& model, const tinygltf::Mesh& gmesh) {
   std::vector<PrimitiveRange> ranges;
   Eigen::Index offset = 0;
-  for (const tinygltf::Primitive& primitive : gmesh.primitives) {
-    const int position = primitive.attributes.at("POSITION");  // buildMesh has read it
+  for (std::size_t p = 0; p < gmesh.primitives.size(); ++p) {
+    if (const int same = sameVerticesAs(gmesh, p); same >= 0) {
+      ranges.push_back(ranges[static_cast<std::size_t>(same)]);
+      continue;
+    }
+    const int position = gmesh.primitives[p].attributes.at("POSITION");  // buildMesh has read it
     const auto count = static_cast<Eigen::Index>(model.accessors[static_cast<std::size_t>(position)].count);
     ranges.push_back({offset, count});
     offset += count;
@@ -182,7 +197,9 @@ std::vector<PrimitiveRange> primitiveRanges(const tinygltf::Model& model, const 
 }
 
 Eigen::Index vertexTotal(const std::vector<PrimitiveRange>& ranges) {
-  return ranges.empty() ? 0 : ranges.back().offset + ranges.back().count;
+  Eigen::Index total = 0;
+  for (const PrimitiveRange& range : ranges) total = std::max(total, range.offset + range.count);
+  return total;
 }
 
 std::vector<int> attributeAccessors(const tinygltf::Mesh& gmesh, const std::string& name, int target) {

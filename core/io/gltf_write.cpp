@@ -70,7 +70,8 @@ std::vector<float> unitNormals(const Eigen::MatrixX3d& normals) {
 
 }  // namespace
 
-Result<tinygltf::Primitive> addMeshPrimitive(tinygltf::Model& model, const Mesh& mesh, const std::string& label) {
+Result<tinygltf::Primitive> addMeshPrimitive(tinygltf::Model& model, const Mesh& mesh, const std::string& label,
+                                             bool with_indices) {
   const std::vector<float> positions = toFloats(mesh.positions);
   if (const auto bad = firstNonFinite(positions)) {
     return makeError(ErrorCode::kInvalidMesh,
@@ -91,6 +92,8 @@ Result<tinygltf::Primitive> addMeshPrimitive(tinygltf::Model& model, const Mesh&
     primitive.mode = TINYGLTF_MODE_POINTS;  // point cloud: every vertex drawn once
     return primitive;
   }
+  primitive.mode = TINYGLTF_MODE_TRIANGLES;  // explicit: tinygltf's default (-1) is invalid
+  if (!with_indices) return primitive;
   std::vector<std::uint32_t> indices(static_cast<std::size_t>(mesh.triangleCount()) * 3);
   for (Eigen::Index f = 0; f < mesh.triangleCount(); ++f) {
     for (int k = 0; k < 3; ++k) {
@@ -100,7 +103,6 @@ Result<tinygltf::Primitive> addMeshPrimitive(tinygltf::Model& model, const Mesh&
   const int view = addBufferView(model, asBytes(indices), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
   primitive.indices =
       addAccessor(model, view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, indices.size());
-  primitive.mode = TINYGLTF_MODE_TRIANGLES;  // explicit: tinygltf's default (-1) is invalid
   return primitive;
 }
 

@@ -29,6 +29,7 @@ Rig partAsRig(const Rig& rig, const RigPart& part) {
   out.morph_targets = part.morph_targets;
   out.morph_default_weights = part.morph_default_weights;
   out.attributes = part.attributes;
+  out.triangle_materials = part.triangle_materials;
   return out;
 }
 

@@ -13,6 +13,7 @@
 #include <Eigen/SparseCore>
 
 #include "core/geometry/mesh.h"
+#include "core/rig/material.h"
 
 namespace core {
 
@@ -91,6 +92,7 @@ struct RigPart {
   std::vector<MorphTarget> morph_targets;
   Eigen::VectorXd morph_default_weights;
   VertexAttributes attributes;
+  std::vector<int> triangle_materials;  // as Rig::triangle_materials
 };
 
 struct Rig {
@@ -110,10 +112,19 @@ struct Rig {
   // Names of the face's morph targets that are baked presets of its
   // components (core/components/bake.h); the GLB's mesh.extras.
   std::vector<std::string> baked_presets;
+  // Materials of the face and the parts, and the images their textures use.
+  std::vector<Material> materials;
+  std::vector<TextureImage> images;
+  // Per triangle of the face, its material (index into `materials`, -1:
+  // none); empty when the mesh has no material. Triangles keep their order
+  // through every job, so this carries over as it is.
+  std::vector<int> triangle_materials;
 };
 
-// The part as a rig of its own (its mesh, weights, shapes and attributes with
-// the rig's nodes, skin and no animations): for what reads or writes one mesh.
+// The part as a rig of its own (its mesh, weights, shapes, attributes and
+// triangle materials, with the rig's nodes, skin and no animations; its
+// material indices still index the whole rig's materials): for what reads or
+// writes one mesh.
 Rig partAsRig(const Rig& rig, const RigPart& part);
 
 // Appends one vertex per entry of `copy_of`, a copy of that vertex: every

@@ -5,6 +5,7 @@
 
 #include "core/base/timing.h"
 #include "core/transfer/components_transfer.h"
+#include "core/transfer/materials.h"
 #include "core/transfer/parts_occlusion.h"
 
 #include <algorithm>
@@ -606,6 +607,11 @@ Result<TransferResult> transferThroughCorrespondence(const PreparedRig& source, 
   }
   out.parts = std::move(parts.parts);
   dropPartChannels(out.parts, options.shapes, out.skin.has_value());
+  // Materials: the parts keep theirs, the face's go to the target's triangles.
+  out.materials = src.materials;
+  out.images = src.images;
+  out.triangle_materials = carryTriangleMaterials(src.triangle_materials, out.mesh.triangles, warp->locations.on_source);
+  for (std::string& warning : untextureFaceMaterials(out)) report.warnings.push_back(target_label + ": " + warning);
   report.parts = std::move(parts.report);
   report.parts_ms = msSince(t0);
 

@@ -223,8 +223,23 @@ TEST(GltfRead, ConvertsStripsAndFansAndMergesPrimitives) {
   b.node({{"mesh", 0}});
   auto loaded = core::readGltf(b.glb(), "modes.glb", true);
   ASSERT_TRUE(loaded.ok()) << loaded.error().message;
-  EXPECT_EQ(loaded->mesh.vertexCount(), 11);
-  EXPECT_EQ(loaded->mesh.triangles, tris({{0, 1, 2}, {1, 3, 2}, {5, 6, 4}, {6, 7, 4}, {10, 9, 8}}));
+  // The fan draws the strip's vertices (the same POSITION accessor): they
+  // are one set of vertices in the merged mesh, not two copies.
+  EXPECT_EQ(loaded->mesh.vertexCount(), 7);
+  EXPECT_EQ(loaded->mesh.triangles, tris({{0, 1, 2}, {1, 3, 2}, {1, 2, 0}, {2, 3, 0}, {6, 5, 4}}));
+}
+
+TEST(GltfRead, PrimitivesWithTheirOwnVerticesAreConcatenated) {
+  GltfBuilder b;
+  const int quad = b.positions({0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0});
+  const int copy = b.positions({0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0});  // the same values, another accessor
+  b.mesh(json::array({{{"attributes", {{"POSITION", quad}}}, {"mode", 5}},
+                      {{"attributes", {{"POSITION", copy}}}, {"mode", 6}}}));
+  b.node({{"mesh", 0}});
+  auto loaded = core::readGltf(b.glb(), "two_quads.glb", true);
+  ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+  EXPECT_EQ(loaded->mesh.vertexCount(), 8);
+  EXPECT_EQ(loaded->mesh.triangles, tris({{0, 1, 2}, {1, 3, 2}, {5, 6, 4}, {6, 7, 4}}));
 }
 
 TEST(GltfRead, PointsOnlyMeshIsAPointCloudButLinesAreUnsupported) {

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -167,6 +168,44 @@ inline void expectMeshEqual(const core::Rig& a, const core::Rig& b) {
   EXPECT_EQ(a.mesh_name, b.mesh_name);
 }
 
+inline void expectTextureEqual(const std::optional<core::TextureBinding>& a, const std::optional<core::TextureBinding>& b) {
+  ASSERT_EQ(a.has_value(), b.has_value());
+  if (!a) return;
+  EXPECT_EQ(a->image, b->image);
+  EXPECT_EQ(a->texcoord, b->texcoord);
+  EXPECT_EQ(a->sampler, b->sampler);
+  EXPECT_NEAR(a->scale, b->scale, 1e-12);
+}
+
+inline void expectMaterialsEqual(const core::Rig& a, const core::Rig& b) {
+  EXPECT_EQ(a.triangle_materials, b.triangle_materials);
+  ASSERT_EQ(a.images.size(), b.images.size());
+  for (std::size_t i = 0; i < a.images.size(); ++i) {
+    EXPECT_EQ(a.images[i].name, b.images[i].name);
+    EXPECT_EQ(a.images[i].mime_type, b.images[i].mime_type);
+    EXPECT_EQ(a.images[i].bytes, b.images[i].bytes);
+  }
+  ASSERT_EQ(a.materials.size(), b.materials.size());
+  for (std::size_t m = 0; m < a.materials.size(); ++m) {
+    const core::Material& x = a.materials[m];
+    const core::Material& y = b.materials[m];
+    SCOPED_TRACE("material " + x.name);
+    EXPECT_EQ(x.name, y.name);
+    EXPECT_TRUE(matricesNear(x.base_color_factor, y.base_color_factor, 1e-12));
+    EXPECT_TRUE(matricesNear(x.emissive_factor, y.emissive_factor, 1e-12));
+    EXPECT_NEAR(x.metallic_factor, y.metallic_factor, 1e-12);
+    EXPECT_NEAR(x.roughness_factor, y.roughness_factor, 1e-12);
+    EXPECT_EQ(x.alpha_mode, y.alpha_mode);
+    EXPECT_NEAR(x.alpha_cutoff, y.alpha_cutoff, 1e-12);
+    EXPECT_EQ(x.double_sided, y.double_sided);
+    expectTextureEqual(x.base_color_texture, y.base_color_texture);
+    expectTextureEqual(x.metallic_roughness_texture, y.metallic_roughness_texture);
+    expectTextureEqual(x.normal_texture, y.normal_texture);
+    expectTextureEqual(x.occlusion_texture, y.occlusion_texture);
+    expectTextureEqual(x.emissive_texture, y.emissive_texture);
+  }
+}
+
 inline void expectRigsEqual(const core::Rig& a, const core::Rig& b, bool same_influence_sets) {
   expectMeshEqual(a, b);
   expectNodesEqual(a, b);
@@ -174,6 +213,7 @@ inline void expectRigsEqual(const core::Rig& a, const core::Rig& b, bool same_in
   expectMorphTargetsEqual(a, b);
   expectAnimationsEqual(a, b);
   expectAttributesEqual(a, b);
+  expectMaterialsEqual(a, b);
   ASSERT_EQ(a.parts.size(), b.parts.size());
   for (std::size_t p = 0; p < a.parts.size(); ++p) {
     SCOPED_TRACE("part " + a.parts[p].name);
@@ -184,6 +224,7 @@ inline void expectRigsEqual(const core::Rig& a, const core::Rig& b, bool same_in
     expectSkinEqual(pa, pb, same_influence_sets);
     expectMorphTargetsEqual(pa, pb);
     expectAttributesEqual(pa, pb);
+    EXPECT_EQ(pa.triangle_materials, pb.triangle_materials);
   }
 }
 

@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <map>
 #include <string>
 
 #include "core/io/rig_io.h"
@@ -110,15 +112,17 @@ TEST(CarryParts, AClosedPartMovesAsOneBodyAndAnOpenOneFollowsTheMap) {
   EXPECT_NEAR(out.parts[1].mesh.normals.row(4).norm(), 1.0, 1e-12);
 }
 
-TEST(CarryParts, ATransferCarriesTheRigsOtherMeshesAndWritesThemValid) {
+// The synthetic source rig with an eyeball-like box by the left eye,
+// skinned to the head joint, and a lash sheet.
+core::Rig rigWithEyeballAndLashes() {
   using namespace rigport_test::transfer;
   core::Rig rig = sourceRig().rig;
-  // An eyeball-like box by the left eye, skinned to the head joint, and a lash sheet.
   const core::Landmark* eye = nullptr;
   for (const auto& l : sourceRig().landmarks.landmarks) {
     if (l.name == "eye_L_outer" || (eye == nullptr && l.name.rfind("eye", 0) == 0)) eye = &l;
   }
-  ASSERT_NE(eye, nullptr);
+  EXPECT_NE(eye, nullptr);
+  if (eye == nullptr) return rig;
   const Eigen::Vector3d at = eye->kind == core::LandmarkKind::kVertex ? Eigen::Vector3d(rig.mesh.positions.row(eye->vertex).transpose())
                                                                       : eye->position;
   const double size = 0.01 * core::boundingBoxDiagonal(rig.mesh.positions);
@@ -136,6 +140,13 @@ TEST(CarryParts, ATransferCarriesTheRigsOtherMeshesAndWritesThemValid) {
     part->weights.setFromTriplets(w.begin(), w.end());
     rig.parts.push_back(*part);
   }
+  return rig;
+}
+
+TEST(CarryParts, ATransferCarriesTheRigsOtherMeshesAndWritesThemValid) {
+  using namespace rigport_test::transfer;
+  const core::Rig rig = rigWithEyeballAndLashes();
+  ASSERT_EQ(rig.parts.size(), 2u);
   auto prepared = core::prepareRig(rig, sourceRig().landmarks, "source");
   ASSERT_TRUE(prepared) << prepared.error().message;
   const core::SyntheticRig& target = otherHead();
@@ -161,6 +172,96 @@ TEST(CarryParts, ATransferCarriesTheRigsOtherMeshesAndWritesThemValid) {
   auto back = core::readRig(path);
   ASSERT_TRUE(back) << back.error().message;
   EXPECT_EQ(back->rig.parts.size(), 2u);
+}
+
+// A 2 x 2 PNG: the bytes of a texture are carried, never decoded.
+const std::vector<std::uint8_t> kPng = {
+    0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48, 0x44, 0x52, 0x00, 0x00, 0x00,
+    0x02, 0x00, 0x00, 0x00, 0x02, 0x08, 0x02, 0x00, 0x00, 0x00, 0xfd, 0xd4, 0x9a, 0x73, 0x00, 0x00, 0x00, 0x12, 0x49,
+    0x44, 0x41, 0x54, 0x78, 0x9c, 0x63, 0xf8, 0xcf, 0xc0, 0xc0, 0x00, 0xc2, 0x0c, 0xff, 0x41, 0x00, 0x00, 0x26, 0xe8,
+    0x06, 0xfa, 0x12, 0x40, 0x5f, 0xcc, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82};
+
+TEST(CarryParts, ATransferKeepsThePartsMaterialsAndCarriesTheFacesToTheTargetsTriangles) {
+  using namespace rigport_test::transfer;
+  core::Rig rig = rigWithEyeballAndLashes();
+  ASSERT_EQ(rig.parts.size(), 2u);
+  // Face: left and right halves in two materials, the right one textured;
+  // eyeball: a glossy material; lashes: none.
+  rig.images.push_back({"skin_albedo", "image/png", kPng});
+  core::Material left;
+  left.name = "skin_left";
+  left.base_color_factor << 0.9, 0.6, 0.5, 1.0;
+  core::Material right;
+  right.name = "skin_right";
+  right.roughness_factor = 0.4;
+  right.base_color_texture = core::TextureBinding{};
+  right.base_color_texture->image = 0;
+  core::Material eye;
+  eye.name = "eye";
+  eye.metallic_factor = 0.0;
+  rig.materials = {left, right, eye};
+  const double mid = rig.mesh.positions.col(0).mean();
+  auto side_of = [&](const core::Mesh& mesh, Eigen::Index f) {
+    double x = 0;
+    for (int k = 0; k < 3; ++k) x += mesh.positions(mesh.triangles(f, k), 0) / 3;
+    return x < mid ? 0 : 1;
+  };
+  for (Eigen::Index f = 0; f < rig.mesh.triangleCount(); ++f) rig.triangle_materials.push_back(side_of(rig.mesh, f));
+  rig.parts[0].triangle_materials.assign(static_cast<std::size_t>(rig.parts[0].mesh.triangleCount()), 2);
+
+  auto prepared = core::prepareRig(rig, sourceRig().landmarks, "source");
+  ASSERT_TRUE(prepared) << prepared.error().message;
+  const core::SyntheticRig& target = otherHead();
+  auto out = core::transferRig(*prepared, target.rig.mesh, target.landmarks, "other head");
+  ASSERT_TRUE(out) << out.error().message;
+  const core::Rig& result = out->rig;
+  EXPECT_EQ(result.parts[0].triangle_materials, rig.parts[0].triangle_materials);
+  EXPECT_TRUE(result.parts[1].triangle_materials.empty());
+  // The face: the target's triangles, each in the material of where it lies
+  // on the source (both heads are centred on x = 0 by construction).
+  ASSERT_EQ(static_cast<Eigen::Index>(result.triangle_materials.size()), result.mesh.triangleCount());
+  const double target_mid = result.mesh.positions.col(0).mean();
+  int agree = 0;
+  int off_midline = 0;
+  for (Eigen::Index f = 0; f < result.mesh.triangleCount(); ++f) {
+    double x = 0;
+    for (int k = 0; k < 3; ++k) x += result.mesh.positions(result.mesh.triangles(f, k), 0) / 3;
+    if (std::abs(x - target_mid) < 0.02 * core::boundingBoxDiagonal(result.mesh.positions)) continue;
+    ++off_midline;
+    agree += result.triangle_materials[static_cast<std::size_t>(f)] == (x < target_mid ? 0 : 1);
+  }
+  ASSERT_GT(off_midline, 100);
+  EXPECT_EQ(agree, off_midline) << "triangles away from the midline in the other side's material";
+  // The texture is laid out on the source's UVs: the face's material keeps
+  // its factors without it, and the image nothing uses any more is dropped.
+  ASSERT_EQ(result.materials.size(), 3u);
+  EXPECT_EQ(result.materials[1].name, "skin_right");
+  EXPECT_FALSE(result.materials[1].base_color_texture.has_value());
+  EXPECT_DOUBLE_EQ(result.materials[1].roughness_factor, 0.4);
+  EXPECT_TRUE(result.images.empty());
+  const bool warned = std::any_of(out->report.warnings.begin(), out->report.warnings.end(), [](const std::string& w) {
+    return w.find("skin_right") != std::string::npos && w.find("textures") != std::string::npos;
+  });
+  EXPECT_TRUE(warned);
+
+  const auto path = rigport_test::makeTempDir("carry_materials") / "with_materials.glb";
+  ASSERT_TRUE(core::writeRigGlb(result, path));
+  EXPECT_GLTF_VALID(path);
+  auto back = core::readRig(path);
+  ASSERT_TRUE(back) << back.error().message;
+  EXPECT_EQ(back->rig.mesh.vertexCount(), result.mesh.vertexCount());
+  // (grouped into a primitive per material on the way: the same counts)
+  auto counts = [](const std::vector<int>& materials) {
+    std::map<int, int> n;
+    for (const int m : materials) ++n[m];
+    return n;
+  };
+  EXPECT_EQ(counts(back->rig.triangle_materials), counts(result.triangle_materials));
+  ASSERT_EQ(back->rig.parts.size(), 2u);
+  EXPECT_EQ(back->rig.parts[0].triangle_materials, result.parts[0].triangle_materials);
+  ASSERT_EQ(back->rig.materials.size(), 3u);
+  EXPECT_EQ(back->rig.materials[2].name, "eye");
+  EXPECT_DOUBLE_EQ(back->rig.materials[2].metallic_factor, 0.0);
 }
 
 TEST(CarryParts, AWrittenPartWithWrongWeightsIsNamed) {
