@@ -14,15 +14,13 @@ Eigen::Affine3d clusterTransform(const Eigen::Vector3d& pivot, const Eigen::Vect
   return t;
 }
 
-Eigen::MatrixX3d applyCluster(const Eigen::MatrixX3d& positions, const std::vector<ClusterMember>& members,
-                              const Eigen::Affine3d& transform) {
-  Eigen::MatrixX3d out = positions;
+void applyCluster(Eigen::MatrixX3d& positions, const std::vector<ClusterMember>& members,
+                  const Eigen::Affine3d& transform) {
   for (const ClusterMember& m : members) {
     assert(m.vertex >= 0 && m.vertex < positions.rows());
     const Eigen::Vector3d p = positions.row(m.vertex).transpose();
-    out.row(m.vertex) += (m.weight * (transform * p - p)).transpose();
+    positions.row(m.vertex) += (m.weight * (transform * p - p)).transpose();
   }
-  return out;
 }
 
 Eigen::Matrix3d eulerDegreesToRotation(const Eigen::Vector3d& degrees) {

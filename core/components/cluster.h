@@ -17,10 +17,10 @@ namespace core {
 Eigen::Affine3d clusterTransform(const Eigen::Vector3d& pivot, const Eigen::Vector3d& translate,
                                  const Eigen::Matrix3d& rotation, const Eigen::Vector3d& scale);
 
-// positions: #V by 3. Each member vertex v moves to p + weight * (transform(p) - p).
-// Returns #V by 3.
-Eigen::MatrixX3d applyCluster(const Eigen::MatrixX3d& positions, const std::vector<ClusterMember>& members,
-                              const Eigen::Affine3d& transform);
+// positions: #V by 3. Each member vertex v moves to p + weight * (transform(p) - p),
+// in place.
+void applyCluster(Eigen::MatrixX3d& positions, const std::vector<ClusterMember>& members,
+                  const Eigen::Affine3d& transform);
 
 // Rotation of Euler angles in degrees applied X, then Y, then Z (fixed axes):
 // Rz * Ry * Rx.

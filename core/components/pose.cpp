@@ -245,7 +245,7 @@ void applyClusters(PoseState& s, Eigen::MatrixX3d& positions) {
     const Eigen::Affine3d own = clusterTransform(s.pivot_rest[c], translate + s.pivot_offset[c], rotation, scale);
     s.cluster_final[c] = own * s.cluster_muscles[c];
     s.pose.cluster_transforms[cluster.name] = s.cluster_final[c];
-    positions = applyCluster(positions, cluster.members, s.cluster_final[c]);
+    applyCluster(positions, cluster.members, s.cluster_final[c]);
   }
 }
 
@@ -315,8 +315,8 @@ Result<ComponentsPose> evaluatePose(const Eigen::MatrixX3d& rest_positions, cons
 
   // -> deformers: wires, then lattices
   for (const Wire& wire : doc.wires) {
-    positions = evaluateWire(positions, curves[static_cast<std::size_t>(indexByName(doc.curves, wire.base_curve))],
-                             curves[static_cast<std::size_t>(indexByName(doc.curves, wire.curve))], wire);
+    evaluateWire(positions, curves[static_cast<std::size_t>(indexByName(doc.curves, wire.base_curve))],
+                 curves[static_cast<std::size_t>(indexByName(doc.curves, wire.curve))], wire);
   }
   for (const Lattice& lattice : doc.lattices) {
     std::vector<Eigen::Vector3d> points = lattice.points.empty() ? latticeRestPoints(lattice) : lattice.points;

@@ -14,9 +14,8 @@ double wireDropoff(double x) {
   return a * a;
 }
 
-Eigen::MatrixX3d evaluateWire(const Eigen::MatrixX3d& positions, const CurveGeometry& base,
-                              const CurveGeometry& deformed, const Wire& wire) {
-  Eigen::MatrixX3d out = positions;
+void evaluateWire(Eigen::MatrixX3d& positions, const CurveGeometry& base, const CurveGeometry& deformed,
+                  const Wire& wire) {
   const CurveClosestParameter closest(base);
   auto deform = [&](Eigen::Index v) {
     const Eigen::Vector3d p = positions.row(v).transpose();
@@ -32,14 +31,16 @@ Eigen::MatrixX3d evaluateWire(const Eigen::MatrixX3d& positions, const CurveGeom
     // (a tangent of zero length carries no direction: nothing to follow).
     if (base_tangent.norm() > 1e-12 && deformed_tangent.norm() > 1e-12) {
       const Eigen::Quaterniond turn = Eigen::Quaterniond::FromTwoVectors(base_tangent, deformed_tangent);
-      const Eigen::Quaterniond partial = Eigen::Quaterniond::Identity().slerp(wire.rotation, turn);
+      // (slerp's ends exactly, without its acos and sines: the usual factors)
+      const Eigen::Quaterniond partial = wire.rotation == 1.0   ? turn
+                                         : wire.rotation == 0.0 ? Eigen::Quaterniond::Identity()
+                                                                : Eigen::Quaterniond::Identity().slerp(wire.rotation, turn);
       const double stretch = 1.0 + wire.scale * (deformed_tangent.norm() / base_tangent.norm() - 1.0);
       move += stretch * (partial * offset) - offset;
     }
-    out.row(v) += (wire.envelope * f * move).transpose();
+    positions.row(v) += (wire.envelope * f * move).transpose();
   };
   forEachMember(wire.members, positions.rows(), deform);
-  return out;
 }
 
 }  // namespace core

@@ -19,8 +19,9 @@ double wireDropoff(double x);
 //   envelope * f(d / d0) * [(deformed(u) - base(u)) + (s R (p - base(u)) - (p - base(u)))]
 // where R turns base'(u) to deformed'(u) (slerped from identity by
 // wire.rotation) and s = 1 + wire.scale * (|deformed'(u)| / |base'(u)| - 1).
-// `base` and `deformed` share degree and knots. Returns #V by 3.
-Eigen::MatrixX3d evaluateWire(const Eigen::MatrixX3d& positions, const CurveGeometry& base,
-                              const CurveGeometry& deformed, const Wire& wire);
+// `base` and `deformed` share degree and knots. In place: each member reads
+// only its own row before moving it (no copy of the mesh per wire).
+void evaluateWire(Eigen::MatrixX3d& positions, const CurveGeometry& base, const CurveGeometry& deformed,
+                  const Wire& wire);
 
 }  // namespace core

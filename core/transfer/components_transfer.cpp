@@ -2,7 +2,9 @@
 
 #include "core/transfer/components_transfer.h"
 
+#include <map>
 #include <string>
+#include <vector>
 
 #include "core/transfer/attributes.h"
 
@@ -63,42 +65,49 @@ class ComponentsMapper {
   const ClosestPointIndex* target_index_;
 };
 
-// Every member set of the document as one field of the source (#Vs by 1),
-// carried together by the attribute transfer.
+// Every member set of the document as one column of a single source field
+// (#Vs by #sets), carried by one attribute transfer: one interpolation and
+// one inpainting solve for all of them, not one per set.
 class MemberFields {
  public:
   explicit MemberFields(Eigen::Index source_vertices) : n_(source_vertices) {}
 
-  std::string add(const std::string& key, const std::vector<std::pair<int, double>>& members) {
-    Eigen::MatrixXd field = Eigen::MatrixXd::Zero(n_, 1);
-    for (const auto& [v, w] : members) field(v, 0) = w;
-    source_.fields[key] = std::move(field);
-    return key;
+  void add(const std::string& key, const std::vector<std::pair<int, double>>& members) {
+    column_[key] = static_cast<Eigen::Index>(members_.size());
+    members_.push_back(members);
   }
   void carry(const ComponentsCorrespondence& map) {
-    target_ = transferAttributes(map.source_mesh, source_, map.locations, map.target_laplacian, map.mismatched);
+    VertexAttributes source;
+    Eigen::MatrixXd field = Eigen::MatrixXd::Zero(n_, static_cast<Eigen::Index>(members_.size()));
+    for (std::size_t c = 0; c < members_.size(); ++c) {
+      for (const auto& [v, w] : members_[c]) field(v, static_cast<Eigen::Index>(c)) = w;
+    }
+    source.fields["members"] = std::move(field);
+    target_ = std::move(transferAttributes(map.source_mesh, source, map.locations, map.target_laplacian, map.mismatched)
+                            .fields.at("members"));
   }
   std::vector<ClusterMember> weighted(const std::string& key) const {
     std::vector<ClusterMember> out;
-    const Eigen::MatrixXd& f = target_.fields.at(key);
-    for (Eigen::Index v = 0; v < f.rows(); ++v) {
-      if (f(v, 0) > kMemberWeightFloor) out.push_back({static_cast<int>(v), f(v, 0)});
+    const Eigen::Index c = column_.at(key);
+    for (Eigen::Index v = 0; v < target_.rows(); ++v) {
+      if (target_(v, c) > kMemberWeightFloor) out.push_back({static_cast<int>(v), target_(v, c)});
     }
     return out;
   }
   std::vector<int> set(const std::string& key) const {
     std::vector<int> out;
-    const Eigen::MatrixXd& f = target_.fields.at(key);
-    for (Eigen::Index v = 0; v < f.rows(); ++v) {
-      if (f(v, 0) >= kSetMemberThreshold) out.push_back(static_cast<int>(v));
+    const Eigen::Index c = column_.at(key);
+    for (Eigen::Index v = 0; v < target_.rows(); ++v) {
+      if (target_(v, c) >= kSetMemberThreshold) out.push_back(static_cast<int>(v));
     }
     return out;
   }
 
  private:
   Eigen::Index n_;
-  VertexAttributes source_;
-  VertexAttributes target_;
+  std::vector<std::vector<std::pair<int, double>>> members_;
+  std::map<std::string, Eigen::Index> column_;
+  Eigen::MatrixXd target_;  // #Vt by #sets
 };
 
 std::vector<std::pair<int, double>> asWeighted(const std::vector<int>& set) {

@@ -14,7 +14,8 @@ TEST(Cluster, TransformsAboutThePivotByMemberWeight) {
   points << 2, 0, 0,  // pivot + x: scaled to 2x, turned to +y, lifted
       1, 0, 0,        // the pivot itself: only translated
       0, 5, 0;        // not a member
-  const Eigen::MatrixX3d out = core::applyCluster(points, {{0, 1.0}, {1, 0.5}}, t);
+  Eigen::MatrixX3d out = points;
+  core::applyCluster(out, {{0, 1.0}, {1, 0.5}}, t);
   EXPECT_LT((out.row(0) - Eigen::RowVector3d(1.0, 2.0, 0.5)).norm(), 1e-12);
   EXPECT_LT((out.row(1) - Eigen::RowVector3d(1.0, 0.0, 0.25)).norm(), 1e-12);  // half the motion
   EXPECT_EQ(out.row(2), points.row(2));

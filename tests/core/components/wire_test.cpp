@@ -41,7 +41,8 @@ TEST(Wire, PointOnTheCurveMovesByTheCurveOffset) {
   deformed.points.col(1) += Eigen::Vector4d(0.0, 0.3, 0.3, 0.0);  // middle raised in y
   Eigen::MatrixX3d points(1, 3);
   points << 0.2, 0.0, 0.0;
-  const Eigen::MatrixX3d out = core::evaluateWire(points, base, deformed, plainWire(0.5));
+  Eigen::MatrixX3d out = points;
+  core::evaluateWire(out, base, deformed, plainWire(0.5));
   // u = 0.6 on the base (x = 2u - 1); the offset there is deformed(u) - base(u).
   const Eigen::Vector3d offset = core::curvePoint(deformed, 0.6) - core::curvePoint(base, 0.6);
   EXPECT_GT(offset.norm(), 0.1);
@@ -57,7 +58,8 @@ TEST(Wire, InfluenceFallsOffAndStopsAtTheDropoffDistance) {
       0.0, 0.5, 0.0,         // d = d0
       0.0, 0.7, 0.0,         // beyond
       0.3, 0.0, 0.4;         // d = d0 * 0.8 in z
-  const Eigen::MatrixX3d out = core::evaluateWire(points, base, deformed, plainWire(0.5));
+  Eigen::MatrixX3d out = points;
+  core::evaluateWire(out, base, deformed, plainWire(0.5));
   EXPECT_NEAR(out(0, 2), 0.1 * 0.5625, 1e-12);
   EXPECT_EQ(out.row(1), points.row(1));
   EXPECT_EQ(out.row(2), points.row(2));
@@ -75,7 +77,8 @@ TEST(Wire, EnvelopeScalesAndMembersRestrict) {
   core::Wire w = plainWire(0.5);
   w.envelope = 0.5;
   w.members = {1};
-  const Eigen::MatrixX3d out = core::evaluateWire(points, base, deformed, w);
+  Eigen::MatrixX3d out = points;
+  core::evaluateWire(out, base, deformed, w);
   EXPECT_EQ(out.row(0), points.row(0));
   EXPECT_NEAR(out(1, 2), 0.05, 1e-12);
 }
@@ -92,11 +95,13 @@ TEST(Wire, RotationTurnsTheOffsetWithTheCurve) {
   core::Wire w = plainWire(1.0);
   w.rotation = 1.0;
   const double f = core::wireDropoff(0.1);
-  const Eigen::MatrixX3d out = core::evaluateWire(points_y, base, deformed, w);
+  Eigen::MatrixX3d out = points_y;
+  core::evaluateWire(out, base, deformed, w);
   // move = f * ((curve offset 0) + (R r - r)), R r = (-0.1, 0, 0)
   EXPECT_NEAR(out(0, 0), f * -0.1, 1e-9);
   EXPECT_NEAR(out(0, 1), 0.1 + f * -0.1, 1e-9);
-  const Eigen::MatrixX3d out_z = core::evaluateWire(points, base, deformed, w);
+  Eigen::MatrixX3d out_z = points;
+  core::evaluateWire(out_z, base, deformed, w);
   EXPECT_LT((out_z - points).norm(), 1e-9);
 }
 
