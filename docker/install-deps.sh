@@ -14,6 +14,7 @@ PACKAGES=(
   openssl   # self-signed certificates for the TLS tests and RIGPORT_BENCH_TLS
   libtinyobjloader-dev libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev   # libFuzzer (scripts/fuzz.sh)
+  postgresql libpq-dev   # PostgreSQL server for the tests (scripts/postgres.sh), libpq client library
 )
 # Node.js and npm run the glTF validator; any install that provides the commands
 # will do (some images ship a nodejs build that bundles npm and conflicts with

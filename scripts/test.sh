@@ -2,7 +2,9 @@
 # Installs dependencies, builds and runs the whole test suite with CTest.
 #   bash scripts/test.sh              release build in build/release
 #   bash scripts/test.sh --sanitize   debug build with ASan + UBSan in build/asan
-# Tests that need ../shared/data skip with a message when it is absent.
+# Tests that need ../shared/data skip with a message when it is absent. The
+# PostgreSQL store's tests run against a temporary cluster started here
+# (scripts/postgres.sh), or the server RIGPORT_TEST_POSTGRES_URL names.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -11,6 +13,32 @@ MODE=release
 if [ "${1:-}" = "--sanitize" ]; then MODE=asan; fi
 
 bash docker/install-deps.sh
+
+# The tests that need PostgreSQL connect to RIGPORT_TEST_POSTGRES_URL: a server
+# the caller names, or else a temporary cluster (scripts/postgres.sh) for this
+# run only, stopped and removed on exit whatever the tests' outcome (its
+# directory is kept when the run fails, for its postgres.log).
+PG_DIR=""
+stop_postgres() {
+  local rc=$?
+  if [ -n "$PG_DIR" ]; then
+    bash scripts/postgres.sh stop "$PG_DIR" || true
+    if [ "$rc" -eq 0 ]; then rm -rf "$PG_DIR"; else echo "test.sh: PostgreSQL log kept in $PG_DIR/postgres.log" >&2; fi
+  fi
+  exit "$rc"
+}
+start_postgres() {
+  if [ -n "${RIGPORT_TEST_POSTGRES_URL:-}" ]; then return; fi
+  # Under /tmp, where the postgres user can reach it, one per run: the release
+  # and sanitize runs never share one.
+  PG_DIR="$(mktemp -d "/tmp/rigport-pg-$MODE.XXXXXX")"
+  trap stop_postgres EXIT
+  trap 'exit 130' INT
+  trap 'exit 143' TERM
+  RIGPORT_TEST_POSTGRES_URL="$(bash scripts/postgres.sh start "$PG_DIR")"
+  export RIGPORT_TEST_POSTGRES_URL
+  echo "test.sh: PostgreSQL for the tests at $RIGPORT_TEST_POSTGRES_URL"
+}
 
 JOBS="$(nproc 2>/dev/null || echo 2)"
 if [ "$MODE" = asan ]; then
@@ -23,9 +51,11 @@ if [ "$MODE" = asan ]; then
   cmake --build build/asan -j "$JOBS"
   export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1"
   export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
+  start_postgres
   ctest --test-dir build/asan --output-on-failure -j "$JOBS"
 else
   cmake -S . -B build/release -G Ninja -DCMAKE_BUILD_TYPE=Release -DRIGPORT_WERROR=ON
   cmake --build build/release -j "$JOBS"
+  start_postgres
   ctest --test-dir build/release --output-on-failure -j "$JOBS"
 fi

@@ -13,6 +13,9 @@ struct ServerConfig {
   std::string host = "127.0.0.1";
   int port = 8080;                       // 0 = any free port (tests)
   std::filesystem::path data_dir = "rigport-data";  // SQLite file, blobs, upload spool
+  // Where the metadata lives: empty = the embedded SQLite file in data_dir; a
+  // postgresql:// URL = a database replicas share (server/store.h).
+  std::string store;
   int workers = 0;                       // job worker threads; 0 = hardware threads
   int threads_per_job = 1;               // core threads inside one job (parallelism is across jobs)
   std::size_t cache_bytes = 512ull << 20;  // prepared rigs (3/4) + marker distances (1/4), bytes

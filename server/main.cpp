@@ -27,6 +27,9 @@ int main(int argc, char** argv) {
   bool no_auth = false;
   app.add_option("--listen", listen, "host:port to listen on (port 0 = any free port)")->capture_default_str();
   app.add_option("--data-dir", config.data_dir, "Store directory (SQLite + blobs)")->required();
+  app.add_option("--store", config.store,
+                 "Metadata store: a postgresql://user@host:port/db URL (replicas sharing one database); "
+                 "default: the embedded SQLite file in --data-dir");
   app.add_option("--tls-cert", config.tls_certificate_file, "Serve HTTPS: certificate chain (PEM), with --tls-key")
       ->check(CLI::ExistingFile);
   app.add_option("--tls-key", config.tls_private_key_file, "Private key (PEM) of --tls-cert")->check(CLI::ExistingFile);

@@ -43,7 +43,7 @@ core::Result<std::unique_ptr<Service>> Service::create(const ServerConfig& confi
     if (!loaded) return loaded.error();
     tls = std::move(*loaded);
   }
-  auto store = MetadataStore::open(config.data_dir / "rigport.sqlite");
+  auto store = MetadataStore::open(config.store.empty() ? (config.data_dir / "rigport.sqlite").string() : config.store);
   if (!store) return store.error();
   return std::unique_ptr<Service>(
       new Service(config, std::move(keys), std::move(*store), std::move(tls), JsonLog(std::move(logger))));

@@ -1,8 +1,8 @@
-// The durable embedded store (default backend): metadata in SQLite (WAL,
-// synchronous=FULL), blobs as content-addressed files. A blob is written to a
+// The durable store: metadata in SQLite (WAL, synchronous=FULL; the default)
+// or PostgreSQL (replicas), blobs as content-addressed files. A blob is written to a
 // temporary name, fsynced, renamed to its sha256 and the directory fsynced, so
 // a crash leaves either no blob or a whole one; rows reference blobs only after
-// the blob is durable. Thread-safe (one connection behind a mutex).
+// the blob is durable. Thread-safe.
 #pragma once
 
 #include <cstdint>
@@ -93,42 +93,57 @@ struct JobListQuery {
   int limit = 50;
 };
 
+// Rigs, jobs and their inputs: the metadata half of the store. Two
+// implementations, chosen at start by where the metadata lives (open): the
+// embedded SQLite database (one machine, the default) and PostgreSQL
+// (replicas sharing one database). Both keep the same contract, below, and
+// run the same tests (tests/server/metadata_store_test.cpp). Thread-safe.
 class MetadataStore {
  public:
-  // Opens or creates <file> (WAL, synchronous=FULL, foreign keys, schema
-  // version checked); errors name the file. A store of an older schema is
-  // upgraded in place, in one transaction (schema 1 -> 2: rigs gain their
-  // region labels, unknown for the rigs already stored; 2 -> 3: the storage
-  // probe's row; 3 -> 4: fit jobs; 4 -> 5: jobs' components results); a newer
-  // one is refused.
-  static core::Result<std::unique_ptr<MetadataStore>> open(const std::filesystem::path& file);
-  // Where the read functions (which return empty results on a SQLite error)
+  // `location`: a postgresql:// (or postgres://) connection URL, else a file
+  // for the embedded store (created with its directory when absent).
+  //
+  // SQLite: WAL, synchronous=FULL, foreign keys, schema version checked;
+  // errors name the file. PostgreSQL: one connection, re-established after
+  // the server went away; errors name the host and database, never the
+  // password. Either way a store of an older schema is upgraded in place, in
+  // one transaction (PostgreSQL: under an advisory lock, so replicas starting
+  // together do not race; schema 1 -> 2: rigs gain their region labels,
+  // unknown for the rigs already stored; 2 -> 3: the storage probe's row;
+  // 3 -> 4: fit jobs; 4 -> 5: jobs' components results); a newer one is refused.
+  static core::Result<std::unique_ptr<MetadataStore>> open(const std::string& location);
+  static core::Result<std::unique_ptr<MetadataStore>> open(const std::filesystem::path& file) {
+    return open(file.string());
+  }
+  virtual ~MetadataStore() = default;
+  // Where the read functions (which return empty results on a database error)
   // report the error: the server passes its structured log. Default: dropped.
   void setErrorReporter(std::function<void(const std::string&)> report);
-  ~MetadataStore();
+  // "sqlite" or "postgresql" (logs, /metrics).
+  virtual const char* backend() const = 0;
 
   // Reads (getRig, listRigs, getJob, listJobs, unfinishedJobs, countJobsByStatus)
-  // pass a SQLite failure to the error reporter and answer empty. Tenant "" is an ordinary tenant.
+  // pass a database failure to the error reporter and answer empty. Tenant "" is an ordinary tenant.
 
   // Inserts or, when (tenant, id) exists, returns the existing record and false.
   // An empty info.created_at is set to now (RFC 3339 UTC, milliseconds:
   // "2026-01-31T12:34:56.789Z"); listRigs orders by created_at, then id.
-  core::Result<std::pair<RigRecord, bool>> insertRig(const RigRecord& rig);
-  std::optional<RigRecord> getRig(const std::string& tenant, const std::string& id);
-  std::vector<RigRecord> listRigs(const std::string& tenant);
-  bool deleteRig(const std::string& tenant, const std::string& id);  // false when absent
+  virtual core::Result<std::pair<RigRecord, bool>> insertRig(const RigRecord& rig) = 0;
+  virtual std::optional<RigRecord> getRig(const std::string& tenant, const std::string& id) = 0;
+  virtual std::vector<RigRecord> listRigs(const std::string& tenant) = 0;
+  virtual bool deleteRig(const std::string& tenant, const std::string& id) = 0;  // false when absent
 
   // Inserts a queued job. When idempotency_key is set and (tenant, key) exists,
   // returns that job and false instead.
   // The record is stored as given, except created_ms 0 = now; the returned
   // record carries the assigned sequence. A duplicate id is kInvalidArgument.
-  core::Result<std::pair<JobRecord, bool>> insertJob(const JobRecord& job);
-  std::optional<JobRecord> getJob(const std::string& tenant, const std::string& id);
-  std::vector<JobRecord> listJobs(const JobListQuery& query);
+  virtual core::Result<std::pair<JobRecord, bool>> insertJob(const JobRecord& job) = 0;
+  virtual std::optional<JobRecord> getJob(const std::string& tenant, const std::string& id) = 0;
+  virtual std::vector<JobRecord> listJobs(const JobListQuery& query) = 0;
   // Queued or running jobs, oldest first (recovery after a restart).
-  std::vector<JobRecord> unfinishedJobs();
+  virtual std::vector<JobRecord> unfinishedJobs() = 0;
   // Transitions (durable). markRunning increments attempts.
-  // Each is one fsynced transaction, guarded by the current status; a refused
+  // Each is one durable transaction, guarded by the current status; a refused
   // transition (unknown job, or wrong status) is an Error kInvalidArgument and
   // changes nothing:
   //   markRunning:  queued -> running only (a job cancelled while queued is not started).
@@ -136,32 +151,42 @@ class MetadataStore {
   //                 overwritten (a late success cannot replace a cancel). job.status must be
   //                 final; an empty job.stage keeps the stored stage; finished_ms 0 = now.
   //   requeue:      running|queued -> queued (a final job is refused).
-  core::Status markRunning(const std::string& id, std::int64_t started_ms, bool cache_hit);
-  core::Status markFinished(const JobRecord& job);  // status, stage, error_json, result/diagnostics blobs, timings, cache_hit, finished_ms
-  core::Status requeue(const std::string& id);       // running -> queued (restart)
+  virtual core::Status markRunning(const std::string& id, std::int64_t started_ms, bool cache_hit) = 0;
+  // status, stage, error_json, result/diagnostics/components blobs, timings, cache_hit, finished_ms
+  virtual core::Status markFinished(const JobRecord& job) = 0;
+  virtual core::Status requeue(const std::string& id) = 0;  // running -> queued (restart)
   // Deletes a final job of the tenant (its input rows go with it); false when
   // the tenant has no such job or it is still queued or running. Its blobs are
   // the caller's to collect (blobReferenced), under the collection lock.
-  core::Result<bool> deleteFinishedJob(const std::string& tenant, const std::string& id);
+  virtual core::Result<bool> deleteFinishedJob(const std::string& tenant, const std::string& id) = 0;
   // (tenant, id) of final jobs that finished before `finished_before_ms`,
   // oldest first, at most `limit` (the retention sweep).
-  std::vector<std::pair<std::string, std::string>> finishedJobsBefore(std::int64_t finished_before_ms, int limit);
-  std::map<api::JobStatus, std::int64_t> countJobsByStatus();
+  virtual std::vector<std::pair<std::string, std::string>> finishedJobsBefore(std::int64_t finished_before_ms,
+                                                                              int limit) = 0;
+  virtual std::map<api::JobStatus, std::int64_t> countJobsByStatus() = 0;
   // One durable write transaction: whether the database takes writes now
   // (StorageHealth).
-  core::Status probeWrite();
+  virtual core::Status probeWrite() = 0;
   // Blob hashes referenced by any rig or job row (for garbage collection).
   // Answers true when the database cannot be read (never lets GC delete blindly).
-  bool blobReferenced(const std::string& hash);
+  virtual bool blobReferenced(const std::string& hash) = 0;
+
+ protected:
+  // The value of a read, or `fallback` with the error passed to the reporter.
+  template <typename T>
+  T valueOr(core::Result<T> result, T fallback) {
+    if (result) return std::move(*result);
+    std::function<void(const std::string&)> report;
+    {
+      std::lock_guard lock(reporter_mutex_);
+      report = report_error_;
+    }
+    if (report) report(result.error().message);
+    return fallback;
+  }
 
  private:
-  struct Connection;
-  explicit MetadataStore(std::unique_ptr<Connection> connection);
-  // The value of a read, or `fallback` with the error passed to report_error_.
-  template <typename T>
-  T valueOr(core::Result<T> result, T fallback);
-  std::unique_ptr<Connection> connection_;
-  std::mutex mutex_;
+  std::mutex reporter_mutex_;
   std::function<void(const std::string&)> report_error_;
 };
 

@@ -131,10 +131,32 @@ TEST(MetadataStore, OpenReportsUnopenableFileWithItsPath) {
 }
 
 // ---------------------------------------------------------------------------
+// The contract both implementations keep (server/store.h), each test on a
+// store of its own: a new SQLite file, or a new schema in the test PostgreSQL.
+
+enum class Backend { kSqlite, kPostgres };
+
+class MetadataStoreContract : public ::testing::TestWithParam<Backend> {
+ protected:
+  void SetUp() override {
+    if (GetParam() == Backend::kPostgres && testPostgresUrl().empty()) GTEST_SKIP() << kNoPostgres;
+  }
+  std::string freshLocation() const {
+    const std::string name = ::testing::UnitTest::GetInstance()->current_test_info()->name();
+    if (GetParam() == Backend::kPostgres) return freshPostgresLocation(name);
+    return (rigport_test::makeTempDir("contract") / "meta.db").string();
+  }
+  std::unique_ptr<MetadataStore> open() const { return openStore(freshLocation()); }
+};
+
+INSTANTIATE_TEST_SUITE_P(Backends, MetadataStoreContract, ::testing::Values(Backend::kSqlite, Backend::kPostgres),
+                         [](const auto& backend) { return backend.param == Backend::kSqlite ? "Sqlite" : "Postgres"; });
+
+// ---------------------------------------------------------------------------
 // Metadata: rigs
 
-TEST(MetadataStore, InsertRigIsIdempotentOnTenantAndId) {
-  auto store = openStore(rigport_test::makeTempDir("rigs") / "meta.db");
+TEST_P(MetadataStoreContract, InsertRigIsIdempotentOnTenantAndId) {
+  auto store = open();
   ASSERT_TRUE(store);
   auto first = store->insertRig(makeRig("acme", "rig1", "first.glb"));
   ASSERT_TRUE(first.ok()) << first.error().message;
@@ -164,8 +186,8 @@ TEST(MetadataStore, InsertRigIsIdempotentOnTenantAndId) {
   EXPECT_EQ(got->components_blob, expected.components_blob);
 }
 
-TEST(MetadataStore, RigsAreIsolatedPerTenant) {
-  auto store = openStore(rigport_test::makeTempDir("rigs") / "meta.db");
+TEST_P(MetadataStoreContract, RigsAreIsolatedPerTenant) {
+  auto store = open();
   ASSERT_TRUE(store);
   ASSERT_TRUE(store->insertRig(makeRig("acme", "rig1", "acme.glb")).ok());
   auto other = store->insertRig(makeRig("globex", "rig1", "globex.glb"));
@@ -189,8 +211,8 @@ TEST(MetadataStore, RigsAreIsolatedPerTenant) {
   EXPECT_TRUE(store->getRig("globex", "rig1"));
 }
 
-TEST(MetadataStore, TenantAndIdValuesAreBoundNotSpliced) {
-  auto store = openStore(rigport_test::makeTempDir("inject") / "meta.db");
+TEST_P(MetadataStoreContract, TenantAndIdValuesAreBoundNotSpliced) {
+  auto store = open();
   ASSERT_TRUE(store);
   const std::string evil = "x' OR '1'='1";
   ASSERT_TRUE(store->insertRig(makeRig("acme", "rig1")).ok());
@@ -204,8 +226,8 @@ TEST(MetadataStore, TenantAndIdValuesAreBoundNotSpliced) {
 // ---------------------------------------------------------------------------
 // Metadata: jobs
 
-TEST(MetadataStore, InsertJobHonoursIdempotencyKeyPerTenant) {
-  auto store = openStore(rigport_test::makeTempDir("jobs") / "meta.db");
+TEST_P(MetadataStoreContract, InsertJobHonoursIdempotencyKeyPerTenant) {
+  auto store = open();
   ASSERT_TRUE(store);
   auto first = store->insertJob(makeJob("acme", "job1", "key-1"));
   ASSERT_TRUE(first.ok()) << first.error().message;
@@ -250,8 +272,8 @@ TEST(MetadataStore, InsertJobHonoursIdempotencyKeyPerTenant) {
   EXPECT_FALSE(store->getJob("globex", "job1")) << "another tenant's job was visible";
 }
 
-TEST(MetadataStore, ListJobsPagesBySequenceAndFiltersByStatus) {
-  auto store = openStore(rigport_test::makeTempDir("list") / "meta.db");
+TEST_P(MetadataStoreContract, ListJobsPagesBySequenceAndFiltersByStatus) {
+  auto store = open();
   ASSERT_TRUE(store);
   for (int i = 0; i < 5; ++i) {
     ASSERT_TRUE(store->insertJob(makeJob("acme", "a" + std::to_string(i))).ok());
@@ -293,8 +315,8 @@ TEST(MetadataStore, ListJobsPagesBySequenceAndFiltersByStatus) {
   EXPECT_TRUE(store->listJobs(succeeded).empty());
 }
 
-TEST(MetadataStore, TransitionsCountAttemptsAndRefuseToOverwriteFinalJobs) {
-  auto store = openStore(rigport_test::makeTempDir("transitions") / "meta.db");
+TEST_P(MetadataStoreContract, TransitionsCountAttemptsAndRefuseToOverwriteFinalJobs) {
+  auto store = open();
   ASSERT_TRUE(store);
   ASSERT_TRUE(store->insertJob(makeJob("acme", "job1")).ok());
 
@@ -354,10 +376,10 @@ TEST(MetadataStore, TransitionsCountAttemptsAndRefuseToOverwriteFinalJobs) {
   EXPECT_FALSE(store->requeue("nope").ok());
 }
 
-TEST(MetadataStore, DataSurvivesReopenAndUnfinishedJobsAreRecovered) {
-  const fs::path file = rigport_test::makeTempDir("reopen") / "meta.db";
+TEST_P(MetadataStoreContract, DataSurvivesReopenAndUnfinishedJobsAreRecovered) {
+  const std::string location = freshLocation();
   {
-    auto store = openStore(file);
+    auto store = openStore(location);
     ASSERT_TRUE(store);
     ASSERT_TRUE(store->insertRig(makeRig("acme", "rig1")).ok());
     for (const char* id : {"j1", "j2", "j3", "j4"}) ASSERT_TRUE(store->insertJob(makeJob("acme", id, id)).ok());
@@ -365,7 +387,7 @@ TEST(MetadataStore, DataSurvivesReopenAndUnfinishedJobsAreRecovered) {
     ASSERT_TRUE(store->markRunning("j3", 5, false).ok());
     ASSERT_TRUE(store->markFinished(finished(makeJob("acme", "j3"), JobStatus::kFailed)).ok());
   }
-  auto store = openStore(file);
+  auto store = openStore(location);
   ASSERT_TRUE(store);
   EXPECT_TRUE(store->getRig("acme", "rig1"));
   auto unfinished = store->unfinishedJobs();
@@ -394,8 +416,8 @@ TEST(MetadataStore, DataSurvivesReopenAndUnfinishedJobsAreRecovered) {
   EXPECT_GT(fresh->first.sequence, store->getJob("acme", "j4")->sequence);
 }
 
-TEST(MetadataStore, CountJobsByStatusCoversAllStatuses) {
-  auto store = openStore(rigport_test::makeTempDir("count") / "meta.db");
+TEST_P(MetadataStoreContract, CountJobsByStatusCoversAllStatuses) {
+  auto store = open();
   ASSERT_TRUE(store);
   auto empty = store->countJobsByStatus();
   EXPECT_EQ(empty.size(), 5u);
@@ -416,8 +438,8 @@ TEST(MetadataStore, CountJobsByStatusCoversAllStatuses) {
   EXPECT_EQ(counts[JobStatus::kCancelled], 1);
 }
 
-TEST(MetadataStore, BlobReferencedSeesEveryReferencingColumn) {
-  auto store = openStore(rigport_test::makeTempDir("refs") / "meta.db");
+TEST_P(MetadataStoreContract, BlobReferencedSeesEveryReferencingColumn) {
+  auto store = open();
   ASSERT_TRUE(store);
   const auto h = [](char c) { return std::string(64, c); };
   RigRecord rig = makeRig("acme", "rig1");  // a, b, c
@@ -442,8 +464,8 @@ TEST(MetadataStore, BlobReferencedSeesEveryReferencingColumn) {
   EXPECT_TRUE(store->blobReferenced(h('a'))) << "still referenced by rig2";
 }
 
-TEST(MetadataStore, DeleteFinishedJobTakesOnlyTheTenantsFinalJobAndItsInputRows) {
-  auto store = openStore(rigport_test::makeTempDir("delete_job") / "meta.db");
+TEST_P(MetadataStoreContract, DeleteFinishedJobTakesOnlyTheTenantsFinalJobAndItsInputRows) {
+  auto store = open();
   ASSERT_TRUE(store);
   const auto h = [](char c) { return std::string(64, c); };
   JobRecord job = makeJob("acme", "job1");  // inputs d, e
@@ -476,8 +498,8 @@ TEST(MetadataStore, DeleteFinishedJobTakesOnlyTheTenantsFinalJobAndItsInputRows)
   EXPECT_TRUE(idsOf(store->listJobs(JobListQuery{"acme", {}, 0, 50})).empty());
 }
 
-TEST(MetadataStore, FinishedJobsBeforeListsExpiredFinalJobsOldestFirst) {
-  auto store = openStore(rigport_test::makeTempDir("expired") / "meta.db");
+TEST_P(MetadataStoreContract, FinishedJobsBeforeListsExpiredFinalJobsOldestFirst) {
+  auto store = open();
   ASSERT_TRUE(store);
   const std::vector<std::pair<std::string, std::int64_t>> finishing = {{"late", 3000}, {"early", 1000}, {"middle", 2000}};
   for (const auto& [id, at] : finishing) {
@@ -496,8 +518,8 @@ TEST(MetadataStore, FinishedJobsBeforeListsExpiredFinalJobsOldestFirst) {
   EXPECT_EQ(store->finishedJobsBefore(1'000'000, 10).size(), 3u);
 }
 
-TEST(MetadataStore, ConcurrentWritersAllLand) {
-  auto store = openStore(rigport_test::makeTempDir("threads") / "meta.db");
+TEST_P(MetadataStoreContract, ConcurrentWritersAllLand) {
+  auto store = open();
   ASSERT_TRUE(store);
   constexpr int kThreads = 4, kPerThread = 10;
   std::vector<std::thread> threads;
@@ -517,6 +539,119 @@ TEST(MetadataStore, ConcurrentWritersAllLand) {
   // Ten distinct idempotency keys: exactly ten jobs, whichever thread won each key.
   EXPECT_EQ(store->countJobsByStatus()[JobStatus::kQueued], kPerThread);
   EXPECT_EQ(store->listRigs("acme").size(), static_cast<std::size_t>(kThreads * kPerThread));
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+// PostgreSQL only: schema under the advisory lock, replicas sharing one
+// database, a connection lost and found, errors that name the server.
+
+namespace {
+
+class PostgresStore : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (testPostgresUrl().empty()) GTEST_SKIP() << kNoPostgres;
+  }
+  std::string freshLocation() const {
+    return freshPostgresLocation(::testing::UnitTest::GetInstance()->current_test_info()->name());
+  }
+};
+
+TEST_F(PostgresStore, ReplicasStartingTogetherCreateTheSchemaOnce) {
+  const std::string location = freshLocation();
+  constexpr int kReplicas = 8;
+  std::vector<std::unique_ptr<MetadataStore>> stores(kReplicas);
+  std::vector<std::string> errors(kReplicas);
+  std::vector<std::thread> threads;
+  for (int r = 0; r < kReplicas; ++r) {
+    threads.emplace_back([&, r] {
+      auto opened = MetadataStore::open(location);
+      if (opened) {
+        stores[static_cast<std::size_t>(r)] = std::move(*opened);
+      } else {
+        errors[static_cast<std::size_t>(r)] = opened.error().message;
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  for (int r = 0; r < kReplicas; ++r) {
+    ASSERT_TRUE(stores[static_cast<std::size_t>(r)]) << "replica " << r << ": " << errors[static_cast<std::size_t>(r)];
+    EXPECT_STREQ(stores[static_cast<std::size_t>(r)]->backend(), "postgresql");
+  }
+  ASSERT_TRUE(stores[0]->insertRig(makeRig("acme", "rig1")).ok());
+  EXPECT_TRUE(stores[kReplicas - 1]->getRig("acme", "rig1")) << "the replicas do not share one database";
+}
+
+TEST_F(PostgresStore, ReplicasShareJobsAndOneIdempotencyKeyMakesOneJob) {
+  const std::string location = freshLocation();
+  auto a = openStore(location);
+  auto b = openStore(location);
+  ASSERT_TRUE(a && b);
+  // The same key submitted through both replicas at once, many times.
+  constexpr int kKeys = 20;
+  std::atomic<int> failures{0};
+  std::vector<std::thread> threads;
+  for (MetadataStore* store : {a.get(), b.get()}) {
+    threads.emplace_back([&, store] {
+      for (int k = 0; k < kKeys; ++k) {
+        const std::string id = std::string(store == a.get() ? "a" : "b") + std::to_string(k);
+        if (!store->insertJob(makeJob("acme", id, "key-" + std::to_string(k))).ok()) ++failures;
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(failures.load(), 0);
+  EXPECT_EQ(a->countJobsByStatus()[JobStatus::kQueued], kKeys);
+  // A job one replica stored, the other runs and finishes; a late finish from
+  // the first is refused.
+  const auto listed = a->listJobs(JobListQuery{"acme", std::nullopt, 0, 1});
+  ASSERT_EQ(listed.size(), 1u);
+  const std::string id = listed.front().id;
+  ASSERT_TRUE(b->markRunning(id, 1, false).ok());
+  ASSERT_TRUE(b->markFinished(finished(listed.front(), JobStatus::kSucceeded)).ok());
+  auto late = a->markFinished(finished(listed.front(), JobStatus::kFailed));
+  ASSERT_FALSE(late.ok());
+  EXPECT_NE(late.error().message.find("succeeded"), std::string::npos) << late.error().message;
+  EXPECT_EQ(a->getJob("acme", id)->status, JobStatus::kSucceeded);
+}
+
+TEST_F(PostgresStore, AConnectionTheServerDroppedIsMadeAgain) {
+  const std::string schema_location = freshLocation();
+  const std::string application = "rigport_drop_" + std::to_string(::getpid());
+  const std::string location = schema_location + "&application_name=" + application;
+  auto store = openStore(location);
+  ASSERT_TRUE(store);
+  ASSERT_TRUE(store->insertRig(makeRig("acme", "rig1")).ok());
+  runPostgres(testPostgresUrl(),
+              "SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE application_name = '" + application + "'");
+  // The call that finds the connection gone fails (whether it wrote is not
+  // known to it, so it is not retried blindly); the next one reconnects.
+  int failed = 0;
+  while (!store->probeWrite().ok() && failed < 3) ++failed;
+  EXPECT_LE(failed, 1);
+  EXPECT_TRUE(store->getRig("acme", "rig1"));
+}
+
+TEST_F(PostgresStore, ANewerSchemaIsRefusedNamingTheDatabase) {
+  const std::string location = freshLocation();
+  ASSERT_TRUE(openStore(location));
+  runPostgres(location, "UPDATE rigport_schema SET version = 99");
+  auto store = MetadataStore::open(location);
+  ASSERT_FALSE(store.ok());
+  EXPECT_EQ(store.error().code, core::ErrorCode::kUnsupported);
+  EXPECT_NE(store.error().message.find("99"), std::string::npos) << store.error().message;
+  EXPECT_NE(store.error().message.find("/rigport_test"), std::string::npos) << store.error().message;
+}
+
+TEST(PostgresStoreOpen, AnUnreachableServerIsAnErrorNamingItButNotThePassword) {
+  // Port 1 on loopback: nothing listens there.
+  auto store = MetadataStore::open(std::string("postgresql://rigport:s3cret@127.0.0.1:1/studio?connect_timeout=2"));
+  ASSERT_FALSE(store.ok());
+  EXPECT_EQ(store.error().code, core::ErrorCode::kIo);
+  EXPECT_NE(store.error().message.find("127.0.0.1:1/studio"), std::string::npos) << store.error().message;
+  EXPECT_EQ(store.error().message.find("s3cret"), std::string::npos) << store.error().message;
 }
 
 }  // namespace

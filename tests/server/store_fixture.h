@@ -4,7 +4,10 @@
 // records as the service writes them.
 #pragma once
 
+#include <atomic>
+#include <cctype>
 #include <cstdint>
+#include <cstdlib>
 #include <filesystem>
 #include <memory>
 #include <random>
@@ -13,6 +16,8 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <libpq-fe.h>
+#include <unistd.h>
 
 #include "server/store.h"
 
@@ -26,10 +31,54 @@ inline std::vector<std::uint8_t> randomBytes(std::size_t n, std::mt19937& rng) {
   return out;
 }
 
-inline std::unique_ptr<server::MetadataStore> openStore(const std::filesystem::path& file) {
-  auto store = server::MetadataStore::open(file);
+// `location`: a file (the embedded store) or a postgresql:// URL.
+inline std::unique_ptr<server::MetadataStore> openStore(const std::string& location) {
+  auto store = server::MetadataStore::open(location);
   EXPECT_TRUE(store.ok()) << (store.ok() ? "" : store.error().message);
   return store.ok() ? std::move(*store) : nullptr;
+}
+inline std::unique_ptr<server::MetadataStore> openStore(const std::filesystem::path& file) {
+  return openStore(file.string());
+}
+
+// The PostgreSQL server the tests use (scripts/test.sh starts one and sets
+// RIGPORT_TEST_POSTGRES_URL); empty when none was given.
+inline std::string testPostgresUrl() {
+  const char* url = std::getenv("RIGPORT_TEST_POSTGRES_URL");
+  return url ? url : "";
+}
+
+inline const char* kNoPostgres =
+    "RIGPORT_TEST_POSTGRES_URL is not set: no PostgreSQL to test against (scripts/test.sh starts a temporary "
+    "one; by hand: bash scripts/postgres.sh start DIR)";
+
+// A store location of its own in the test PostgreSQL: a new schema, named
+// after `name` and made unique, as the connection's search_path. Tests run in
+// parallel processes against one server without seeing each other's rows.
+inline std::string freshPostgresLocation(const std::string& name) {
+  static std::atomic<int> counter{0};
+  std::string schema = "t_";
+  for (const char c : name) schema += std::isalnum(static_cast<unsigned char>(c)) ? static_cast<char>(std::tolower(c)) : '_';
+  schema = schema.substr(0, 40) + "_" + std::to_string(::getpid()) + "_" + std::to_string(counter++);
+  const std::string base = testPostgresUrl();
+  PGconn* conn = PQconnectdb(base.c_str());
+  EXPECT_EQ(PQstatus(conn), CONNECTION_OK) << PQerrorMessage(conn);
+  PGresult* r = PQexec(conn, ("CREATE SCHEMA " + schema).c_str());
+  EXPECT_EQ(PQresultStatus(r), PGRES_COMMAND_OK) << PQerrorMessage(conn);
+  PQclear(r);
+  PQfinish(conn);
+  return base + (base.find('?') == std::string::npos ? "?" : "&") + "options=-csearch_path%3D" + schema;
+}
+
+// Runs one SQL statement on a PostgreSQL location (what a test sets up behind the store's back).
+inline void runPostgres(const std::string& location, const std::string& sql) {
+  PGconn* conn = PQconnectdb(location.c_str());
+  ASSERT_EQ(PQstatus(conn), CONNECTION_OK) << PQerrorMessage(conn);
+  PGresult* r = PQexec(conn, sql.c_str());
+  const ExecStatusType status = PQresultStatus(r);
+  EXPECT_TRUE(status == PGRES_COMMAND_OK || status == PGRES_TUPLES_OK) << sql << ": " << PQerrorMessage(conn);
+  PQclear(r);
+  PQfinish(conn);
 }
 
 inline server::RigRecord makeRig(const std::string& tenant, const std::string& id,

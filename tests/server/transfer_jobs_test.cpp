@@ -10,6 +10,7 @@
 #include "core/io/mesh_io.h"
 #include "core/io/rig_io.h"
 #include "tests/server/service_fixture.h"
+#include "tests/server/store_fixture.h"
 #include "tests/test_support.h"
 
 namespace rigport_test {
@@ -75,6 +76,41 @@ TEST(TransferJobs, UploadSubmitPollFetchGivesTheCliBytes) {
   EXPECT_TRUE(second_done["cache_hit"].get<bool>());
   EXPECT_EQ(second_done["timings_ms"]["prepare"], 0.0);
   EXPECT_TRUE(get(*client, "/v1/jobs/" + second.body["id"].get<std::string>() + "/diagnostics").body["cache"]["hit"].get<bool>());
+}
+
+// The same service on the PostgreSQL store (--store postgresql://...): rig,
+// job, result and the record's history as on the embedded store, and the
+// result still the CLI's bytes.
+TEST(TransferJobs, OnThePostgresStoreTheResultIsTheCliBytes) {
+  if (rigport_test::store::testPostgresUrl().empty()) GTEST_SKIP() << rigport_test::store::kNoPostgres;
+  const auto dir = makeTempDir("postgres");
+  const TransferFiles files = writeTransferFiles(dir);
+  const std::vector<std::uint8_t> cli = runCliTransfer(files, dir);
+  ASSERT_FALSE(cli.empty());
+  server::ServerConfig config = testConfig(dir / "data");
+  config.store = rigport_test::store::freshPostgresLocation("service_transfer");
+  std::string job_id;
+  {
+    InProcessService service(config);
+    auto client = service.client();
+    Reply rig = uploadRig(*client, files);
+    ASSERT_EQ(rig.status, 201) << rig.raw;
+    Reply job = submitTransfer(*client, rig.body["id"], files);
+    ASSERT_EQ(job.status, 202) << job.raw;
+    job_id = job.body["id"];
+    const nlohmann::json done = waitForJob(*client, job_id);
+    ASSERT_EQ(done["status"], "succeeded") << done.dump();
+    Reply result = get(*client, "/v1/jobs/" + job_id + "/result");
+    ASSERT_EQ(result.status, 200);
+    EXPECT_TRUE(result.raw == std::string(cli.begin(), cli.end())) << "service result differs from the in-process CLI";
+  }
+  // A new process on the same database and blobs finds the job and its result.
+  InProcessService again(config);
+  auto client = again.client();
+  Reply job = get(*client, "/v1/jobs/" + job_id);
+  ASSERT_EQ(job.status, 200) << job.raw;
+  EXPECT_EQ(job.body["status"], "succeeded");
+  EXPECT_EQ(get(*client, "/v1/jobs/" + job_id + "/result").raw, std::string(cli.begin(), cli.end()));
 }
 
 // A rig uploaded with its components document: transfer jobs carry it to

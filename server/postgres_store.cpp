@@ -1,0 +1,578 @@
+// The PostgreSQL metadata store (server/store.h): the same rigs, jobs and
+// inputs as the embedded store, in a database every replica shares.
+//
+// One libpq connection behind a mutex, re-established (PQreset) before a call
+// when the server went away, so a restarted PostgreSQL is picked up again
+// without restarting the replica; meanwhile calls fail (probeWrite: the
+// replica reports not ready). Every value is a bound parameter (text format).
+// Commits are durable: PostgreSQL's default synchronous_commit flushes the WAL
+// before COMMIT returns. The schema is created at start inside a transaction
+// holding an advisory lock, so replicas starting together do not race; a
+// PostgreSQL store starts at schema 5 (the embedded store's upgrades from 1-4
+// have no PostgreSQL counterpart: none was ever written).
+#include <libpq-fe.h>
+
+#include <cstdlib>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "server/store_rows.h"
+
+namespace server {
+
+using core::Error;
+using core::ErrorCode;
+using core::makeError;
+using namespace store_rows;
+
+namespace {
+
+// pg_advisory_xact_lock key of schema creation and upgrades ("rigport" in ASCII).
+constexpr long long kSchemaLockKey = 0x72696770'6f7274LL;
+
+constexpr const char* kSchema = R"sql(
+CREATE TABLE rigs (
+  tenant          TEXT    NOT NULL,
+  id              TEXT    NOT NULL,
+  name            TEXT    NOT NULL,
+  size_bytes      BIGINT  NOT NULL,
+  vertices        INTEGER NOT NULL,
+  joints          INTEGER NOT NULL,
+  morph_targets   INTEGER NOT NULL,
+  landmarks       INTEGER NOT NULL,
+  has_components  INTEGER NOT NULL,
+  created_at      TEXT    NOT NULL,
+  rig_blob        TEXT    NOT NULL,
+  landmarks_blob  TEXT    NOT NULL,
+  components_blob TEXT    NOT NULL DEFAULT '',
+  region_labels   TEXT    NOT NULL DEFAULT '',
+  PRIMARY KEY (tenant, id)
+);
+CREATE INDEX rigs_rig_blob ON rigs(rig_blob);
+CREATE INDEX rigs_landmarks_blob ON rigs(landmarks_blob);
+CREATE INDEX rigs_components_blob ON rigs(components_blob) WHERE components_blob <> '';
+
+CREATE TABLE jobs (
+  sequence         BIGSERIAL PRIMARY KEY,
+  id               TEXT    NOT NULL UNIQUE,
+  tenant           TEXT    NOT NULL,
+  kind             TEXT    NOT NULL,
+  rig              TEXT    NOT NULL,
+  spec_json        TEXT    NOT NULL,
+  inputs_json      TEXT    NOT NULL,
+  input_names_json TEXT    NOT NULL,
+  idempotency_key  TEXT    NOT NULL DEFAULT '',
+  status           TEXT    NOT NULL
+                   CHECK (status IN ('queued', 'running', 'succeeded', 'failed', 'cancelled')),
+  stage            TEXT    NOT NULL,
+  attempts         INTEGER NOT NULL DEFAULT 0,
+  cache_hit        INTEGER NOT NULL DEFAULT 0,
+  error_json       TEXT    NOT NULL DEFAULT '',
+  result_blob      TEXT    NOT NULL DEFAULT '',
+  diagnostics_blob TEXT    NOT NULL DEFAULT '',
+  timings_json     TEXT    NOT NULL DEFAULT '',
+  created_ms       BIGINT  NOT NULL,
+  started_ms       BIGINT  NOT NULL DEFAULT 0,
+  finished_ms      BIGINT  NOT NULL DEFAULT 0,
+  components_blob  TEXT    NOT NULL DEFAULT ''
+);
+CREATE UNIQUE INDEX jobs_idempotency ON jobs(tenant, idempotency_key) WHERE idempotency_key <> '';
+CREATE INDEX jobs_tenant_sequence ON jobs(tenant, sequence);
+CREATE INDEX jobs_status_sequence ON jobs(status, sequence);
+CREATE INDEX jobs_result_blob ON jobs(result_blob) WHERE result_blob <> '';
+CREATE INDEX jobs_diagnostics_blob ON jobs(diagnostics_blob) WHERE diagnostics_blob <> '';
+CREATE INDEX jobs_components_blob ON jobs(components_blob) WHERE components_blob <> '';
+
+CREATE TABLE job_inputs (
+  job_id TEXT NOT NULL REFERENCES jobs(id) ON DELETE CASCADE,
+  field  TEXT NOT NULL,
+  blob   TEXT NOT NULL,
+  PRIMARY KEY (job_id, field)
+);
+CREATE INDEX job_inputs_blob ON job_inputs(blob);
+
+CREATE TABLE storage_probe (
+  id    INTEGER PRIMARY KEY CHECK (id = 1),
+  at_ms BIGINT  NOT NULL
+);
+)sql";
+
+// SQLSTATE of a unique_violation.
+constexpr const char* kUniqueViolation = "23505";
+
+// A query's result, cleared on scope exit.
+class PgResult {
+ public:
+  explicit PgResult(PGresult* result) : result_(result, &PQclear) {}
+  int rows() const { return PQntuples(result_.get()); }
+  // Rows an INSERT/UPDATE/DELETE changed.
+  long long affected() const { return std::atoll(PQcmdTuples(result_.get())); }
+  const PGresult* get() const { return result_.get(); }
+
+ private:
+  std::unique_ptr<PGresult, void (*)(PGresult*)> result_;
+};
+
+// One row of a result, read as store_rows' readers expect.
+struct PgRow {
+  const PGresult* result;
+  int row;
+  std::string text(int col) const {
+    return std::string(PQgetvalue(result, row, col), static_cast<std::size_t>(PQgetlength(result, row, col)));
+  }
+  std::int64_t int64(int col) const { return std::strtoll(PQgetvalue(result, row, col), nullptr, 10); }
+  int int32(int col) const { return static_cast<int>(int64(col)); }
+};
+
+// A query parameter: text, or NULL.
+using Param = std::optional<std::string>;
+
+// The connection. All access is under PostgresMetadataStore::mutex_.
+class PgConnection {
+ public:
+  PgConnection(std::string url, std::string label) : url_(std::move(url)), label_(std::move(label)) {}
+  PgConnection(const PgConnection&) = delete;
+  PgConnection& operator=(const PgConnection&) = delete;
+  ~PgConnection() {
+    if (conn_) PQfinish(conn_);
+  }
+
+  // Connected now, connecting again when the server went away.
+  core::Status ensure() {
+    if (conn_ && PQstatus(conn_) == CONNECTION_OK) return core::Ok{};
+    if (conn_) {
+      PQreset(conn_);
+    } else {
+      conn_ = PQconnectdb(url_.c_str());
+    }
+    if (!conn_ || PQstatus(conn_) != CONNECTION_OK) {
+      return makeError(ErrorCode::kIo, "database " + label_ + ": cannot connect: " + message());
+    }
+    return core::Ok{};
+  }
+
+  // Runs one statement; a result other than `expected` is an error naming `what`.
+  core::Result<PgResult> exec(const char* sql, const std::vector<Param>& params, const std::string& what,
+                              ExecStatusType expected = PGRES_TUPLES_OK) {
+    if (auto ok = ensure(); !ok) return ok.error();
+    std::vector<const char*> values;
+    values.reserve(params.size());
+    for (const Param& p : params) values.push_back(p ? p->c_str() : nullptr);
+    PgResult result(PQexecParams(conn_, sql, static_cast<int>(values.size()), nullptr, values.data(), nullptr,
+                                 nullptr, /*text results*/ 0));
+    if (PQresultStatus(result.get()) != expected) {
+      const char* state = PQresultErrorField(result.get(), PG_DIAG_SQLSTATE);
+      last_sqlstate_ = state ? state : "";
+      return makeError(ErrorCode::kIo, "database " + label_ + ": " + what + ": " + message());
+    }
+    last_sqlstate_.clear();
+    return result;
+  }
+  core::Result<PgResult> command(const char* sql, const std::vector<Param>& params, const std::string& what) {
+    return exec(sql, params, what, PGRES_COMMAND_OK);
+  }
+
+  // Several statements without parameters (the schema): the simple protocol.
+  core::Status script(const char* sql, const std::string& what) {
+    if (auto ok = ensure(); !ok) return ok.error();
+    PgResult result(PQexec(conn_, sql));
+    if (PQresultStatus(result.get()) != PGRES_COMMAND_OK) {
+      return makeError(ErrorCode::kIo, "database " + label_ + ": " + what + ": " + message());
+    }
+    return core::Ok{};
+  }
+
+  const std::string& lastSqlState() const { return last_sqlstate_; }
+  const std::string& label() const { return label_; }
+
+ private:
+  std::string message() const {
+    std::string text = conn_ ? PQerrorMessage(conn_) : "out of memory";
+    while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
+    return text;
+  }
+
+  std::string url_;
+  std::string label_;  // host:port/database, never the password
+  PGconn* conn_ = nullptr;
+  std::string last_sqlstate_;
+};
+
+// BEGIN ... COMMIT; rolls back unless commit() succeeded.
+class PgTransaction {
+ public:
+  explicit PgTransaction(PgConnection& c) : c_(c) {}
+  ~PgTransaction() {
+    if (active_) (void)c_.command("ROLLBACK", {}, "rollback");
+  }
+  PgTransaction(const PgTransaction&) = delete;
+  PgTransaction& operator=(const PgTransaction&) = delete;
+  core::Status begin() {
+    auto r = c_.command("BEGIN", {}, "begin");
+    if (!r) return r.error();
+    active_ = true;
+    return core::Ok{};
+  }
+  core::Status commit() {
+    auto r = c_.command("COMMIT", {}, "commit");
+    if (!r) return r.error();
+    active_ = false;
+    return core::Ok{};
+  }
+  void rollback() {
+    if (active_) (void)c_.command("ROLLBACK", {}, "rollback");
+    active_ = false;
+  }
+
+ private:
+  PgConnection& c_;
+  bool active_ = false;
+};
+
+// "host:port/database" of a connection URL, for messages (no user, no password).
+std::string describeUrl(const std::string& url) {
+  char* error = nullptr;
+  PQconninfoOption* options = PQconninfoParse(url.c_str(), &error);
+  if (!options) {
+    std::string why = error ? error : "cannot parse";
+    if (error) PQfreemem(error);
+    while (!why.empty() && why.back() == '\n') why.pop_back();
+    return "(unparsable URL: " + why + ")";
+  }
+  std::string host = "localhost", port = "5432", db;
+  for (PQconninfoOption* o = options; o->keyword; ++o) {
+    if (!o->val) continue;
+    const std::string key = o->keyword;
+    if (key == "host" || key == "hostaddr") host = o->val;
+    if (key == "port") port = o->val;
+    if (key == "dbname") db = o->val;
+  }
+  PQconninfoFree(options);
+  return host + ":" + port + "/" + db;
+}
+
+template <typename Row, typename Read>
+std::vector<Row> readRows(const PgResult& result, Read read) {
+  std::vector<Row> out;
+  out.reserve(static_cast<std::size_t>(result.rows()));
+  for (int r = 0; r < result.rows(); ++r) out.push_back(read(PgRow{result.get(), r}));
+  return out;
+}
+
+std::string p(std::int64_t v) { return std::to_string(v); }
+
+class PostgresMetadataStore final : public MetadataStore {
+ public:
+  explicit PostgresMetadataStore(std::unique_ptr<PgConnection> connection) : c_(std::move(connection)) {}
+  const char* backend() const override { return "postgresql"; }
+
+  core::Result<std::pair<RigRecord, bool>> insertRig(const RigRecord& rig) override {
+    std::lock_guard lock(mutex_);
+    if (rig.info.id.empty()) return makeError(ErrorCode::kInvalidArgument, "rig id is empty");
+    RigRecord stored = rig;
+    if (stored.info.created_at.empty()) stored.info.created_at = formatRfc3339Ms(nowMs());
+    const auto& i = stored.info;
+    auto inserted = c_->command(
+        "INSERT INTO rigs (tenant, id, name, size_bytes, vertices, joints, morph_targets, landmarks, has_components, "
+        "created_at, rig_blob, landmarks_blob, components_blob, region_labels) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, "
+        "$9, $10, $11, $12, $13, $14) ON CONFLICT (tenant, id) DO NOTHING",
+        {stored.tenant, i.id, i.name, p(i.size_bytes), p(i.vertices), p(i.joints), p(i.morph_targets), p(i.landmarks),
+         p(i.has_components ? 1 : 0), i.created_at, stored.rig_blob, stored.landmarks_blob, stored.components_blob,
+         regionLabelsText(stored)},
+        "cannot insert rig " + i.id);
+    if (!inserted) return inserted.error();
+    if (inserted->affected() > 0) return std::pair{std::move(stored), true};
+    auto existing = selectRig(rig.tenant, rig.info.id);
+    if (!existing) return existing.error();
+    if (!*existing) return makeError(ErrorCode::kIo, "database " + c_->label() + ": rig " + rig.info.id + " vanished");
+    return std::pair{std::move(**existing), false};
+  }
+
+  std::optional<RigRecord> getRig(const std::string& tenant, const std::string& id) override {
+    std::lock_guard lock(mutex_);
+    return valueOr(selectRig(tenant, id), std::optional<RigRecord>{});
+  }
+
+  std::vector<RigRecord> listRigs(const std::string& tenant) override {
+    std::lock_guard lock(mutex_);
+    static const std::string kSelect =
+        std::string("SELECT ") + kRigColumns + " FROM rigs WHERE tenant = $1 ORDER BY created_at, id";
+    auto rows = c_->exec(kSelect.c_str(), {tenant}, "cannot list rigs");
+    if (!rows) return valueOr<std::vector<RigRecord>>(rows.error(), {});
+    return readRows<RigRecord>(*rows, [](const PgRow& r) { return readRig(r); });
+  }
+
+  bool deleteRig(const std::string& tenant, const std::string& id) override {
+    std::lock_guard lock(mutex_);
+    auto r = c_->command("DELETE FROM rigs WHERE tenant = $1 AND id = $2", {tenant, id}, "cannot delete rig " + id);
+    if (!r) return valueOr<bool>(r.error(), false);
+    return r->affected() > 0;
+  }
+
+  core::Result<std::pair<JobRecord, bool>> insertJob(const JobRecord& job) override {
+    std::lock_guard lock(mutex_);
+    if (job.id.empty()) return makeError(ErrorCode::kInvalidArgument, "job id is empty");
+    if (!job.idempotency_key.empty()) {
+      auto existing = jobByIdempotencyKey(job.tenant, job.idempotency_key);
+      if (!existing) return existing.error();
+      if (*existing) return std::pair{std::move(**existing), false};
+    }
+    JobRecord stored = job;
+    if (stored.created_ms == 0) stored.created_ms = nowMs();
+    PgTransaction tx(*c_);
+    if (auto ok = tx.begin(); !ok) return ok.error();
+    auto inserted = c_->exec(
+        "INSERT INTO jobs (id, tenant, kind, rig, spec_json, inputs_json, input_names_json, idempotency_key, status, "
+        "stage, attempts, cache_hit, error_json, result_blob, diagnostics_blob, timings_json, created_ms, started_ms, "
+        "finished_ms, components_blob) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15, $16, "
+        "$17, $18, $19, $20) RETURNING sequence",
+        {stored.id, stored.tenant, std::string(api::jobKindName(stored.kind)), stored.rig, stored.spec_json,
+         mapToJson(stored.inputs), mapToJson(stored.input_names), stored.idempotency_key,
+         std::string(api::jobStatusName(stored.status)), stored.stage, p(stored.attempts), p(stored.cache_hit ? 1 : 0),
+         stored.error_json, stored.result_blob, stored.diagnostics_blob, stored.timings_json, p(stored.created_ms),
+         p(stored.started_ms), p(stored.finished_ms), stored.components_blob},
+        "cannot insert job " + stored.id);
+    if (!inserted) {
+      const bool duplicate = c_->lastSqlState() == kUniqueViolation;
+      tx.rollback();
+      if (duplicate && !job.idempotency_key.empty()) {
+        // Another replica stored the same key between our look-up and insert.
+        auto existing = jobByIdempotencyKey(job.tenant, job.idempotency_key);
+        if (!existing) return existing.error();
+        if (*existing) return std::pair{std::move(**existing), false};
+      }
+      if (duplicate) {
+        return makeError(ErrorCode::kInvalidArgument,
+                         "database " + c_->label() + ": job id " + stored.id + " already exists: " + inserted.error().message);
+      }
+      return inserted.error();
+    }
+    stored.sequence = PgRow{inserted->get(), 0}.int64(0);
+    for (const auto& [field, blob] : stored.inputs) {
+      auto r = c_->command("INSERT INTO job_inputs (job_id, field, blob) VALUES ($1, $2, $3)", {stored.id, field, blob},
+                           "cannot insert input " + field + " of job " + stored.id);
+      if (!r) return r.error();
+    }
+    if (auto ok = tx.commit(); !ok) return ok.error();
+    return std::pair{std::move(stored), true};
+  }
+
+  std::optional<JobRecord> getJob(const std::string& tenant, const std::string& id) override {
+    std::lock_guard lock(mutex_);
+    auto job = valueOr(loadJob(id), std::optional<JobRecord>{});
+    if (job && job->tenant != tenant) return std::nullopt;  // another tenant's job does not exist for this one
+    return job;
+  }
+
+  std::vector<JobRecord> listJobs(const JobListQuery& query) override {
+    std::lock_guard lock(mutex_);
+    static const std::string kSelect = std::string("SELECT ") + kJobColumns +
+                                       " FROM jobs WHERE tenant = $1 AND sequence > $2 AND ($3::text IS NULL OR "
+                                       "status = $3) ORDER BY sequence LIMIT $4";
+    const Param status = query.status ? Param(api::jobStatusName(*query.status)) : std::nullopt;
+    auto rows = c_->exec(kSelect.c_str(), {query.tenant, p(query.after_sequence), status, p(std::max(query.limit, 0))},
+                         "cannot list jobs");
+    if (!rows) return valueOr<std::vector<JobRecord>>(rows.error(), {});
+    return readRows<JobRecord>(*rows, [](const PgRow& r) { return readJob(r); });
+  }
+
+  std::vector<JobRecord> unfinishedJobs() override {
+    std::lock_guard lock(mutex_);
+    static const std::string kSelect =
+        std::string("SELECT ") + kJobColumns + " FROM jobs WHERE status IN ('queued', 'running') ORDER BY sequence";
+    auto rows = c_->exec(kSelect.c_str(), {}, "cannot list unfinished jobs");
+    if (!rows) return valueOr<std::vector<JobRecord>>(rows.error(), {});
+    return readRows<JobRecord>(*rows, [](const PgRow& r) { return readJob(r); });
+  }
+
+  core::Status markRunning(const std::string& id, std::int64_t started_ms, bool cache_hit) override {
+    std::lock_guard lock(mutex_);
+    auto r = c_->command(
+        "UPDATE jobs SET status = 'running', attempts = attempts + 1, started_ms = $2, cache_hit = $3 "
+        "WHERE id = $1 AND status = 'queued'",
+        {id, p(started_ms), p(cache_hit ? 1 : 0)}, "cannot mark job " + id + " running");
+    if (!r) return r.error();
+    if (r->affected() == 0) return transitionRefused(id, "start");
+    return core::Ok{};
+  }
+
+  core::Status markFinished(const JobRecord& job) override {
+    std::lock_guard lock(mutex_);
+    if (!api::isFinal(job.status)) {
+      return makeError(ErrorCode::kInvalidArgument, "cannot finish job " + job.id + " with non-final status " +
+                                                        api::jobStatusName(job.status));
+    }
+    auto r = c_->command(
+        "UPDATE jobs SET status = $2, stage = COALESCE(NULLIF($3, ''), stage), error_json = $4, result_blob = $5, "
+        "diagnostics_blob = $6, timings_json = $7, finished_ms = $8, cache_hit = $9, components_blob = $10 "
+        "WHERE id = $1 AND status IN ('queued', 'running')",
+        {job.id, std::string(api::jobStatusName(job.status)), job.stage, job.error_json, job.result_blob,
+         job.diagnostics_blob, job.timings_json, p(job.finished_ms != 0 ? job.finished_ms : nowMs()),
+         p(job.cache_hit ? 1 : 0), job.components_blob},
+        "cannot mark job " + job.id + " finished");
+    if (!r) return r.error();
+    if (r->affected() == 0) return transitionRefused(job.id, "finish");
+    return core::Ok{};
+  }
+
+  core::Status requeue(const std::string& id) override {
+    std::lock_guard lock(mutex_);
+    auto r = c_->command(
+        "UPDATE jobs SET status = 'queued', stage = 'queued' WHERE id = $1 AND status IN ('queued', 'running')", {id},
+        "cannot requeue job " + id);
+    if (!r) return r.error();
+    if (r->affected() == 0) return transitionRefused(id, "requeue");
+    return core::Ok{};
+  }
+
+  core::Result<bool> deleteFinishedJob(const std::string& tenant, const std::string& id) override {
+    std::lock_guard lock(mutex_);
+    auto r = c_->command(
+        "DELETE FROM jobs WHERE id = $1 AND tenant = $2 AND status IN ('succeeded', 'failed', 'cancelled')",
+        {id, tenant}, "cannot delete job " + id);
+    if (!r) return r.error();
+    return r->affected() > 0;
+  }
+
+  std::vector<std::pair<std::string, std::string>> finishedJobsBefore(std::int64_t finished_before_ms,
+                                                                      int limit) override {
+    std::lock_guard lock(mutex_);
+    using Key = std::pair<std::string, std::string>;
+    auto rows = c_->exec(
+        "SELECT tenant, id FROM jobs WHERE status IN ('succeeded', 'failed', 'cancelled') AND finished_ms < $1 "
+        "ORDER BY finished_ms LIMIT $2",
+        {p(finished_before_ms), p(limit)}, "cannot list expired jobs");
+    if (!rows) return valueOr<std::vector<Key>>(rows.error(), {});
+    return readRows<Key>(*rows, [](const PgRow& r) { return Key{r.text(0), r.text(1)}; });
+  }
+
+  std::map<api::JobStatus, std::int64_t> countJobsByStatus() override {
+    std::lock_guard lock(mutex_);
+    std::map<api::JobStatus, std::int64_t> out;
+    for (auto status : {api::JobStatus::kQueued, api::JobStatus::kRunning, api::JobStatus::kSucceeded,
+                        api::JobStatus::kFailed, api::JobStatus::kCancelled}) {
+      out[status] = 0;
+    }
+    auto rows = c_->exec("SELECT status, COUNT(*) FROM jobs GROUP BY status", {}, "cannot count jobs");
+    if (!rows) return valueOr<std::map<api::JobStatus, std::int64_t>>(rows.error(), out);
+    for (int r = 0; r < rows->rows(); ++r) {
+      const PgRow row{rows->get(), r};
+      if (auto status = api::parseJobStatus(row.text(0))) out[*status] = row.int64(1);
+    }
+    return out;
+  }
+
+  core::Status probeWrite() override {
+    std::lock_guard lock(mutex_);
+    auto r = c_->command(
+        "INSERT INTO storage_probe (id, at_ms) VALUES (1, $1) ON CONFLICT (id) DO UPDATE SET at_ms = EXCLUDED.at_ms",
+        {p(nowMs())}, "storage probe write failed");
+    if (!r) return r.error();
+    return core::Ok{};
+  }
+
+  bool blobReferenced(const std::string& hash) override {
+    std::lock_guard lock(mutex_);
+    if (hash.empty()) return false;
+    // One EXISTS per indexed column, so each is an index probe.
+    auto r = c_->exec(
+        "SELECT EXISTS (SELECT 1 FROM rigs WHERE rig_blob = $1)"
+        " OR EXISTS (SELECT 1 FROM rigs WHERE landmarks_blob = $1)"
+        " OR EXISTS (SELECT 1 FROM rigs WHERE components_blob = $1 AND components_blob <> '')"
+        " OR EXISTS (SELECT 1 FROM jobs WHERE result_blob = $1 AND result_blob <> '')"
+        " OR EXISTS (SELECT 1 FROM jobs WHERE diagnostics_blob = $1 AND diagnostics_blob <> '')"
+        " OR EXISTS (SELECT 1 FROM jobs WHERE components_blob = $1 AND components_blob <> '')"
+        " OR EXISTS (SELECT 1 FROM job_inputs WHERE blob = $1)",
+        {hash}, "cannot check references to blob " + hash);
+    // Fail safe: a garbage collector must not delete what it cannot check.
+    if (!r) return valueOr<bool>(r.error(), true);
+    if (r->rows() != 1) return true;
+    return PgRow{r->get(), 0}.text(0) == "t";
+  }
+
+ private:
+  core::Result<std::optional<RigRecord>> selectRig(const std::string& tenant, const std::string& id) {
+    static const std::string kSelect = std::string("SELECT ") + kRigColumns + " FROM rigs WHERE tenant = $1 AND id = $2";
+    auto rows = c_->exec(kSelect.c_str(), {tenant, id}, "cannot read rig " + id);
+    if (!rows) return rows.error();
+    if (rows->rows() == 0) return std::optional<RigRecord>();
+    return std::optional<RigRecord>(readRig(PgRow{rows->get(), 0}));
+  }
+
+  core::Result<std::optional<JobRecord>> loadJob(const std::string& id) {
+    static const std::string kSelect = std::string("SELECT ") + kJobColumns + " FROM jobs WHERE id = $1";
+    auto rows = c_->exec(kSelect.c_str(), {id}, "cannot read job " + id);
+    if (!rows) return rows.error();
+    if (rows->rows() == 0) return std::optional<JobRecord>();
+    return std::optional<JobRecord>(readJob(PgRow{rows->get(), 0}));
+  }
+
+  core::Result<std::optional<JobRecord>> jobByIdempotencyKey(const std::string& tenant, const std::string& key) {
+    static const std::string kSelect =
+        std::string("SELECT ") + kJobColumns + " FROM jobs WHERE tenant = $1 AND idempotency_key = $2";
+    auto rows = c_->exec(kSelect.c_str(), {tenant, key}, "cannot look up idempotency key");
+    if (!rows) return rows.error();
+    if (rows->rows() == 0) return std::optional<JobRecord>();
+    return std::optional<JobRecord>(readJob(PgRow{rows->get(), 0}));
+  }
+
+  // Explains why a guarded UPDATE changed no row: the job is absent or in the wrong state.
+  Error transitionRefused(const std::string& id, const char* transition) {
+    auto job = loadJob(id);
+    if (!job) return job.error();
+    if (!*job) return makeError(ErrorCode::kInvalidArgument, "cannot " + std::string(transition) + ": no job " + id);
+    return makeError(ErrorCode::kInvalidArgument, "cannot " + std::string(transition) + " job " + id + ": it is " +
+                                                      api::jobStatusName((*job)->status));
+  }
+
+  std::unique_ptr<PgConnection> c_;
+  std::mutex mutex_;
+};
+
+// Creates the schema, or checks it, under the advisory lock.
+core::Status prepareSchema(PgConnection& c) {
+  PgTransaction tx(c);
+  if (auto ok = tx.begin(); !ok) return ok;
+  if (auto r = c.exec("SELECT pg_advisory_xact_lock($1)", {std::to_string(kSchemaLockKey)}, "cannot take the schema lock");
+      !r) {
+    return r.error();
+  }
+  if (auto r = c.command("CREATE TABLE IF NOT EXISTS rigport_schema (version INTEGER NOT NULL)", {},
+                         "cannot create the schema version table");
+      !r) {
+    return r.error();
+  }
+  auto version = c.exec("SELECT version FROM rigport_schema", {}, "cannot read the schema version");
+  if (!version) return version.error();
+  if (version->rows() == 0) {
+    if (auto ok = c.script(kSchema, "cannot create the schema"); !ok) return ok;
+    if (auto r = c.command("INSERT INTO rigport_schema (version) VALUES ($1)", {std::to_string(kSchemaVersion)},
+                           "cannot record the schema version");
+        !r) {
+      return r.error();
+    }
+  } else {
+    const std::int64_t stored = PgRow{version->get(), 0}.int64(0);
+    if (stored > kSchemaVersion) {
+      return makeError(ErrorCode::kUnsupported, "database " + c.label() + " has schema version " +
+                                                    std::to_string(stored) + ", newer than this build knows (" +
+                                                    std::to_string(kSchemaVersion) + "): upgrade rigport");
+    }
+    // (stored < kSchemaVersion cannot happen yet: PostgreSQL stores start at 5.)
+  }
+  return tx.commit();
+}
+
+}  // namespace
+
+core::Result<std::unique_ptr<MetadataStore>> openPostgresStore(const std::string& url) {
+  auto c = std::make_unique<PgConnection>(url, describeUrl(url));
+  if (auto ok = c->ensure(); !ok) return ok.error();
+  if (auto ok = prepareSchema(*c); !ok) return ok.error();
+  return std::unique_ptr<MetadataStore>(new PostgresMetadataStore(std::move(c)));
+}
+
+}  // namespace server
