@@ -8,6 +8,7 @@
 #include <iterator>
 #include <mutex>
 #include <numeric>
+#include <optional>
 #include <thread>
 
 #include <spdlog/spdlog.h>
@@ -83,9 +84,9 @@ void logProblem(SharedRun& run, const std::string& what, const api::Problem& pro
   if (run.problems_logged++ < 5) spdlog::warn("bench: {}: {}", what, describeProblem(problem));
 }
 
-void runWorker(SharedRun& run, WorkerTally& tally) {
+void runWorker(SharedRun& run, WorkerTally& tally, const std::string& server) {
   RemoteOptions options;
-  options.server_url = run.args->server;
+  options.server_url = server;
   options.api_key = run.args->api_key;
   options.ca_certificate_file = run.args->ca_certificate;
   options.max_queue_retries = 1'000'000;  // bounded by retry_deadline instead
@@ -137,6 +138,20 @@ void runWorker(SharedRun& run, WorkerTally& tally) {
 
 }  // namespace
 
+std::vector<std::string> benchServers(const std::string& server) {
+  std::vector<std::string> out;
+  std::size_t start = 0;
+  while (start <= server.size()) {
+    const std::size_t comma = std::min(server.find(',', start), server.size());
+    std::string url = server.substr(start, comma - start);
+    url.erase(0, url.find_first_not_of(" \t"));
+    url.erase(url.find_last_not_of(" \t") + 1);
+    if (!url.empty()) out.push_back(std::move(url));
+    start = comma + 1;
+  }
+  return out;
+}
+
 int runBench(const BenchArgs& args) {
   if (args.concurrency < 1 || args.jobs < 1) {
     spdlog::error("bench: --concurrency and --jobs must be at least 1");
@@ -157,17 +172,27 @@ int runBench(const BenchArgs& args) {
     options = std::move(*parsed);
   }
 
-  RemoteOptions upload_options;
-  upload_options.server_url = args.server;
-  upload_options.api_key = args.api_key;
-  upload_options.ca_certificate_file = args.ca_certificate;
-  RemoteClient uploader(upload_options);
-  auto rig = uploader.uploadRig({args.source, args.source_landmarks, {}});
-  if (!rig) {
-    spdlog::error("bench: rig upload: {}", describeProblem(rig.error()));
-    return 1;
+  const std::vector<std::string> servers = benchServers(args.server);
+  if (servers.empty()) {
+    spdlog::error("bench: --server names no service URL");
+    return 2;
   }
-  spdlog::info("bench: rig {} {}", rig->rig.id, rig->uploaded ? "uploaded" : "already on the service");
+  // The rig on every service (its id is its content hash: the same on each).
+  std::optional<UploadedRig> rig;
+  for (const std::string& server : servers) {
+    RemoteOptions upload_options;
+    upload_options.server_url = server;
+    upload_options.api_key = args.api_key;
+    upload_options.ca_certificate_file = args.ca_certificate;
+    RemoteClient uploader(upload_options);
+    auto uploaded = uploader.uploadRig({args.source, args.source_landmarks, {}});
+    if (!uploaded) {
+      spdlog::error("bench: rig upload to {}: {}", server, describeProblem(uploaded.error()));
+      return 1;
+    }
+    spdlog::info("bench: rig {} {} {}", uploaded->rig.id, uploaded->uploaded ? "uploaded to" : "already on", server);
+    rig = std::move(*uploaded);
+  }
 
   SharedRun run;
   run.args = &args;
@@ -180,7 +205,11 @@ int runBench(const BenchArgs& args) {
   std::vector<WorkerTally> tallies(static_cast<std::size_t>(args.concurrency));
   std::vector<std::thread> threads;
   threads.reserve(tallies.size());
-  for (auto& tally : tallies) threads.emplace_back([&run, &tally] { runWorker(run, tally); });
+  for (std::size_t i = 0; i < tallies.size(); ++i) {
+    threads.emplace_back([&run, &tally = tallies[i], &server = servers[i % servers.size()]] {
+      runWorker(run, tally, server);
+    });
+  }
 
   // Progress once a second until every worker has stopped.
   std::atomic<bool> finished{false};

@@ -1,6 +1,7 @@
-// `rigport bench`: service-level load. Uploads the rig once, then
-// `concurrency` threads (each with its own keep-alive RemoteClient) submit
-// `jobs` transfer jobs in total, poll each until final and fetch its result.
+// `rigport bench`: service-level load. Uploads the rig once to each service
+// URL, then `concurrency` threads (each with its own keep-alive RemoteClient,
+// client i on URL i mod #URLs: replicas behind no balancer) submit `jobs`
+// transfer jobs in total, poll each until final and fetch its result.
 // Latency is measured per job from the first submit attempt to the end of the
 // result download (429 waits included). Stops when all jobs are done or at
 // `timeout_s`. Human-readable lines go to stderr; the LAST stdout line is one
@@ -18,7 +19,7 @@
 namespace client {
 
 struct BenchArgs {
-  std::string server;                 // http://host:port
+  std::string server;                 // http://host:port, or several comma-separated (replicas)
   std::string api_key;                // empty = none
   std::string ca_certificate;         // https: CA of the service's certificate; empty = system CAs
   int concurrency = 4;                // client threads
@@ -29,6 +30,10 @@ struct BenchArgs {
   int poll_ms = 20;                   // GET /v1/jobs/{id} interval while waiting
 };
 int runBench(const BenchArgs& args);
+
+// The service URLs of BenchArgs::server (comma-separated, blanks trimmed,
+// empty entries dropped).
+std::vector<std::string> benchServers(const std::string& server);
 
 // Linear-interpolated percentile (numpy's default, "type 7") of `sorted`
 // (ascending), p in [0, 100]. 0 for an empty vector.

@@ -65,4 +65,32 @@ TEST(CliRemote, RigsAndJobsCommandsRunAJobAndDeleteIt) {
 }
 
 }  // namespace
+// rigport bench over two services (replicas without a balancer): the rig goes
+// to each, the clients are spread over both, every job succeeds, and each
+// service ran its share.
+TEST(CliRemote, BenchSpreadsItsClientsOverSeveralServices) {
+  const auto dir = makeTempDir("bench_two");
+  const TransferFiles files = writeTransferFiles(dir);
+  InProcessService first(testConfig(dir / "data1"));
+  InProcessService second(testConfig(dir / "data2"));
+  const std::string url1 = "http://127.0.0.1:" + std::to_string(first.port());
+  const std::string url2 = "http://127.0.0.1:" + std::to_string(second.port());
+  const CliRun bench = runRigportCli("-q bench --server " + url1 + "," + url2 + " --concurrency 4 --jobs 8 --source " +
+                                     quoted(files.rig) + " --source-landmarks " + quoted(files.landmarks) +
+                                     " --target " + quoted(files.target) + " --target-landmarks " +
+                                     quoted(files.target_landmarks));
+  ASSERT_EQ(bench.exit_code, 0) << bench.log;
+  std::string out = bench.out;
+  while (!out.empty() && out.back() == '\n') out.pop_back();
+  const std::string last_line = out.substr(out.rfind('\n') == std::string::npos ? 0 : out.rfind('\n') + 1);
+  const auto summary = nlohmann::json::parse(last_line, nullptr, false);
+  ASSERT_FALSE(summary.is_discarded()) << bench.out;
+  EXPECT_EQ(summary["succeeded"], 8) << bench.out;
+  for (const std::string& url : {url1, url2}) {
+    const CliRun listed = runRigportCli("-q jobs list --server " + url);
+    ASSERT_EQ(listed.exit_code, 0) << listed.log;
+    EXPECT_GE(printed(listed)["items"].size(), 2u) << url << " ran fewer jobs than its clients submitted";
+  }
+}
+
 }  // namespace rigport_test

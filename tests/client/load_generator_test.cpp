@@ -89,4 +89,11 @@ TEST(BenchSummaryJson, LatenciesAreNullWhenNoJobSucceeded) {
   EXPECT_TRUE(j["errors_by_status"].is_object());
 }
 
+TEST(BenchServers, SplitsACommaSeparatedListTrimmingBlanks) {
+  EXPECT_EQ(client::benchServers("http://a:1"), (std::vector<std::string>{"http://a:1"}));
+  EXPECT_EQ(client::benchServers("http://a:1, http://b:2 ,,http://c:3,"),
+            (std::vector<std::string>{"http://a:1", "http://b:2", "http://c:3"}));
+  EXPECT_TRUE(client::benchServers(" , ").empty());
+}
+
 }  // namespace
