@@ -1,5 +1,5 @@
 // MetadataStore: which implementation a location opens (server/store.h).
-#include "server/store_rows.h"
+#include "server/store_sql.h"
 
 namespace server {
 

@@ -6,10 +6,10 @@
 // without restarting the replica; meanwhile calls fail (probeWrite: the
 // replica reports not ready). Every value is a bound parameter (text format).
 // Commits are durable: PostgreSQL's default synchronous_commit flushes the WAL
-// before COMMIT returns. The schema is created at start inside a transaction
-// holding an advisory lock, so replicas starting together do not race; a
-// PostgreSQL store starts at schema 5 (the embedded store's upgrades from 1-4
-// have no PostgreSQL counterpart: none was ever written).
+// before COMMIT returns. The schema (the embedded store's, store_sql.h, in
+// PostgreSQL's dialect) is created or upgraded at start inside one
+// transaction holding an advisory lock, so replicas starting together do not
+// race.
 #include <libpq-fe.h>
 
 #include <cstdlib>
@@ -19,86 +19,20 @@
 #include <string>
 #include <vector>
 
-#include "server/store_rows.h"
+#include "server/store_sql.h"
 
 namespace server {
 
 using core::Error;
 using core::ErrorCode;
 using core::makeError;
-using namespace store_rows;
+using namespace store_sql;
 
 namespace {
 
 // pg_advisory_xact_lock key of schema creation and upgrades ("rigport" in ASCII).
 constexpr long long kSchemaLockKey = 0x72696770'6f7274LL;
 
-constexpr const char* kSchema = R"sql(
-CREATE TABLE rigs (
-  tenant          TEXT    NOT NULL,
-  id              TEXT    NOT NULL,
-  name            TEXT    NOT NULL,
-  size_bytes      BIGINT  NOT NULL,
-  vertices        INTEGER NOT NULL,
-  joints          INTEGER NOT NULL,
-  morph_targets   INTEGER NOT NULL,
-  landmarks       INTEGER NOT NULL,
-  has_components  INTEGER NOT NULL,
-  created_at      TEXT    NOT NULL,
-  rig_blob        TEXT    NOT NULL,
-  landmarks_blob  TEXT    NOT NULL,
-  components_blob TEXT    NOT NULL DEFAULT '',
-  region_labels   TEXT    NOT NULL DEFAULT '',
-  PRIMARY KEY (tenant, id)
-);
-CREATE INDEX rigs_rig_blob ON rigs(rig_blob);
-CREATE INDEX rigs_landmarks_blob ON rigs(landmarks_blob);
-CREATE INDEX rigs_components_blob ON rigs(components_blob) WHERE components_blob <> '';
-
-CREATE TABLE jobs (
-  sequence         BIGSERIAL PRIMARY KEY,
-  id               TEXT    NOT NULL UNIQUE,
-  tenant           TEXT    NOT NULL,
-  kind             TEXT    NOT NULL,
-  rig              TEXT    NOT NULL,
-  spec_json        TEXT    NOT NULL,
-  inputs_json      TEXT    NOT NULL,
-  input_names_json TEXT    NOT NULL,
-  idempotency_key  TEXT    NOT NULL DEFAULT '',
-  status           TEXT    NOT NULL
-                   CHECK (status IN ('queued', 'running', 'succeeded', 'failed', 'cancelled')),
-  stage            TEXT    NOT NULL,
-  attempts         INTEGER NOT NULL DEFAULT 0,
-  cache_hit        INTEGER NOT NULL DEFAULT 0,
-  error_json       TEXT    NOT NULL DEFAULT '',
-  result_blob      TEXT    NOT NULL DEFAULT '',
-  diagnostics_blob TEXT    NOT NULL DEFAULT '',
-  timings_json     TEXT    NOT NULL DEFAULT '',
-  created_ms       BIGINT  NOT NULL,
-  started_ms       BIGINT  NOT NULL DEFAULT 0,
-  finished_ms      BIGINT  NOT NULL DEFAULT 0,
-  components_blob  TEXT    NOT NULL DEFAULT ''
-);
-CREATE UNIQUE INDEX jobs_idempotency ON jobs(tenant, idempotency_key) WHERE idempotency_key <> '';
-CREATE INDEX jobs_tenant_sequence ON jobs(tenant, sequence);
-CREATE INDEX jobs_status_sequence ON jobs(status, sequence);
-CREATE INDEX jobs_result_blob ON jobs(result_blob) WHERE result_blob <> '';
-CREATE INDEX jobs_diagnostics_blob ON jobs(diagnostics_blob) WHERE diagnostics_blob <> '';
-CREATE INDEX jobs_components_blob ON jobs(components_blob) WHERE components_blob <> '';
-
-CREATE TABLE job_inputs (
-  job_id TEXT NOT NULL REFERENCES jobs(id) ON DELETE CASCADE,
-  field  TEXT NOT NULL,
-  blob   TEXT NOT NULL,
-  PRIMARY KEY (job_id, field)
-);
-CREATE INDEX job_inputs_blob ON job_inputs(blob);
-
-CREATE TABLE storage_probe (
-  id    INTEGER PRIMARY KEY CHECK (id = 1),
-  at_ms BIGINT  NOT NULL
-);
-)sql";
 
 // SQLSTATE of a unique_violation.
 constexpr const char* kUniqueViolation = "23505";
@@ -547,21 +481,30 @@ core::Status prepareSchema(PgConnection& c) {
   }
   auto version = c.exec("SELECT version FROM rigport_schema", {}, "cannot read the schema version");
   if (!version) return version.error();
-  if (version->rows() == 0) {
-    if (auto ok = c.script(kSchema, "cannot create the schema"); !ok) return ok;
+  const std::int64_t stored = version->rows() == 0 ? 0 : PgRow{version->get(), 0}.int64(0);
+  if (stored > kSchemaVersion) {
+    return makeError(ErrorCode::kUnsupported, "database " + c.label() + " has schema version " + std::to_string(stored) +
+                                                  ", newer than this build knows (" + std::to_string(kSchemaVersion) +
+                                                  "): upgrade rigport");
+  }
+  std::int64_t now_version = stored;
+  for (const SchemaStep& step : kSchemaSteps) {
+    if (now_version >= step.version) continue;
+    if (step.sql) {
+      const std::string what = now_version == 0 ? std::string("cannot create the schema")
+                                                : "cannot upgrade schema " + std::to_string(now_version) + " to " +
+                                                      std::to_string(step.version);
+      if (auto ok = c.script(postgresDialect(step.sql).c_str(), what); !ok) return ok;
+    }
+    now_version = step.version;
+  }
+  if (stored != kSchemaVersion) {
+    if (auto r = c.command("DELETE FROM rigport_schema", {}, "cannot record the schema version"); !r) return r.error();
     if (auto r = c.command("INSERT INTO rigport_schema (version) VALUES ($1)", {std::to_string(kSchemaVersion)},
                            "cannot record the schema version");
         !r) {
       return r.error();
     }
-  } else {
-    const std::int64_t stored = PgRow{version->get(), 0}.int64(0);
-    if (stored > kSchemaVersion) {
-      return makeError(ErrorCode::kUnsupported, "database " + c.label() + " has schema version " +
-                                                    std::to_string(stored) + ", newer than this build knows (" +
-                                                    std::to_string(kSchemaVersion) + "): upgrade rigport");
-    }
-    // (stored < kSchemaVersion cannot happen yet: PostgreSQL stores start at 5.)
   }
   return tx.commit();
 }

@@ -5,7 +5,7 @@
 // every committed transition has been fsynced before the call returns. Every
 // value goes through a bound parameter; statements are prepared once and
 // cached per connection.
-#include "server/store_rows.h"
+#include "server/store_sql.h"
 
 #include <nlohmann/json.hpp>
 #include <sqlite3.h>
@@ -22,97 +22,13 @@
 namespace server {
 
 using core::Error;
-using namespace store_rows;
+using namespace store_sql;
 using core::ErrorCode;
 using core::makeError;
 
 namespace {
 
 constexpr int kBusyTimeoutMs = 5000;
-
-// Schema version 1. Rig created_at is stored as RFC 3339 UTC text (the wire
-// form; fixed-width, so it also sorts); job times are epoch milliseconds.
-constexpr const char* kSchemaV1 = R"sql(
-CREATE TABLE rigs (
-  tenant          TEXT    NOT NULL,
-  id              TEXT    NOT NULL,
-  name            TEXT    NOT NULL,
-  size_bytes      INTEGER NOT NULL,
-  vertices        INTEGER NOT NULL,
-  joints          INTEGER NOT NULL,
-  morph_targets   INTEGER NOT NULL,
-  landmarks       INTEGER NOT NULL,
-  has_components  INTEGER NOT NULL,
-  created_at      TEXT    NOT NULL,
-  rig_blob        TEXT    NOT NULL,
-  landmarks_blob  TEXT    NOT NULL,
-  components_blob TEXT    NOT NULL DEFAULT '',
-  PRIMARY KEY (tenant, id)
-);
-CREATE INDEX rigs_rig_blob ON rigs(rig_blob);
-CREATE INDEX rigs_landmarks_blob ON rigs(landmarks_blob);
-CREATE INDEX rigs_components_blob ON rigs(components_blob) WHERE components_blob <> '';
-
-CREATE TABLE jobs (
-  sequence         INTEGER PRIMARY KEY AUTOINCREMENT,
-  id               TEXT    NOT NULL UNIQUE,
-  tenant           TEXT    NOT NULL,
-  kind             TEXT    NOT NULL,
-  rig              TEXT    NOT NULL,
-  spec_json        TEXT    NOT NULL,
-  inputs_json      TEXT    NOT NULL,
-  input_names_json TEXT    NOT NULL,
-  idempotency_key  TEXT    NOT NULL DEFAULT '',
-  status           TEXT    NOT NULL
-                   CHECK (status IN ('queued', 'running', 'succeeded', 'failed', 'cancelled')),
-  stage            TEXT    NOT NULL,
-  attempts         INTEGER NOT NULL DEFAULT 0,
-  cache_hit        INTEGER NOT NULL DEFAULT 0,
-  error_json       TEXT    NOT NULL DEFAULT '',
-  result_blob      TEXT    NOT NULL DEFAULT '',
-  diagnostics_blob TEXT    NOT NULL DEFAULT '',
-  timings_json     TEXT    NOT NULL DEFAULT '',
-  created_ms       INTEGER NOT NULL,
-  started_ms       INTEGER NOT NULL DEFAULT 0,
-  finished_ms      INTEGER NOT NULL DEFAULT 0
-);
-CREATE UNIQUE INDEX jobs_idempotency ON jobs(tenant, idempotency_key) WHERE idempotency_key <> '';
-CREATE INDEX jobs_tenant_sequence ON jobs(tenant, sequence);
-CREATE INDEX jobs_status_sequence ON jobs(status, sequence);
-CREATE INDEX jobs_result_blob ON jobs(result_blob) WHERE result_blob <> '';
-CREATE INDEX jobs_diagnostics_blob ON jobs(diagnostics_blob) WHERE diagnostics_blob <> '';
-
--- jobs.inputs_json flattened, so blobReferenced() is an indexed lookup.
-CREATE TABLE job_inputs (
-  job_id TEXT NOT NULL REFERENCES jobs(id) ON DELETE CASCADE,
-  field  TEXT NOT NULL,
-  blob   TEXT NOT NULL,
-  PRIMARY KEY (job_id, field)
-);
-CREATE INDEX job_inputs_blob ON job_inputs(blob);
-)sql";
-
-// Version 2: rigs record their region labels (JSON array text; '' for rigs
-// stored by version 1, which did not: "unknown", not "none").
-constexpr const char* kMigrateV1ToV2 = R"sql(
-ALTER TABLE rigs ADD COLUMN region_labels TEXT NOT NULL DEFAULT '';
-)sql";
-
-// Version 3: one row rewritten by the storage probe (StorageHealth), so a
-// probe is a real write transaction.
-constexpr const char* kMigrateV2ToV3 = R"sql(
-CREATE TABLE storage_probe (
-  id    INTEGER PRIMARY KEY CHECK (id = 1),
-  at_ms INTEGER NOT NULL
-);
-)sql";
-
-// Version 5: a job's result may come with a rig components document
-// (transfer and fit of a rig that has one).
-constexpr const char* kMigrateV4ToV5 = R"sql(
-ALTER TABLE jobs ADD COLUMN components_blob TEXT NOT NULL DEFAULT '';
-CREATE INDEX jobs_components_blob ON jobs(components_blob) WHERE components_blob <> '';
-)sql";
 
 }  // namespace
 
@@ -342,30 +258,18 @@ core::Result<std::unique_ptr<MetadataStore>> openSqliteStore(const std::filesyst
       Stmt s(*stmt);
       if (s.step() == SQLITE_ROW) now_version = s.int32(0);
     }
-    if (now_version == 0) {
-      if (auto st = c->exec(kSchemaV1); !st) return st.error();
-      now_version = 1;
-    }
-    if (now_version == 1) {
-      if (auto st = c->exec(kMigrateV1ToV2); !st) {
-        return Error{st.error().code, "database " + file.string() + ": upgrading schema 1 to 2: " + st.error().message};
+    for (const SchemaStep& step : kSchemaSteps) {
+      if (now_version >= step.version) continue;
+      if (step.sql) {
+        if (auto st = c->exec(step.sql); !st) {
+          return Error{st.error().code, "database " + file.string() + ": " +
+                                            (now_version == 0 ? std::string("creating the schema")
+                                                              : "upgrading schema " + std::to_string(now_version) +
+                                                                    " to " + std::to_string(step.version)) +
+                                            ": " + st.error().message};
+        }
       }
-      now_version = 2;
-    }
-    if (now_version == 2) {
-      if (auto st = c->exec(kMigrateV2ToV3); !st) {
-        return Error{st.error().code, "database " + file.string() + ": upgrading schema 2 to 3: " + st.error().message};
-      }
-      now_version = 3;
-    }
-    // 3 -> 4: no table changes; jobs of kind "fit" may be stored, which
-    // builds of schema 3 could not read (see readJob).
-    if (now_version == 3) now_version = 4;
-    if (now_version == 4) {
-      if (auto st = c->exec(kMigrateV4ToV5); !st) {
-        return Error{st.error().code, "database " + file.string() + ": upgrading schema 4 to 5: " + st.error().message};
-      }
-      now_version = 5;
+      now_version = step.version;
     }
     if (auto st = c->exec(("PRAGMA user_version=" + std::to_string(now_version)).c_str()); !st) return st.error();
     if (auto st = tx.commit(); !st) return st.error();

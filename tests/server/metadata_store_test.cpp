@@ -634,6 +634,27 @@ TEST_F(PostgresStore, AConnectionTheServerDroppedIsMadeAgain) {
   EXPECT_TRUE(store->getRig("acme", "rig1"));
 }
 
+// A store written at schema 4 (before jobs had components results) is
+// upgraded in place on open, keeping its rows.
+TEST_F(PostgresStore, AnOlderSchemaIsUpgradedInPlace) {
+  const std::string location = freshLocation();
+  {
+    auto store = openStore(location);
+    ASSERT_TRUE(store);
+    ASSERT_TRUE(store->insertRig(makeRig("acme", "old")).ok());
+  }
+  runPostgres(location, "DROP INDEX jobs_components_blob; ALTER TABLE jobs DROP COLUMN components_blob; "
+                        "UPDATE rigport_schema SET version = 4");
+  auto store = openStore(location);
+  ASSERT_TRUE(store);
+  EXPECT_TRUE(store->getRig("acme", "old"));
+  const JobRecord job = makeJob("acme", "after-upgrade");
+  ASSERT_TRUE(store->insertJob(job).ok());
+  ASSERT_TRUE(store->markFinished(finished(job, JobStatus::kSucceeded)).ok());
+  EXPECT_EQ(store->getJob("acme", "after-upgrade")->components_blob, std::string(64, '3'))
+      << "version 5's components column must exist";
+}
+
 TEST_F(PostgresStore, ANewerSchemaIsRefusedNamingTheDatabase) {
   const std::string location = freshLocation();
   ASSERT_TRUE(openStore(location));
