@@ -50,7 +50,7 @@ class PgResult {
   std::unique_ptr<PGresult, void (*)(PGresult*)> result_;
 };
 
-// One row of a result, read as store_rows' readers expect.
+// One row of a result, read as store_sql.h's readers expect.
 struct PgRow {
   const PGresult* result;
   int row;
