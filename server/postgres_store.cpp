@@ -509,10 +509,26 @@ core::Status prepareSchema(PgConnection& c) {
   return tx.commit();
 }
 
+// The URL with bounds on waiting for a server that does not answer (unless
+// the URL sets them): every store call holds the store's one connection, so
+// an unreachable or silent server must fail calls in seconds, not hang the
+// replica's HTTP threads behind them for the kernel's TCP timeouts.
+std::string withTimeouts(const std::string& url) {
+  std::string out = url;
+  for (const char* setting : {"connect_timeout=5", "keepalives_idle=10", "keepalives_interval=5", "keepalives_count=3",
+                              "tcp_user_timeout=30000"}) {
+    const std::string key = std::string(setting).substr(0, std::string(setting).find('=') + 1);
+    if (url.find(key) != std::string::npos) continue;
+    out += (out.find('?') == std::string::npos ? "?" : "&");
+    out += setting;
+  }
+  return out;
+}
+
 }  // namespace
 
 core::Result<std::unique_ptr<MetadataStore>> openPostgresStore(const std::string& url) {
-  auto c = std::make_unique<PgConnection>(url, describeUrl(url));
+  auto c = std::make_unique<PgConnection>(withTimeouts(url), describeUrl(url));
   if (auto ok = c->ensure(); !ok) return ok.error();
   if (auto ok = prepareSchema(*c); !ok) return ok.error();
   return std::unique_ptr<MetadataStore>(new PostgresMetadataStore(std::move(c)));
