@@ -57,6 +57,14 @@ struct ServerConfig {
   int queue_capacity = 256;                    // queued jobs; beyond -> 429
   int retry_after_s = 1;                       // Retry-After of a 429
   double job_time_limit_s = 300.0;             // a running job is stopped at its next stage after this
+  // The job queue (server/jobs.h): a worker's claim on a job is a lease this
+  // long, renewed by a heartbeat (a third of it, at most every second); a
+  // replica that dies leaves its jobs to be requeued when their leases end.
+  // Idle workers look for queued jobs every poll_s (jobs submitted here, or
+  // requeued, wake them at once).
+  double lease_s = 30.0;
+  double poll_s = 0.5;
+  std::string replica_id;                      // names this process's leases; empty = host:pid:random
   double shutdown_grace_s = 30.0;              // SIGTERM: running jobs get this long to finish
 
   // Retention: finished jobs (and the blobs only they used) are deleted this

@@ -1,7 +1,10 @@
 #include "server/jobs.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 
 #include "api/error_codes.h"
 #include "api/json.h"
@@ -24,9 +27,10 @@ api::JobInfo jobInfoOf(const JobRecord& job, const std::optional<LiveProgress>& 
   info.status = job.status;
   info.stage = job.stage;
   info.progress = job.status == api::JobStatus::kSucceeded ? 1.0 : 0.0;
-  if (job.status == api::JobStatus::kRunning && live) {
-    info.stage = live->stage;
-    info.progress = live->progress;
+  if (job.status == api::JobStatus::kRunning) {
+    // Here: the worker's own view; elsewhere: its owner's last heartbeat.
+    info.stage = live ? live->stage : job.stage;
+    info.progress = live ? live->progress : job.progress;
   }
   info.attempts = job.attempts;
   info.cache_hit = job.cache_hit;
@@ -51,94 +55,144 @@ api::JobInfo jobInfoOf(const JobRecord& job, const std::optional<LiveProgress>& 
   return info;
 }
 
+namespace {
+
+// host:pid:random, unique among the replicas on one store.
+std::string defaultReplicaId() {
+  char host[256] = {0};
+  if (gethostname(host, sizeof host - 1) != 0) host[0] = '\0';
+  return std::string(host) + ":" + std::to_string(getpid()) + ":" + secureRandomHex(4).value_or("0");
+}
+
+bool isStorageError(const core::Error& e) { return e.code == core::ErrorCode::kIo; }
+
+}  // namespace
+
 JobManager::JobManager(MetadataStore& store, BlobStore& blobs, std::shared_mutex& blob_collection, StorageHealth& storage,
                        Caches& caches, Metrics& metrics, const ServerConfig& config, JsonLog log)
-    : store_(store), blobs_(blobs), blob_collection_(blob_collection), storage_(storage), caches_(caches), metrics_(metrics), config_(config), log_(std::move(log)) {}
+    : store_(store), blobs_(blobs), blob_collection_(blob_collection), storage_(storage), caches_(caches), metrics_(metrics), config_(config), log_(std::move(log)) {
+  owner_ = config_.replica_id.empty() ? defaultReplicaId() : config_.replica_id;
+  lease_ms_ = std::max<std::int64_t>(1, std::llround(config_.lease_s * 1000.0));
+  // A third of the lease, so two heartbeats may fail before it ends; at most a
+  // second apart, so cancels and progress reach other replicas soon.
+  heartbeat_ = std::chrono::milliseconds(std::clamp<std::int64_t>(lease_ms_ / 3, 10, 1000));
+}
 
 JobManager::~JobManager() { stop(0.0); }
 
 void JobManager::start() {
-  std::vector<JobRecord> unfinished = store_.unfinishedJobs();
-  int requeued = 0;
+  if (!store_.shared()) {
+    // The embedded store has this one process: what it left running was
+    // interrupted by a crash or a stop past its grace; run it again.
+    int requeued = 0;
+    for (const JobRecord& job : store_.unfinishedJobs()) {
+      if (job.status != api::JobStatus::kRunning) continue;
+      if (auto ok = store_.requeue(job.id, job.attempts); !ok) {
+        log_.error("job_requeue_failed", {{"job", job.id}, {"tenant", job.tenant}, {"detail", ok.error().message}});
+        continue;
+      }
+      ++requeued;
+    }
+    log_.info("jobs_recovered", {{"requeued_running", requeued}});
+  }
+  const int n = config_.workers > 0 ? config_.workers : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   {
     std::lock_guard lock(mutex_);
-    for (const JobRecord& job : unfinished) {
-      if (job.status == api::JobStatus::kRunning) {
-        // Interrupted by a crash or a stop past its grace: run it again from its inputs.
-        if (auto ok = store_.requeue(job.id); !ok) {
-          log_.error("job_requeue_failed", {{"job", job.id}, {"tenant", job.tenant}, {"detail", ok.error().message}});
-          continue;
-        }
-        ++requeued;
-      }
-      queue_.emplace_back(job.tenant, job.id);
-    }
+    hints_ = n;  // look at once: the queue may hold jobs from before
   }
-  log_.info("jobs_recovered", {{"queued", unfinished.size()}, {"requeued_running", requeued}});
-  const int n = config_.workers > 0 ? config_.workers : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  log_.info("job_queue_started", {{"replica", owner_}, {"workers", n}, {"lease_s", config_.lease_s},
+                                  {"store", store_.backend()}});
   for (int i = 0; i < n; ++i) workers_.emplace_back([this] { workerLoop(); });
+  lease_keeper_ = std::thread([this] { leaseLoop(); });
 }
 
 api::Result<std::pair<JobRecord, bool>> JobManager::submit(const JobRecord& job) {
   {
     std::lock_guard lock(mutex_);
     if (stopping_) return api::makeProblem(api::WireError::kNotReady, "the service is shutting down", "/v1/jobs");
-    if (static_cast<int>(queue_.size()) + reserved_ >= config_.queue_capacity) {
-      return api::makeProblem(api::WireError::kQueueFull,
-                              "the job queue is full (" + std::to_string(config_.queue_capacity) +
-                                  " jobs waiting); retry after " + std::to_string(config_.retry_after_s) + " s",
-                              "/v1/jobs");
-    }
-    ++reserved_;  // holds a slot while the row is committed outside the lock
+    ++reserved_;  // holds a slot while the queue is counted and the row committed
   }
-  auto inserted = store_.insertJob(job);
-  std::lock_guard lock(mutex_);
-  --reserved_;
-  if (!inserted) {
-    storage_.reportFault("job_submit", inserted.error().message);
+  const auto releaseSlot = [&] {
+    std::lock_guard lock(mutex_);
+    --reserved_;
+  };
+  const auto unavailable = [&](const std::string& where, const core::Error& error) {
+    releaseSlot();
+    storage_.reportFault(where, error.message);
     return api::makeProblem(api::WireError::kStorageUnavailable, "the job could not be stored: the service's storage "
                             "does not take writes now; nothing was accepted, submit it again", "/v1/jobs");
+  };
+  auto queued = store_.queuedJobs();
+  if (!queued) return unavailable("job_submit", queued.error());
+  int reserved = 0;
+  {
+    std::lock_guard lock(mutex_);
+    reserved = reserved_ - 1;
   }
-  if (inserted->second) {
-    queue_.emplace_back(inserted->first.tenant, inserted->first.id);
-    wake_.notify_one();
+  if (*queued + reserved >= config_.queue_capacity) {
+    releaseSlot();
+    return api::makeProblem(api::WireError::kQueueFull,
+                            "the job queue is full (" + std::to_string(config_.queue_capacity) +
+                                " jobs waiting); retry after " + std::to_string(config_.retry_after_s) + " s",
+                            "/v1/jobs");
   }
+  auto inserted = store_.insertJob(job);
+  if (!inserted) return unavailable("job_submit", inserted.error());
+  releaseSlot();
+  if (inserted->second) wakeWorkers(1);
   return std::move(*inserted);
 }
 
 api::Result<JobRecord> JobManager::cancel(const std::string& tenant, const std::string& id) {
   const std::string instance = "/v1/jobs/" + id;
-  std::unique_lock lock(mutex_);  // excludes a worker starting this job meanwhile
-  auto job = store_.getJob(tenant, id);
-  if (!job) return api::makeProblem(api::WireError::kNotFound, "no job " + id, instance);
-  if (api::isFinal(job->status)) {
-    return api::makeProblem(api::WireError::kConflict,
-                            "job " + id + " is already " + api::jobStatusName(job->status) + "; nothing to cancel", instance);
-  }
-  if (auto it = running_.find(id); it != running_.end()) {
-    it->second->cancel = true;  // the worker stops at the next stage boundary
-    log_.info("job_cancel_requested", {{"job", id}, {"tenant", tenant}});
-    return *job;
-  }
-  std::erase_if(queue_, [&](const auto& entry) { return entry.second == id; });
-  settled_.notify_all();  // waiters re-read the store after this function's commit (they need mutex_)
-  job->status = api::JobStatus::kCancelled;
-  job->stage = "cancelled";
-  job->finished_ms = nowMs();
-  job->error_json = api::dumpJson(api::toJson(api::makeProblem(api::WireError::kJobCancelled, "cancelled while queued", instance)));
-  if (auto ok = store_.markFinished(*job); !ok) {
-    storage_.reportFault("job_cancel", ok.error().message);
-    queue_.emplace_front(tenant, id);  // still queued, as the store says
+  const auto unavailable = [&](const core::Error& error) {
+    storage_.reportFault("job_cancel", error.message);
     return api::makeProblem(api::WireError::kStorageUnavailable,
-                            "the cancel could not be stored: the service's storage does not take writes now; the job is "
-                            "still queued, cancel it again",
+                            "the cancel could not be stored: the service's storage does not take writes now; cancel "
+                            "the job again",
                             instance);
+  };
+  // A job may move on between the read and the guarded write (claimed,
+  // finished): read again and decide again.
+  for (int round = 0; round < 4; ++round) {
+    auto job = store_.getJob(tenant, id);
+    if (!job) return api::makeProblem(api::WireError::kNotFound, "no job " + id, instance);
+    if (api::isFinal(job->status)) {
+      return api::makeProblem(api::WireError::kConflict,
+                              "job " + id + " is already " + api::jobStatusName(job->status) + "; nothing to cancel",
+                              instance);
+    }
+    if (job->status == api::JobStatus::kRunning) {
+      {
+        std::lock_guard lock(mutex_);
+        if (auto it = running_.find(id); it != running_.end()) it->second->cancel = true;
+      }
+      auto asked = store_.requestCancel(id);  // its owner, here or elsewhere, sees it at its next heartbeat
+      if (!asked && isStorageError(asked.error())) return unavailable(asked.error());
+      if (!asked) continue;
+      log_.info("job_cancel_requested", {{"job", id}, {"tenant", tenant}});
+      job->cancel_requested = true;
+      return *job;
+    }
+    JobRecord cancelled = *job;
+    cancelled.status = api::JobStatus::kCancelled;
+    cancelled.stage = "cancelled";
+    cancelled.finished_ms = nowMs();
+    cancelled.error_json =
+        api::dumpJson(api::toJson(api::makeProblem(api::WireError::kJobCancelled, "cancelled while queued", instance)));
+    auto ok = store_.markFinished(cancelled, job->attempts);  // refused once a worker claimed it
+    if (!ok && isStorageError(ok.error())) return unavailable(ok.error());
+    if (!ok) continue;
+    {
+      std::lock_guard lock(mutex_);
+      storage_faults_.erase(id);
+      settled_.notify_all();
+    }
+    metrics_.countJobOutcome("cancelled");
+    log_.info("job_cancelled", {{"job", id}, {"tenant", tenant}, {"while", "queued"}});
+    return cancelled;
   }
-  requeue_first_.erase(id);
-  storage_faults_.erase(id);
-  metrics_.countJobOutcome("cancelled");
-  log_.info("job_cancelled", {{"job", id}, {"tenant", tenant}, {"while", "queued"}});
-  return *job;
+  return api::makeProblem(api::WireError::kConflict, "job " + id + " kept changing state; cancel it again", instance);
 }
 
 std::optional<LiveProgress> JobManager::live(const std::string& id) const {
@@ -148,9 +202,9 @@ std::optional<LiveProgress> JobManager::live(const std::string& id) const {
   return LiveProgress{it->second->stage, it->second->progress, it->second->cancel.load()};
 }
 
-int JobManager::queueDepth() const {
-  std::lock_guard lock(mutex_);
-  return static_cast<int>(queue_.size());
+int JobManager::queueDepth() {
+  auto queued = store_.queuedJobs();
+  return queued ? static_cast<int>(*queued) : 0;
 }
 
 int JobManager::runningJobs() const {
@@ -166,7 +220,7 @@ bool JobManager::stop(double grace_s) {
   const bool finished = idle_.wait_for(lock, std::chrono::duration<double>(grace_s), [&] { return running_.empty(); });
   if (!finished) {
     // Past the grace period: stop them at their next stage boundary and put
-    // them back in the queue of the store (not cancelled: nobody asked).
+    // them back in the queue (not cancelled: nobody asked).
     abandoning_ = true;
     for (auto& [id, r] : running_) r->cancel = true;
   }
@@ -175,112 +229,219 @@ bool JobManager::stop(double grace_s) {
     if (w.joinable()) w.join();
   }
   workers_.clear();
+  lock.lock();
+  lease_stopping_ = true;  // every lease is given back or left to expire now
+  lease_wake_.notify_all();
+  lock.unlock();
+  if (lease_keeper_.joinable()) lease_keeper_.join();
   return finished;
 }
 
+void JobManager::wakeWorkers(int jobs) {
+  std::lock_guard lock(mutex_);
+  hints_ = std::min<int>(hints_ + jobs, static_cast<int>(workers_.size()) + 1);
+  if (jobs == 1) {
+    wake_.notify_one();
+  } else {
+    wake_.notify_all();
+  }
+}
+
 void JobManager::workerLoop() {
+  const auto poll = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(config_.poll_s));
+  auto next_look = Clock::now();
   for (;;) {
-    std::pair<std::string, std::string> next;
-    bool requeue_first = false;
     {
       std::unique_lock lock(mutex_);
-      // No job starts while storage does not take writes; its health changes
-      // without a notification here, hence the bounded wait.
-      while (!stopping_ && (queue_.empty() || !storage_.ok())) wake_.wait_for(lock, std::chrono::milliseconds(200));
-      if (stopping_) return;  // queued jobs stay queued in the store
-      next = std::move(queue_.front());
-      queue_.pop_front();
-      requeue_first = requeue_first_.erase(next.second) > 0;
-      running_.emplace(next.second, std::make_shared<Running>());
+      // Look when a job was submitted or requeued here, or every poll (other
+      // replicas' jobs); never while storage does not take writes (its health
+      // changes without a notification here, hence the bounded wait).
+      for (;;) {
+        if (stopping_) return;  // queued jobs stay queued in the store
+        if (storage_.ok() && (hints_ > 0 || Clock::now() >= next_look)) break;
+        wake_.wait_for(lock, std::min<Clock::duration>(poll, std::chrono::milliseconds(200)));
+      }
+      if (hints_ > 0) --hints_;
     }
-    const Retry retry = runOne(next.first, next.second, requeue_first);
+    auto claimed = store_.claimNextJob(owner_, lease_ms_);
+    if (!claimed) {
+      // Whether the claim landed is unknown: if it did, its lease runs out
+      // unrenewed and the job is requeued.
+      storage_.reportFault("job_claim", claimed.error().message);
+      next_look = Clock::now() + poll;
+      continue;
+    }
+    if (!*claimed) {
+      next_look = Clock::now() + poll;
+      continue;
+    }
+    next_look = Clock::now();  // there may be more
+    JobRecord job = std::move(**claimed);
+    auto state = std::make_shared<Running>();
+    state->tenant = job.tenant;
+    state->attempt = job.attempts;
+    bool stop_now = false;
+    {
+      std::lock_guard lock(mutex_);
+      stop_now = stopping_;
+      if (!stop_now) running_.emplace(job.id, state);
+    }
+    if (stop_now) {  // claimed as the server stopped: back in the queue
+      giveBack(job.id, job.attempts);
+      return;
+    }
+    const std::string id = job.id;
+    runOne(std::move(job), *state);
     std::lock_guard lock(mutex_);
-    running_.erase(next.second);
-    if (retry != Retry::kNo) {
-      // Back at the front, to run once storage takes writes again (a stop
-      // meanwhile leaves it in the store, recovered at the next start).
-      queue_.push_front(next);
-      if (retry == Retry::kRunning) requeue_first_.insert(next.second);
-    }
+    running_.erase(id);
     settled_.notify_all();
     if (running_.empty()) idle_.notify_all();
   }
 }
 
-bool JobManager::waitUntilSettled(const std::string& id, std::chrono::milliseconds max_wait, int max_waiters) {
-  std::unique_lock lock(mutex_);
-  auto unsettled = [&] {
-    return running_.count(id) > 0 ||
-           std::any_of(queue_.begin(), queue_.end(), [&](const auto& entry) { return entry.second == id; });
+bool JobManager::waitUntilSettled(const std::string& tenant, const std::string& id, std::chrono::milliseconds max_wait,
+                                  int max_waiters) {
+  const auto deadline = Clock::now() + max_wait;
+  const auto unsettled = [&] {
+    auto job = store_.getJob(tenant, id);
+    return job && !api::isFinal(job->status);
   };
-  if (stopping_ || !unsettled() || waiters_ >= max_waiters) return false;
-  ++waiters_;
-  settled_.wait_for(lock, max_wait, [&] { return stopping_ || !unsettled(); });
+  {
+    std::lock_guard lock(mutex_);
+    if (stopping_ || waiters_ >= max_waiters) return false;
+    ++waiters_;
+  }
+  bool waited = false;
+  while (unsettled()) {
+    std::unique_lock lock(mutex_);
+    if (stopping_ || Clock::now() >= deadline) break;
+    waited = true;
+    // A job finishing here notifies; one on another replica is seen by the
+    // next look at the store.
+    settled_.wait_for(lock, std::min<Clock::duration>(deadline - Clock::now(), std::chrono::milliseconds(250)));
+  }
+  std::lock_guard lock(mutex_);
   --waiters_;
-  return true;
+  return waited;
 }
 
-JobManager::Retry JobManager::storageFault(const std::string& tenant, const std::string& id, const std::string& where,
-                                          const std::string& detail, Retry retry) {
-  storage_.reportFault(where, "job " + id + ": " + detail);
+void JobManager::leaseLoop() {
+  for (;;) {
+    {
+      std::unique_lock lock(mutex_);
+      lease_wake_.wait_for(lock, heartbeat_, [&] { return lease_stopping_; });
+      if (lease_stopping_) return;
+    }
+    renewLeases();
+    std::vector<std::pair<std::string, int>> give_back;
+    {
+      std::lock_guard lock(mutex_);
+      give_back.swap(give_back_);
+    }
+    for (const auto& [id, attempt] : give_back) giveBack(id, attempt);
+    auto expired = store_.requeueExpiredLeases();
+    if (!expired) {
+      log_.warn("lease_scan_failed", {{"detail", expired.error().message}});
+      continue;
+    }
+    for (const std::string& id : *expired) {
+      metrics_.countLeaseEvent(Metrics::LeaseEvent::kExpired);
+      log_.warn("job_lease_expired", {{"job", id}, {"replica", owner_}});
+    }
+    if (!expired->empty()) wakeWorkers(static_cast<int>(expired->size()));
+  }
+}
+
+void JobManager::renewLeases() {
+  std::vector<LeaseRenewal> renewals;
+  std::vector<std::shared_ptr<Running>> states;
+  {
+    std::lock_guard lock(mutex_);
+    for (const auto& [id, state] : running_) {
+      if (state->lost) continue;
+      renewals.push_back({id, state->attempt, state->stage, state->progress});
+      states.push_back(state);
+    }
+  }
+  if (renewals.empty()) return;
+  auto answers = store_.renewLeases(owner_, renewals, lease_ms_);
+  if (!answers) {
+    // The lease runs out unless a later heartbeat gets through: the job then
+    // runs elsewhere, and this worker's writes are refused by the fence.
+    log_.warn("lease_renewal_failed", {{"jobs", renewals.size()}, {"detail", answers.error().message}});
+    return;
+  }
+  for (std::size_t i = 0; i < answers->size() && i < states.size(); ++i) {
+    if ((*answers)[i] == LeaseState::kCancelRequested) states[i]->cancel = true;
+    if ((*answers)[i] == LeaseState::kLost) {
+      states[i]->lost = true;
+      states[i]->cancel = true;  // stop at the next stage boundary, write nothing
+      metrics_.countLeaseEvent(Metrics::LeaseEvent::kFencingRejected);
+      log_.warn("job_lease_lost", {{"job", renewals[i].id}, {"attempt", renewals[i].attempt}, {"replica", owner_}});
+    }
+  }
+}
+
+void JobManager::giveBack(const std::string& id, int attempt) {
+  auto ok = store_.requeue(id, attempt);
+  if (ok || !isStorageError(ok.error())) return;  // requeued, or moved on already (finished, claimed again)
+  std::lock_guard lock(mutex_);
+  if (!lease_stopping_) give_back_.emplace_back(id, attempt);  // else its lease runs out
+}
+
+void JobManager::storageFault(const JobRecord& job, const std::string& where, const std::string& detail) {
+  storage_.reportFault(where, "job " + job.id + ": " + detail);
   int count = 0;
   {
     std::lock_guard lock(mutex_);
-    count = ++storage_faults_[id];
+    count = ++storage_faults_[job.id];
   }
-  if (count <= config_.storage_retries_per_job) return retry;
+  if (count <= config_.storage_retries_per_job) {
+    giveBack(job.id, job.attempts);  // runs again once storage takes writes
+    return;
+  }
   // The job's own data keeps failing though the probe passes between tries (a
   // corrupted or vanished blob): it fails, saying so without server paths.
   JobRecord failed;
-  failed.id = id;
+  failed.id = job.id;
   failed.status = api::JobStatus::kFailed;
   failed.error_json = api::dumpJson(api::toJson(api::makeProblem(
       api::WireError::kInternal,
       "the service could not read or write this job's stored data " + std::to_string(count) +
           " times (the cause is in the service log); submit the job again",
-      "/v1/jobs/" + id)));
-  if (!store_.markFinished(failed)) return retry;
+      "/v1/jobs/" + job.id)));
+  if (!store_.markFinished(failed, job.attempts)) {
+    giveBack(job.id, job.attempts);
+    return;
+  }
   {
     std::lock_guard lock(mutex_);
-    storage_faults_.erase(id);
+    storage_faults_.erase(job.id);
   }
   metrics_.countJobOutcome("failed");
-  log_.error("job_failed_on_storage", {{"job", id}, {"tenant", tenant}, {"tries", count}});
-  return Retry::kNo;
+  log_.error("job_failed_on_storage", {{"job", job.id}, {"tenant", job.tenant}, {"tries", count}});
 }
 
-JobManager::Retry JobManager::runOne(const std::string& tenant, const std::string& id, bool requeue_first) {
-  std::shared_ptr<Running> state;
-  {
-    std::lock_guard lock(mutex_);
-    state = running_.at(id);
-  }
-  const auto isStorage = [](const core::Error& e) { return e.code == core::ErrorCode::kIo; };
-  if (requeue_first) {  // left running by a storage fault after it started
-    if (auto ok = store_.requeue(id); !ok) {
-      return isStorage(ok.error()) ? storageFault(tenant, id, "job_requeue", ok.error().message, Retry::kRunning) : Retry::kNo;
-    }
-  }
-  auto job = store_.getJob(tenant, id);
-  if (!job || api::isFinal(job->status)) return Retry::kNo;  // cancelled while queued, or deleted
-  const std::int64_t started_ms = nowMs();
-  if (auto ok = store_.markRunning(id, started_ms, false); !ok) {
-    if (isStorage(ok.error())) return storageFault(tenant, id, "job_start", ok.error().message, Retry::kQueued);
-    log_.error("job_start_failed", {{"job", id}, {"tenant", tenant}, {"detail", ok.error().message}});
-    return Retry::kNo;
-  }
-  job->status = api::JobStatus::kRunning;
-  job->attempts += 1;
-  job->started_ms = started_ms;
-  metrics_.observeStage("queue", static_cast<double>(started_ms - job->created_ms) / 1000.0);
-  log_.info("job_started", {{"job", id}, {"tenant", tenant}, {"kind", api::jobKindName(job->kind)}, {"attempt", job->attempts}});
+void JobManager::runOne(JobRecord job, Running& state) {
+  const std::string& id = job.id;
+  const std::string& tenant = job.tenant;
+  const int attempt = job.attempts;
+  if (attempt > 1) metrics_.countLeaseEvent(Metrics::LeaseEvent::kRescued);
+  metrics_.observeStage("queue", static_cast<double>(std::max<std::int64_t>(0, job.started_ms - job.created_ms)) / 1000.0);
+  log_.info("job_started", {{"job", id}, {"tenant", tenant}, {"kind", api::jobKindName(job.kind)}, {"attempt", attempt},
+                            {"replica", owner_}});
 
   const auto t_start = Clock::now();
-  Execution run = execute(*job, *state);
-  if (!run.outcome && isStorage(run.outcome.error())) {
-    return storageFault(tenant, id, "job_inputs", run.outcome.error().message, Retry::kRunning);
+  Execution run = execute(job, state);
+  if (state.lost) {
+    log_.warn("job_abandoned", {{"job", id}, {"tenant", tenant}, {"attempt", attempt}, {"reason", "lease lost"}});
+    return;
   }
-  job->finished_ms = nowMs();
+  if (!run.outcome && isStorageError(run.outcome.error())) {
+    storageFault(job, "job_inputs", run.outcome.error().message);
+    return;
+  }
+  job.finished_ms = nowMs();
   // Held until the row references the result blobs: a job deleted meanwhile
   // may share their bytes (same inputs, same result) and must not remove them.
   std::shared_lock collection(blob_collection_);
@@ -300,16 +461,17 @@ JobManager::Retry JobManager::runOne(const std::string& tenant, const std::strin
       const core::Error& e = !result_blob        ? result_blob.error()
                              : !diagnostics_blob ? diagnostics_blob.error()
                                                  : components_blob.error();
-      return storageFault(tenant, id, "job_result", e.message, Retry::kRunning);
+      storageFault(job, "job_result", e.message);
+      return;
     }
-    job->status = api::JobStatus::kSucceeded;
-    job->stage = "done";
-    job->result_blob = *result_blob;
-    job->diagnostics_blob = *diagnostics_blob;
-    job->components_blob = *components_blob;
-    job->cache_hit = out->cache_hit;
-    job->timings_json = nlohmann::json(out->timings_ms).dump();
-    if (out->refused) recordFailure(*job, *out->refused, run);
+    job.status = api::JobStatus::kSucceeded;
+    job.stage = "done";
+    job.result_blob = *result_blob;
+    job.diagnostics_blob = *diagnostics_blob;
+    job.components_blob = *components_blob;
+    job.cache_hit = out->cache_hit;
+    job.timings_json = nlohmann::json(out->timings_ms).dump();
+    if (out->refused) recordFailure(job, *out->refused, run);
   }
   if (!run.outcome) {
     const core::Error* error = &run.outcome.error();
@@ -319,32 +481,35 @@ JobManager::Retry JobManager::runOne(const std::string& tenant, const std::strin
       abandoned = abandoning_ && error->code == core::ErrorCode::kCancelled;
     }
     if (abandoned) {
-      if (auto ok = store_.requeue(id); !ok) {
-        log_.error("job_requeue_failed", {{"job", id}, {"tenant", tenant}, {"detail", ok.error().message}});
-      }
+      giveBack(id, attempt);
       log_.warn("job_requeued_at_shutdown", {{"job", id}, {"tenant", tenant}});
-      return Retry::kNo;
+      return;
     }
-    recordFailure(*job, *error, run);
+    recordFailure(job, *error, run);
   }
-  if (auto ok = store_.markFinished(*job); !ok) {
-    if (isStorage(ok.error())) return storageFault(tenant, id, "job_finish", ok.error().message, Retry::kRunning);
-    log_.error("job_finish_failed", {{"job", id}, {"tenant", tenant}, {"detail", ok.error().message}});
-    return Retry::kNo;
+  if (auto ok = store_.markFinished(job, attempt); !ok) {
+    if (isStorageError(ok.error())) {
+      storageFault(job, "job_finish", ok.error().message);
+    } else {
+      // The fence: this attempt's lease had moved on (another replica runs
+      // or ran the job); its result is not written over the new owner's.
+      metrics_.countLeaseEvent(Metrics::LeaseEvent::kFencingRejected);
+      log_.warn("job_result_fenced", {{"job", id}, {"tenant", tenant}, {"attempt", attempt}, {"detail", ok.error().message}});
+    }
+    return;
   }
   {
     std::lock_guard lock(mutex_);
     storage_faults_.erase(id);
   }
-  metrics_.countJobOutcome(api::jobStatusName(job->status));
+  metrics_.countJobOutcome(api::jobStatusName(job.status));
   const double total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t_start).count();
-  if (job->status == api::JobStatus::kSucceeded) {
-    log_.info("job_succeeded", {{"job", id}, {"tenant", tenant}, {"ms", total_ms}, {"cache_hit", job->cache_hit}});
+  if (job.status == api::JobStatus::kSucceeded) {
+    log_.info("job_succeeded", {{"job", id}, {"tenant", tenant}, {"ms", total_ms}, {"cache_hit", job.cache_hit}});
   } else {
-    log_.warn("job_" + std::string(api::jobStatusName(job->status)),
-              {{"job", id}, {"tenant", tenant}, {"ms", total_ms}, {"error", nlohmann::json::parse(job->error_json)}});
+    log_.warn("job_" + std::string(api::jobStatusName(job.status)),
+              {{"job", id}, {"tenant", tenant}, {"ms", total_ms}, {"error", nlohmann::json::parse(job.error_json)}});
   }
-  return Retry::kNo;
 }
 
 JobManager::Execution JobManager::execute(const JobRecord& job, Running& state) {

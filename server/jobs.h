@@ -1,9 +1,15 @@
-// Jobs: a bounded in-memory queue of accepted job ids in front of a worker
-// pool. The store is the truth (a job is accepted once its row is committed);
-// the queue only orders work. Workers run one job each (core work never runs
-// on an HTTP thread), report stage and progress, honour cancellation and the
-// per-job time limit at stage boundaries, and write results to the store
-// before the job is marked finished.
+// Jobs: the queue lives in the store, a worker pool here. A job is accepted
+// once its row is committed; a worker claims the oldest queued job under a
+// lease (MetadataStore::claimNextJob: on PostgreSQL, FOR UPDATE SKIP LOCKED,
+// so replicas sharing the database never claim one job twice), renewed by a
+// heartbeat while it runs. A replica that dies leaves its jobs to expire and
+// be requeued by any live one; the attempt counter fences every state change
+// and result write, so a worker that lost its lease cannot overwrite the new
+// owner's result. Workers run one job each (core work never runs on an HTTP
+// thread), report stage and progress (the heartbeat stores them for other
+// replicas), honour cancellation (asked on any replica) and the per-job time
+// limit at stage boundaries, and write results to the store before the job
+// is marked finished.
 #pragma once
 
 #include <atomic>
@@ -44,63 +50,71 @@ class JobManager {
   // Workers hold `blob_collection` shared from writing a result blob until the
   // row references it (see server/retention.h).
   // Storage faults (a failed store or blob read or write) are reported to
-  // `storage`; the job goes back to the front of the queue, and no job starts
-  // until storage takes writes again (it fails only when its own data keeps
-  // failing, config.storage_retries_per_job times).
+  // `storage`; the job goes back to the queue (at its place: the oldest
+  // first), and no job starts here until storage takes writes again (it fails
+  // only when its own data keeps failing, config.storage_retries_per_job times).
   JobManager(MetadataStore& store, BlobStore& blobs, std::shared_mutex& blob_collection, StorageHealth& storage,
              Caches& caches, Metrics& metrics, const ServerConfig& config, JsonLog log);
   ~JobManager();  // stop(0): workers abandon nothing durable, queued/running rows stay for the next start
   JobManager(const JobManager&) = delete;
   JobManager& operator=(const JobManager&) = delete;
 
-  // Recovery (running -> queued, every unfinished job queued in submission
-  // order) and the worker threads.
+  // Recovery on the embedded store (its one process: every running job back
+  // to queued), the workers and the lease keeper (heartbeats, expired leases).
   void start();
 
   // Commits the job (or finds the earlier one with its Idempotency-Key) and
-  // queues it. A full queue is a 429 problem; nothing is stored then.
+  // wakes a worker. A full queue (queued jobs of every replica) is a 429
+  // problem; nothing is stored then.
   api::Result<std::pair<JobRecord, bool>> submit(const JobRecord& job);
 
-  // Queued: cancelled now. Running: stops at its next stage boundary. Final: 409.
+  // Queued: cancelled now. Running (here or on another replica): stops at its
+  // next stage boundary after its owner sees the request. Final: 409.
   api::Result<JobRecord> cancel(const std::string& tenant, const std::string& id);
 
-  // Stage and progress of a running job (the store has the rest).
+  // Stage and progress of a job running here (the store has the rest, with
+  // the progress of other replicas' jobs as of their last heartbeat).
   std::optional<LiveProgress> live(const std::string& id) const;
-  int queueDepth() const;
-  int runningJobs() const;
+  int queueDepth();        // queued jobs in the store (all replicas)
+  int runningJobs() const; // on this replica's workers
+  // The name this replica's leases carry.
+  const std::string& owner() const { return owner_; }
 
-  // Long-polling GET: blocks until the job is neither queued nor running
-  // here (its final state is in the store), the server stops, or `max_wait`
-  // passes. At most `max_waiters` requests wait at once (each holds an HTTP
-  // thread); the others return at once. Returns false when it did not wait.
-  bool waitUntilSettled(const std::string& id, std::chrono::milliseconds max_wait, int max_waiters);
+  // Long-polling GET: blocks until the job is final in the store, the server
+  // stops, or `max_wait` passes. At most `max_waiters` requests wait at once
+  // (each holds an HTTP thread); the others return at once. Returns false
+  // when it did not wait.
+  bool waitUntilSettled(const std::string& tenant, const std::string& id, std::chrono::milliseconds max_wait,
+                        int max_waiters);
 
   // Graceful stop: no new jobs start; running ones get `grace_s` to finish.
-  // Returns true when every running job finished in time (the others stay
-  // `running` in the store and are requeued at the next start).
+  // Returns true when every running job finished in time (the others are
+  // put back in the queue, or left to their leases when the store is away).
   bool stop(double grace_s);
 
  private:
   struct Running {
+    std::string tenant;
+    int attempt = 0;  // the fencing token of the claim
     std::string stage = "queued";
     double progress = 0.0;
     std::atomic<bool> cancel{false};
+    std::atomic<bool> lost{false};  // the lease moved on: write nothing
   };
-  // What becomes of a job its worker gives back: nothing more (final, or
-  // gone), or run again once storage recovers, its row still queued or left
-  // running (requeued in the store first).
-  enum class Retry { kNo, kQueued, kRunning };
   struct Execution {
     core::Result<core::JobOutput> outcome = core::Error{core::ErrorCode::kCancelled, "not run"};
     std::string stage;       // the last stage reached
     bool timed_out = false;
   };
   void workerLoop();
-  Retry runOne(const std::string& tenant, const std::string& id, bool requeue_first);
+  void leaseLoop();        // heartbeats, expired leases, requeues that failed
+  void renewLeases();
+  void runOne(JobRecord job, Running& state);
   Execution execute(const JobRecord& job, Running& state);  // the job body with stage, cancel and time-limit hooks
   void recordFailure(JobRecord& job, const core::Error& error, const Execution& run) const;
-  Retry storageFault(const std::string& tenant, const std::string& id, const std::string& where, const std::string& detail,
-                     Retry retry);
+  void storageFault(const JobRecord& job, const std::string& where, const std::string& detail);
+  void giveBack(const std::string& id, int attempt);  // running -> queued, now or by the lease keeper
+  void wakeWorkers(int jobs);
 
   MetadataStore& store_;
   BlobStore& blobs_;
@@ -110,20 +124,26 @@ class JobManager {
   Metrics& metrics_;
   const ServerConfig config_;
   JsonLog log_;
+  std::string owner_;
+  std::int64_t lease_ms_ = 30'000;
+  std::chrono::milliseconds heartbeat_{1000};
 
   mutable std::mutex mutex_;
   std::condition_variable wake_;
   std::condition_variable idle_;
-  std::condition_variable settled_;                          // a job left the queue or finished running
+  std::condition_variable settled_;                          // a job finished or left here
+  std::condition_variable lease_wake_;
   int waiters_ = 0;                                          // requests in waitUntilSettled
-  std::deque<std::pair<std::string, std::string>> queue_;   // (tenant, id)
+  int hints_ = 0;                                            // jobs known queued for idle workers
   int reserved_ = 0;                                         // submissions between capacity check and commit
   std::map<std::string, std::shared_ptr<Running>> running_;  // by job id
-  std::set<std::string> requeue_first_;                      // queued here, left running in the store
+  std::vector<std::pair<std::string, int>> give_back_;       // (id, attempt) to requeue once the store answers
   std::map<std::string, int> storage_faults_;                // storage faults per job since its last finish
   bool stopping_ = false;
   bool abandoning_ = false;                                  // stop() past its grace period
+  bool lease_stopping_ = false;
   std::vector<std::thread> workers_;
+  std::thread lease_keeper_;
 };
 
 // The wire view of a stored job (with live stage/progress when running).

@@ -47,6 +47,12 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   app.add_flag("--no-auth", no_auth, "No API keys: every request is one local tenant");
   app.add_option("--queue-capacity", config.queue_capacity, "Queued jobs before 429")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--lease-s", config.lease_s,
+                 "Seconds a worker's claim on a job lasts unrenewed: a replica that dies leaves its jobs to be requeued "
+                 "this long after its last heartbeat")
+      ->check(CLI::Range(0.1, 3600.0))
+      ->capture_default_str();
+  app.add_option("--replica-id", config.replica_id, "Name of this replica's leases (default host:pid:random)");
   app.add_option("--job-time-limit", config.job_time_limit_s, "Seconds a job may run")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--listen-backlog", config.listen_backlog, "New connections the kernel queues until accepted")
       ->check(CLI::PositiveNumber)

@@ -33,6 +33,15 @@ void Metrics::countJobDeleted(const std::string& reason) {
   ++deleted_[reason];
 }
 
+void Metrics::countLeaseEvent(LeaseEvent event) {
+  std::lock_guard lock(mutex_);
+  switch (event) {
+    case LeaseEvent::kRescued: ++rescued_; break;
+    case LeaseEvent::kExpired: ++lease_expiries_; break;
+    case LeaseEvent::kFencingRejected: ++fencing_rejections_; break;
+  }
+}
+
 std::string Metrics::render(const GaugeSnapshot& g) const {
   std::ostringstream out;
   out.precision(10);
@@ -64,6 +73,13 @@ std::string Metrics::render(const GaugeSnapshot& g) const {
   out << "# HELP rigport_jobs_deleted_total Jobs deleted since start (with the blobs only they used), by reason.\n"
          "# TYPE rigport_jobs_deleted_total counter\n";
   for (const auto& [reason, n] : deleted_) out << "rigport_jobs_deleted_total{reason=\"" << reason << "\"} " << n << "\n";
+  out << "# HELP rigport_jobs_rescued_total Jobs this replica claimed that an earlier attempt left unfinished.\n"
+         "# TYPE rigport_jobs_rescued_total counter\nrigport_jobs_rescued_total " << rescued_ << "\n"
+      << "# HELP rigport_lease_expiries_total Expired leases this replica found and put back in the queue.\n"
+         "# TYPE rigport_lease_expiries_total counter\nrigport_lease_expiries_total " << lease_expiries_ << "\n"
+      << "# HELP rigport_fencing_rejections_total Heartbeats and result writes of this replica refused because its "
+         "lease had moved on.\n# TYPE rigport_fencing_rejections_total counter\nrigport_fencing_rejections_total "
+      << fencing_rejections_ << "\n";
   out << "# HELP rigport_http_requests_total HTTP requests by method, route and status.\n# TYPE rigport_http_requests_total counter\n";
   for (const auto& [key, n] : requests_) {
     out << "rigport_http_requests_total{method=\"" << key.first << "\",route=\"" << key.second.first << "\",status=\""

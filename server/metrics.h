@@ -34,6 +34,13 @@ class Metrics {
   void observeStage(const std::string& stage, double seconds);
   void countJobOutcome(const std::string& status);
   void countJobDeleted(const std::string& reason);    // "request" or "retention"
+  // The job queue's lease events (server/jobs.h), as seen by this replica.
+  enum class LeaseEvent {
+    kRescued,          // claimed a job an earlier attempt left unfinished
+    kExpired,          // found a lease ended and put its job back in the queue
+    kFencingRejected,  // a heartbeat or result write refused: the lease had moved on
+  };
+  void countLeaseEvent(LeaseEvent event);
   std::string render(const GaugeSnapshot& gauges) const;
 
  private:
@@ -48,6 +55,7 @@ class Metrics {
   std::map<std::string, Histogram> stages_;
   std::map<std::string, std::uint64_t> outcomes_;
   std::map<std::string, std::uint64_t> deleted_;
+  std::uint64_t rescued_ = 0, lease_expiries_ = 0, fencing_rejections_ = 0;
 };
 
 // The route pattern of a request path: hex ids become {id} ("/v1/jobs/{id}/result").

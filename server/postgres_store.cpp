@@ -12,6 +12,8 @@
 // race.
 #include <libpq-fe.h>
 
+#include <cctype>
+#include <cmath>
 #include <cstdlib>
 #include <memory>
 #include <mutex>
@@ -33,6 +35,18 @@ namespace {
 // pg_advisory_xact_lock key of schema creation and upgrades ("rigport" in ASCII).
 constexpr long long kSchemaLockKey = 0x72696770'6f7274LL;
 
+
+// The database's clock in epoch ms: leases are granted and expired by one
+// clock, whatever the replicas' clocks say.
+constexpr const char* kDatabaseNowMs = "(EXTRACT(EPOCH FROM clock_timestamp()) * 1000)::BIGINT";
+
+// store_sql.h's ?N placeholders as PostgreSQL's $N.
+std::string dollarParams(std::string sql) {
+  for (std::size_t i = 0; i + 1 < sql.size(); ++i) {
+    if (sql[i] == '?' && std::isdigit(static_cast<unsigned char>(sql[i + 1]))) sql[i] = '$';
+  }
+  return sql;
+}
 
 // SQLSTATE of a unique_violation.
 constexpr const char* kUniqueViolation = "23505";
@@ -333,34 +347,85 @@ class PostgresMetadataStore final : public MetadataStore {
     return core::Ok{};
   }
 
-  core::Status markFinished(const JobRecord& job) override {
+  core::Status markFinished(const JobRecord& job, int attempt) override {
     std::lock_guard lock(mutex_);
     if (!api::isFinal(job.status)) {
       return makeError(ErrorCode::kInvalidArgument, "cannot finish job " + job.id + " with non-final status " +
                                                         api::jobStatusName(job.status));
     }
-    auto r = c_->command(
-        "UPDATE jobs SET status = $2, stage = COALESCE(NULLIF($3, ''), stage), error_json = $4, result_blob = $5, "
-        "diagnostics_blob = $6, timings_json = $7, finished_ms = $8, cache_hit = $9, components_blob = $10 "
-        "WHERE id = $1 AND status IN ('queued', 'running')",
-        {job.id, std::string(api::jobStatusName(job.status)), job.stage, job.error_json, job.result_blob,
-         job.diagnostics_blob, job.timings_json, p(job.finished_ms != 0 ? job.finished_ms : nowMs()),
-         p(job.cache_hit ? 1 : 0), job.components_blob},
-        "cannot mark job " + job.id + " finished");
+    static const std::string kFinish = dollarParams(kFinishJobSql);
+    auto r = c_->command(kFinish.c_str(),
+                         {job.id, std::string(api::jobStatusName(job.status)), job.stage, job.error_json,
+                          job.result_blob, job.diagnostics_blob, job.timings_json,
+                          p(job.finished_ms != 0 ? job.finished_ms : nowMs()), p(job.cache_hit ? 1 : 0),
+                          job.components_blob, p(attempt)},
+                         "cannot mark job " + job.id + " finished");
     if (!r) return r.error();
-    if (r->affected() == 0) return transitionRefused(job.id, "finish");
+    if (r->affected() == 0) return transitionRefused(job.id, "finish", attempt);
     return core::Ok{};
   }
 
-  core::Status requeue(const std::string& id) override {
+  core::Status requeue(const std::string& id, int attempt) override {
     std::lock_guard lock(mutex_);
-    auto r = c_->command(
-        "UPDATE jobs SET status = 'queued', stage = 'queued' WHERE id = $1 AND status IN ('queued', 'running')", {id},
-        "cannot requeue job " + id);
+    static const std::string kRequeue = dollarParams(kRequeueJobSql);
+    auto r = c_->command(kRequeue.c_str(), {id, p(attempt)}, "cannot requeue job " + id);
     if (!r) return r.error();
-    if (r->affected() == 0) return transitionRefused(id, "requeue");
+    if (r->affected() == 0) return transitionRefused(id, "requeue", attempt);
     return core::Ok{};
   }
+
+  core::Result<std::optional<JobRecord>> claimNextJob(const std::string& owner, std::int64_t lease_ms) override {
+    std::lock_guard lock(mutex_);
+    static const std::string kClaim = dollarParams(claimJobSql(kDatabaseNowMs, /*skip_locked=*/true));
+    auto rows = c_->exec(kClaim.c_str(), {owner, p(lease_ms)}, "cannot claim a job");
+    if (!rows) return rows.error();
+    if (rows->rows() == 0) return std::optional<JobRecord>();
+    return std::optional<JobRecord>(readJob(PgRow{rows->get(), 0}));
+  }
+
+  core::Result<std::vector<LeaseState>> renewLeases(const std::string& owner, const std::vector<LeaseRenewal>& renewals,
+                                                    std::int64_t lease_ms) override {
+    std::lock_guard lock(mutex_);
+    static const std::string kRenew = dollarParams(renewLeaseSql(kDatabaseNowMs));
+    std::vector<LeaseState> out;
+    for (const LeaseRenewal& r : renewals) {
+      auto rows = c_->exec(kRenew.c_str(),
+                           {r.id, p(r.attempt), p(lease_ms), r.stage,
+                            p(static_cast<std::int64_t>(std::lround(r.progress * 1e6))), owner},
+                           "cannot renew the lease of job " + r.id);
+      if (!rows) return rows.error();
+      out.push_back(rows->rows() == 0                         ? LeaseState::kLost
+                    : PgRow{rows->get(), 0}.int32(0) != 0 ? LeaseState::kCancelRequested
+                                                              : LeaseState::kHeld);
+    }
+    return out;
+  }
+
+  core::Result<std::vector<std::string>> requeueExpiredLeases() override {
+    std::lock_guard lock(mutex_);
+    static const std::string kRequeue = dollarParams(requeueExpiredSql(kDatabaseNowMs));
+    auto rows = c_->exec(kRequeue.c_str(), {}, "cannot requeue jobs with expired leases");
+    if (!rows) return rows.error();
+    return readRows<std::string>(*rows, [](const PgRow& r) { return r.text(0); });
+  }
+
+  core::Status requestCancel(const std::string& id) override {
+    std::lock_guard lock(mutex_);
+    static const std::string kCancel = dollarParams(kRequestCancelSql);
+    auto r = c_->command(kCancel.c_str(), {id}, "cannot request the cancel of job " + id);
+    if (!r) return r.error();
+    if (r->affected() == 0) return transitionRefused(id, "request the cancel of");
+    return core::Ok{};
+  }
+
+  core::Result<std::int64_t> queuedJobs() override {
+    std::lock_guard lock(mutex_);
+    auto rows = c_->exec(kQueuedJobsSql, {}, "cannot count queued jobs");
+    if (!rows) return rows.error();
+    return PgRow{rows->get(), 0}.int64(0);
+  }
+
+  bool shared() const override { return true; }
 
   core::Result<bool> deleteFinishedJob(const std::string& tenant, const std::string& id) override {
     std::lock_guard lock(mutex_);
@@ -454,12 +519,10 @@ class PostgresMetadataStore final : public MetadataStore {
   }
 
   // Explains why a guarded UPDATE changed no row: the job is absent or in the wrong state.
-  Error transitionRefused(const std::string& id, const char* transition) {
+  Error transitionRefused(const std::string& id, const char* transition, int attempt = kAnyAttempt) {
     auto job = loadJob(id);
     if (!job) return job.error();
-    if (!*job) return makeError(ErrorCode::kInvalidArgument, "cannot " + std::string(transition) + ": no job " + id);
-    return makeError(ErrorCode::kInvalidArgument, "cannot " + std::string(transition) + " job " + id + ": it is " +
-                                                      api::jobStatusName((*job)->status));
+    return transitionRefusal(id, transition, *job ? &**job : nullptr, attempt);
   }
 
   std::unique_ptr<PgConnection> c_;

@@ -423,7 +423,7 @@ void getJob(const Request& req, Response& res, RouteContext& ctx) {
   auto job = ctx.store.getJob(*tenant, id);
   if (!job) return sendProblem(res, api::makeProblem(api::WireError::kNotFound, "no job " + id, req.path), ctx);
   if (wait_ms > 0 && !api::isFinal(job->status) &&
-      ctx.jobs.waitUntilSettled(id, std::chrono::milliseconds(wait_ms), ctx.config.max_concurrent_waits)) {
+      ctx.jobs.waitUntilSettled(*tenant, id, std::chrono::milliseconds(wait_ms), ctx.config.max_concurrent_waits)) {
     if (auto again = ctx.store.getJob(*tenant, id)) job = std::move(again);
   }
   sendJson(res, 200, api::toJson(jobInfoOf(*job, ctx.jobs.live(id))));

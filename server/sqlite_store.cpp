@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <ctime>
 #include <unordered_map>
@@ -181,8 +182,15 @@ class SqliteMetadataStore final : public MetadataStore {
   std::vector<JobRecord> listJobs(const JobListQuery& query) override;
   std::vector<JobRecord> unfinishedJobs() override;
   core::Status markRunning(const std::string& id, std::int64_t started_ms, bool cache_hit) override;
-  core::Status markFinished(const JobRecord& job) override;
-  core::Status requeue(const std::string& id) override;
+  core::Status markFinished(const JobRecord& job, int attempt) override;
+  core::Status requeue(const std::string& id, int attempt) override;
+  core::Result<std::optional<JobRecord>> claimNextJob(const std::string& owner, std::int64_t lease_ms) override;
+  core::Result<std::vector<LeaseState>> renewLeases(const std::string& owner, const std::vector<LeaseRenewal>& renewals,
+                                                    std::int64_t lease_ms) override;
+  core::Result<std::vector<std::string>> requeueExpiredLeases() override;
+  core::Status requestCancel(const std::string& id) override;
+  core::Result<std::int64_t> queuedJobs() override;
+  bool shared() const override { return false; }
   core::Result<bool> deleteFinishedJob(const std::string& tenant, const std::string& id) override;
   std::vector<std::pair<std::string, std::string>> finishedJobsBefore(std::int64_t finished_before_ms,
                                                                       int limit) override;
@@ -467,12 +475,10 @@ std::vector<JobRecord> SqliteMetadataStore::unfinishedJobs() {
 namespace {
 
 // Explains why a guarded UPDATE changed no row: the job is absent or in the wrong state.
-Error transitionRefused(SqliteConnection& c, const std::string& id, const char* transition) {
+Error transitionRefused(SqliteConnection& c, const std::string& id, const char* transition, int attempt = kAnyAttempt) {
   auto job = loadJob(c, id);
   if (!job) return job.error();
-  if (!*job) return makeError(ErrorCode::kInvalidArgument, "cannot " + std::string(transition) + ": no job " + id);
-  return makeError(ErrorCode::kInvalidArgument, "cannot " + std::string(transition) + " job " + id + ": it is " +
-                                                    api::jobStatusName((*job)->status));
+  return transitionRefusal(id, transition, *job ? &**job : nullptr, attempt);
 }
 
 }  // namespace
@@ -493,43 +499,102 @@ core::Status SqliteMetadataStore::markRunning(const std::string& id, std::int64_
   return core::Ok{};
 }
 
-core::Status SqliteMetadataStore::markFinished(const JobRecord& job) {
+core::Status SqliteMetadataStore::markFinished(const JobRecord& job, int attempt) {
   std::lock_guard lock(mutex_);
   Connection& c = *connection_;
   if (!api::isFinal(job.status)) {
     return makeError(ErrorCode::kInvalidArgument, "cannot finish job " + job.id + " with non-final status " +
                                                       api::jobStatusName(job.status));
   }
-  auto stmt = c.prepare(
-      "UPDATE jobs SET status = ?2, stage = COALESCE(NULLIF(?3, ''), stage), error_json = ?4, result_blob = ?5, diagnostics_blob = ?6, "
-      "timings_json = ?7, finished_ms = ?8, cache_hit = ?9, components_blob = ?10 WHERE id = ?1 AND status IN ('queued', "
-      "'running')");
+  auto stmt = c.prepare(kFinishJobSql);
   if (!stmt) return stmt.error();
   {
     Stmt s(*stmt);
     s.bind(1, job.id).bind(2, api::jobStatusName(job.status)).bind(3, job.stage).bind(4, job.error_json);
     s.bind(5, job.result_blob).bind(6, job.diagnostics_blob).bind(7, job.timings_json);
     s.bind(8, job.finished_ms != 0 ? job.finished_ms : nowMs());
-    s.bind(9, job.cache_hit).bind(10, job.components_blob);
+    s.bind(9, job.cache_hit).bind(10, job.components_blob).bind(11, attempt);
     if (s.step() != SQLITE_DONE) return c.error("cannot mark job " + job.id + " finished");
   }
-  if (sqlite3_changes(c.db) == 0) return transitionRefused(c, job.id, "finish");
+  if (sqlite3_changes(c.db) == 0) return transitionRefused(c, job.id, "finish", attempt);
   return core::Ok{};
 }
 
-core::Status SqliteMetadataStore::requeue(const std::string& id) {
+core::Status SqliteMetadataStore::requeue(const std::string& id, int attempt) {
   std::lock_guard lock(mutex_);
   Connection& c = *connection_;
-  auto stmt = c.prepare(
-      "UPDATE jobs SET status = 'queued', stage = 'queued' WHERE id = ?1 AND status IN ('queued', 'running')");
+  auto stmt = c.prepare(kRequeueJobSql);
+  if (!stmt) return stmt.error();
+  {
+    Stmt s(*stmt);
+    s.bind(1, id).bind(2, attempt);
+    if (s.step() != SQLITE_DONE) return c.error("cannot requeue job " + id);
+  }
+  if (sqlite3_changes(c.db) == 0) return transitionRefused(c, id, "requeue", attempt);
+  return core::Ok{};
+}
+
+core::Result<std::optional<JobRecord>> SqliteMetadataStore::claimNextJob(const std::string& owner, std::int64_t lease_ms) {
+  std::lock_guard lock(mutex_);
+  Connection& c = *connection_;
+  static const std::string kClaim = claimJobSql("?3", /*skip_locked=*/false);
+  auto claimed = selectRows<JobRecord>(
+      c, kClaim, [&](Stmt& s) { s.bind(1, owner).bind(2, lease_ms).bind(3, nowMs()); }, readJob<Stmt>,
+      "cannot claim a job");
+  if (!claimed) return claimed.error();
+  if (claimed->empty()) return std::optional<JobRecord>();
+  return std::optional<JobRecord>(std::move(claimed->front()));
+}
+
+core::Result<std::vector<LeaseState>> SqliteMetadataStore::renewLeases(const std::string& owner,
+                                                                       const std::vector<LeaseRenewal>& renewals,
+                                                                       std::int64_t lease_ms) {
+  std::lock_guard lock(mutex_);
+  Connection& c = *connection_;
+  static const std::string kRenew = renewLeaseSql("?7");
+  std::vector<LeaseState> out;
+  for (const LeaseRenewal& r : renewals) {
+    auto rows = selectRows<int>(
+        c, kRenew,
+        [&](Stmt& s) {
+          s.bind(1, r.id).bind(2, r.attempt).bind(3, lease_ms).bind(4, r.stage);
+          s.bind(5, static_cast<std::int64_t>(std::lround(r.progress * 1e6))).bind(6, owner).bind(7, nowMs());
+        },
+        [](const Stmt& s) { return s.int32(0); }, "cannot renew the lease of job " + r.id);
+    if (!rows) return rows.error();
+    out.push_back(rows->empty() ? LeaseState::kLost : rows->front() != 0 ? LeaseState::kCancelRequested : LeaseState::kHeld);
+  }
+  return out;
+}
+
+core::Result<std::vector<std::string>> SqliteMetadataStore::requeueExpiredLeases() {
+  std::lock_guard lock(mutex_);
+  static const std::string kRequeue = requeueExpiredSql("?1");
+  return selectRows<std::string>(
+      *connection_, kRequeue, [&](Stmt& s) { s.bind(1, nowMs()); }, [](const Stmt& s) { return s.text(0); },
+      "cannot requeue jobs with expired leases");
+}
+
+core::Status SqliteMetadataStore::requestCancel(const std::string& id) {
+  std::lock_guard lock(mutex_);
+  Connection& c = *connection_;
+  auto stmt = c.prepare(kRequestCancelSql);
   if (!stmt) return stmt.error();
   {
     Stmt s(*stmt);
     s.bind(1, id);
-    if (s.step() != SQLITE_DONE) return c.error("cannot requeue job " + id);
+    if (s.step() != SQLITE_DONE) return c.error("cannot request the cancel of job " + id);
   }
-  if (sqlite3_changes(c.db) == 0) return transitionRefused(c, id, "requeue");
+  if (sqlite3_changes(c.db) == 0) return transitionRefused(c, id, "request the cancel of");
   return core::Ok{};
+}
+
+core::Result<std::int64_t> SqliteMetadataStore::queuedJobs() {
+  std::lock_guard lock(mutex_);
+  auto rows = selectRows<std::int64_t>(
+      *connection_, kQueuedJobsSql, [](Stmt&) {}, [](const Stmt& s) { return s.int64(0); }, "cannot count queued jobs");
+  if (!rows) return rows.error();
+  return rows->empty() ? 0 : rows->front();
 }
 
 core::Status SqliteMetadataStore::probeWrite() {

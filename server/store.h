@@ -84,7 +84,27 @@ struct JobRecord {
   std::string timings_json;          // {"stage": ms}, when finished
   std::int64_t created_ms = 0, started_ms = 0, finished_ms = 0;  // unix epoch milliseconds
   std::int64_t sequence = 0;         // insertion order (set by the store), the list cursor
+  // The queue's lease on a running job (claimNextJob): who runs it, until
+  // when (epoch ms, the store's clock), whether a cancel was asked, and its
+  // progress at the owner's last heartbeat (what other replicas serve).
+  std::string lease_owner;
+  std::int64_t lease_expires_ms = 0;
+  bool cancel_requested = false;
+  double progress = 0.0;
 };
+
+// markFinished and requeue without a fence.
+inline constexpr int kAnyAttempt = -1;
+
+// A worker's heartbeat for one running job it claimed: the fencing token
+// (the attempt it claimed) and where it is.
+struct LeaseRenewal {
+  std::string id;
+  int attempt = 0;
+  std::string stage;
+  double progress = 0.0;
+};
+enum class LeaseState { kHeld, kCancelRequested, kLost };
 
 struct JobListQuery {
   std::string tenant;
@@ -151,10 +171,41 @@ class MetadataStore {
   //                 overwritten (a late success cannot replace a cancel). job.status must be
   //                 final; an empty job.stage keeps the stored stage; finished_ms 0 = now.
   //   requeue:      running|queued -> queued (a final job is refused).
+  //   With `attempt` >= 0 (not kAnyAttempt), markFinished and requeue are fenced: refused unless
+  //   the job is still at that attempt (a worker whose lease expired and whose
+  //   job was claimed again cannot overwrite the new owner's result).
   virtual core::Status markRunning(const std::string& id, std::int64_t started_ms, bool cache_hit) = 0;
   // status, stage, error_json, result/diagnostics/components blobs, timings, cache_hit, finished_ms
-  virtual core::Status markFinished(const JobRecord& job) = 0;
-  virtual core::Status requeue(const std::string& id) = 0;  // running -> queued (restart)
+  virtual core::Status markFinished(const JobRecord& job, int attempt) = 0;
+  core::Status markFinished(const JobRecord& job) { return markFinished(job, kAnyAttempt); }
+  virtual core::Status requeue(const std::string& id, int attempt) = 0;  // running -> queued (lease clears)
+  core::Status requeue(const std::string& id) { return requeue(id, kAnyAttempt); }
+
+  // The job queue (server/jobs.h), shared by every process on the store.
+  // claimNextJob: the oldest queued job becomes running for `owner` (attempts
+  // + 1: its fencing token; started_ms now) under a lease of `lease_ms` by
+  // the store's clock; nullopt when none is queued. Claims never collide
+  // (PostgreSQL: FOR UPDATE SKIP LOCKED).
+  virtual core::Result<std::optional<JobRecord>> claimNextJob(const std::string& owner, std::int64_t lease_ms) = 0;
+  // The owner's heartbeat: extends each lease it still holds and records the
+  // job's stage and progress; answers per renewal, in order, held (and
+  // whether a cancel was asked) or lost (expired and requeued, claimed again,
+  // or finished by a cancel).
+  virtual core::Result<std::vector<LeaseState>> renewLeases(const std::string& owner,
+                                                            const std::vector<LeaseRenewal>& renewals,
+                                                            std::int64_t lease_ms) = 0;
+  // Running jobs whose lease has ended go back to queued (their owner died or
+  // lost the store); returns their ids.
+  virtual core::Result<std::vector<std::string>> requeueExpiredLeases() = 0;
+  // Asks a running job's owner to stop it (it sees the flag at its next
+  // heartbeat); refused (kInvalidArgument) unless the job is running.
+  virtual core::Status requestCancel(const std::string& id) = 0;
+  // Queued jobs, all tenants (admission and /metrics).
+  virtual core::Result<std::int64_t> queuedJobs() = 0;
+  // Whether other processes may share this store (PostgreSQL). The embedded
+  // store has one process, which at start requeues every running job at
+  // once; on a shared store running jobs are left to their leases.
+  virtual bool shared() const = 0;
   // Deletes a final job of the tenant (its input rows go with it); false when
   // the tenant has no such job or it is still queued or running. Its blobs are
   // the caller's to collect (blobReferenced), under the collection lock.

@@ -20,7 +20,7 @@
 
 namespace server::store_sql {
 
-constexpr int kSchemaVersion = 5;
+constexpr int kSchemaVersion = 6;
 
 // Schema version 1. Rig created_at is stored as RFC 3339 UTC text (the wire
 // form; fixed-width, so it also sorts); job times are epoch milliseconds.
@@ -106,6 +106,18 @@ ALTER TABLE jobs ADD COLUMN components_blob TEXT NOT NULL DEFAULT '';
 CREATE INDEX jobs_components_blob ON jobs(components_blob) WHERE components_blob <> '';
 )sql";
 
+// Version 6: the job queue lives in the store (server/jobs.h): a running
+// job's lease (owner, expiry in epoch ms), a cancel its owner must see, and
+// the progress of its last heartbeat (parts per million). Jobs left running by
+// version 5 have no lease (expiry 0): expired, so requeued.
+constexpr const char* kMigrateV5ToV6 = R"sql(
+ALTER TABLE jobs ADD COLUMN lease_owner TEXT NOT NULL DEFAULT '';
+ALTER TABLE jobs ADD COLUMN lease_expires_ms INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE jobs ADD COLUMN cancel_requested INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE jobs ADD COLUMN progress_ppm INTEGER NOT NULL DEFAULT 0;
+CREATE INDEX jobs_running_lease ON jobs(lease_expires_ms) WHERE status = 'running';
+)sql";
+
 // Creating or upgrading the schema: each step brings it to `version` (sql
 // nullptr: no table change). A store at version v runs the steps above v, in
 // one transaction.
@@ -121,6 +133,7 @@ inline constexpr SchemaStep kSchemaSteps[] = {
     // builds of schema 3 could not read (see readJob).
     {4, nullptr},
     {5, kMigrateV4ToV5},
+    {6, kMigrateV5ToV6},
 };
 
 // The schema's SQL for PostgreSQL: integers are 64-bit (epoch milliseconds,
@@ -144,7 +157,40 @@ constexpr const char* kRigColumns =
 constexpr const char* kJobColumns =
     "sequence, id, tenant, kind, rig, spec_json, inputs_json, input_names_json, idempotency_key, status, stage, "
     "attempts, cache_hit, error_json, result_blob, diagnostics_blob, timings_json, created_ms, started_ms, "
-    "finished_ms, components_blob";
+    "finished_ms, components_blob, lease_owner, lease_expires_ms, cancel_requested, progress_ppm";
+
+// The queue's SQL, one dialect for both stores (?N placeholders; the
+// PostgreSQL store rewrites them to $N). `now` is an expression of the
+// store's clock in epoch ms, so replicas on machines with skewed clocks agree
+// on when a lease ends.
+inline std::string claimJobSql(const std::string& now, bool skip_locked) {
+  return std::string("UPDATE jobs SET status = 'running', attempts = attempts + 1, started_ms = ") + now +
+         ", cache_hit = 0, lease_owner = ?1, lease_expires_ms = " + now +
+         " + ?2, cancel_requested = 0, progress_ppm = 0 WHERE sequence = (SELECT sequence FROM jobs WHERE status = "
+         "'queued' ORDER BY sequence LIMIT 1" + (skip_locked ? " FOR UPDATE SKIP LOCKED" : "") + ") RETURNING " +
+         kJobColumns;
+}
+inline std::string renewLeaseSql(const std::string& now) {
+  return "UPDATE jobs SET lease_expires_ms = " + now +
+         " + ?3, stage = ?4, progress_ppm = ?5 WHERE id = ?1 AND attempts = ?2 AND lease_owner = ?6 AND status = "
+         "'running' RETURNING cancel_requested";
+}
+inline std::string requeueExpiredSql(const std::string& now) {
+  return "UPDATE jobs SET status = 'queued', stage = 'queued', lease_owner = '', lease_expires_ms = 0, "
+         "cancel_requested = 0, progress_ppm = 0 WHERE status = 'running' AND lease_expires_ms < " + now +
+         " RETURNING id";
+}
+constexpr const char* kFinishJobSql =
+    "UPDATE jobs SET status = ?2, stage = COALESCE(NULLIF(?3, ''), stage), error_json = ?4, result_blob = ?5, "
+    "diagnostics_blob = ?6, timings_json = ?7, finished_ms = ?8, cache_hit = ?9, components_blob = ?10, "
+    "lease_owner = '', lease_expires_ms = 0, cancel_requested = 0 "
+    "WHERE id = ?1 AND status IN ('queued', 'running') AND (?11 < 0 OR attempts = ?11)";
+constexpr const char* kRequeueJobSql =
+    "UPDATE jobs SET status = 'queued', stage = 'queued', lease_owner = '', lease_expires_ms = 0, "
+    "cancel_requested = 0, progress_ppm = 0 WHERE id = ?1 AND status IN ('queued', 'running') AND (?2 < 0 OR "
+    "attempts = ?2)";
+constexpr const char* kRequestCancelSql = "UPDATE jobs SET cancel_requested = 1 WHERE id = ?1 AND status = 'running'";
+constexpr const char* kQueuedJobsSql = "SELECT COUNT(*) FROM jobs WHERE status = 'queued'";
 
 inline std::int64_t nowMs() {
   return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch())
@@ -236,7 +282,25 @@ JobRecord readJob(const Row& s) {
   j.started_ms = s.int64(18);
   j.finished_ms = s.int64(19);
   j.components_blob = s.text(20);
+  j.lease_owner = s.text(21);
+  j.lease_expires_ms = s.int64(22);
+  j.cancel_requested = s.int32(23) != 0;
+  j.progress = static_cast<double>(s.int64(24)) / 1e6;
   return j;
+}
+
+// Why a guarded transition changed no row: the job is absent (nullptr), in
+// the wrong state, or at another attempt than the fenced one.
+inline core::Error transitionRefusal(const std::string& id, const char* transition, const JobRecord* job, int attempt) {
+  using core::ErrorCode;
+  if (!job) return core::makeError(ErrorCode::kInvalidArgument, "cannot " + std::string(transition) + ": no job " + id);
+  if (attempt >= 0 && job->attempts != attempt && !api::isFinal(job->status)) {
+    return core::makeError(ErrorCode::kInvalidArgument,
+                           "cannot " + std::string(transition) + " job " + id + ": attempt " + std::to_string(attempt) +
+                               " lost its lease (the job is at attempt " + std::to_string(job->attempts) + ")");
+  }
+  return core::makeError(ErrorCode::kInvalidArgument, "cannot " + std::string(transition) + " job " + id + ": it is " +
+                                                          api::jobStatusName(job->status));
 }
 
 }  // namespace server::store_sql

@@ -3,10 +3,14 @@
 // transitions, persistence across reopen, blob references, expiry,
 // concurrent writers).
 #include "server/store.h"
+#include "server/store_sql.h"
 
 #include <sqlite3.h>
 
 #include <atomic>
+#include <chrono>
+#include <map>
+#include <mutex>
 #include <regex>
 #include <thread>
 
@@ -24,6 +28,11 @@ using server::JobRecord;
 using server::MetadataStore;
 using server::RigRecord;
 using namespace rigport_test::store;
+
+// What schema 6 added (the queue's leases), dropped to fake an older store.
+constexpr const char* kDropSchemaSixSql =
+    "DROP INDEX jobs_running_lease; ALTER TABLE jobs DROP COLUMN lease_owner; ALTER TABLE jobs DROP COLUMN "
+    "lease_expires_ms; ALTER TABLE jobs DROP COLUMN cancel_requested; ALTER TABLE jobs DROP COLUMN progress_ppm; ";
 
 std::vector<std::string> idsOf(const std::vector<JobRecord>& jobs) {
   std::vector<std::string> ids;
@@ -74,12 +83,13 @@ TEST(MetadataStore, SchemaOneIsUpgradedKeepingItsRigs) {
     old_rig.info.region_labels = std::vector<int>{1, 2};
     ASSERT_TRUE(store->insertRig(old_rig).ok());
   }
-  // Back to what schema 1 wrote (without what versions 2, 3 and 5 added).
+  // Back to what schema 1 wrote (without what versions 2, 3, 5 and 6 added).
   sqlite3* db = nullptr;
   ASSERT_EQ(sqlite3_open(file.c_str(), &db), SQLITE_OK);
-  ASSERT_EQ(sqlite3_exec(db, "ALTER TABLE rigs DROP COLUMN region_labels; DROP TABLE storage_probe; DROP INDEX jobs_components_blob; "
-                         "ALTER TABLE jobs DROP COLUMN components_blob; PRAGMA user_version=1;", nullptr, nullptr,
-                         nullptr),
+  const std::string downgrade = std::string(kDropSchemaSixSql) +
+                               "ALTER TABLE rigs DROP COLUMN region_labels; DROP TABLE storage_probe; DROP INDEX "
+                               "jobs_components_blob; ALTER TABLE jobs DROP COLUMN components_blob; PRAGMA user_version=1;";
+  ASSERT_EQ(sqlite3_exec(db, downgrade.c_str(), nullptr, nullptr, nullptr),
             SQLITE_OK)
       << sqlite3_errmsg(db);
   sqlite3_close(db);
@@ -116,7 +126,7 @@ TEST(MetadataStore, SchemaOneIsUpgradedKeepingItsRigs) {
   sqlite3_stmt* stmt = nullptr;
   ASSERT_EQ(sqlite3_prepare_v2(db, "PRAGMA user_version", -1, &stmt, nullptr), SQLITE_OK);
   ASSERT_EQ(sqlite3_step(stmt), SQLITE_ROW);
-  EXPECT_EQ(sqlite3_column_int(stmt, 0), 5) << "upgraded to the current version (5: jobs' components results)";
+  EXPECT_EQ(sqlite3_column_int(stmt, 0), 6) << "upgraded to the current version (6: the job queue's leases)";
   sqlite3_finalize(stmt);
   sqlite3_close(db);
 }
@@ -541,6 +551,134 @@ TEST_P(MetadataStoreContract, ConcurrentWritersAllLand) {
   EXPECT_EQ(store->listRigs("acme").size(), static_cast<std::size_t>(kThreads * kPerThread));
 }
 
+
+// ---------------------------------------------------------------------------
+// The job queue: claims, leases, fencing
+
+TEST_P(MetadataStoreContract, ClaimsTakeTheOldestQueuedJobUnderALease) {
+  auto store = open();
+  ASSERT_TRUE(store);
+  for (const char* id : {"j1", "j2", "j3"}) ASSERT_TRUE(store->insertJob(makeJob("acme", id)).ok());
+  ASSERT_TRUE(store->markFinished(finished(makeJob("acme", "j2"), JobStatus::kCancelled)).ok());
+  const std::int64_t before = server::store_sql::nowMs();
+  auto first = store->claimNextJob("replica-a", 30'000);
+  ASSERT_TRUE(first.ok()) << first.error().message;
+  ASSERT_TRUE(first->has_value());
+  EXPECT_EQ((*first)->id, "j1");
+  EXPECT_EQ((*first)->status, JobStatus::kRunning);
+  EXPECT_EQ((*first)->attempts, 1);
+  EXPECT_EQ((*first)->lease_owner, "replica-a");
+  // The store's clock (PostgreSQL: the server's) grants it; same machine here.
+  EXPECT_GE((*first)->lease_expires_ms, before + 30'000 - 1000);
+  EXPECT_LE((*first)->lease_expires_ms, server::store_sql::nowMs() + 30'000 + 1000);
+  EXPECT_EQ(store->getJob("acme", "j1")->lease_owner, "replica-a");
+  auto second = store->claimNextJob("replica-b", 30'000);
+  ASSERT_TRUE(second.ok() && second->has_value());
+  EXPECT_EQ((*second)->id, "j3") << "a cancelled job is never claimed";
+  auto none = store->claimNextJob("replica-a", 30'000);
+  ASSERT_TRUE(none.ok());
+  EXPECT_FALSE(none->has_value());
+  EXPECT_EQ(*store->queuedJobs(), 0);
+  EXPECT_TRUE(store->requeueExpiredLeases()->empty()) << "live leases are not expired";
+}
+
+TEST_P(MetadataStoreContract, AnExpiredLeaseIsRequeuedAndItsOldAttemptFenced) {
+  auto store = open();
+  ASSERT_TRUE(store);
+  ASSERT_TRUE(store->insertJob(makeJob("acme", "j1")).ok());
+  auto a = store->claimNextJob("replica-a", 1);  // a lease of 1 ms: replica a "dies"
+  ASSERT_TRUE(a.ok() && a->has_value());
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  auto expired = store->requeueExpiredLeases();
+  ASSERT_TRUE(expired.ok()) << expired.error().message;
+  EXPECT_EQ(*expired, std::vector<std::string>{"j1"});
+  EXPECT_EQ(store->getJob("acme", "j1")->status, JobStatus::kQueued);
+  EXPECT_EQ(store->getJob("acme", "j1")->lease_owner, "");
+
+  auto b = store->claimNextJob("replica-b", 30'000);
+  ASSERT_TRUE(b.ok() && b->has_value());
+  EXPECT_EQ((*b)->attempts, 2);
+  // Replica a wakes up: its heartbeat finds the lease gone, its writes are refused.
+  auto renewed = store->renewLeases("replica-a", {{"j1", 1, "warp", 0.5}}, 30'000);
+  ASSERT_TRUE(renewed.ok());
+  EXPECT_EQ(*renewed, std::vector<server::LeaseState>{server::LeaseState::kLost});
+  JobRecord stale = finished(makeJob("acme", "j1"), JobStatus::kSucceeded);
+  stale.result_blob = std::string(64, 'a');
+  auto refused = store->markFinished(stale, 1);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error().code, core::ErrorCode::kInvalidArgument);
+  EXPECT_NE(refused.error().message.find("lost its lease"), std::string::npos) << refused.error().message;
+  EXPECT_FALSE(store->requeue("j1", 1).ok());
+  EXPECT_EQ(store->getJob("acme", "j1")->status, JobStatus::kRunning);
+
+  JobRecord fresh = finished(makeJob("acme", "j1"), JobStatus::kSucceeded);
+  fresh.result_blob = std::string(64, 'b');
+  ASSERT_TRUE(store->markFinished(fresh, 2).ok());
+  EXPECT_EQ(store->getJob("acme", "j1")->result_blob, std::string(64, 'b'));
+  EXPECT_FALSE(store->markFinished(stale, 1).ok()) << "a final job is never overwritten";
+  EXPECT_EQ(store->getJob("acme", "j1")->lease_owner, "") << "a finished job holds no lease";
+}
+
+TEST_P(MetadataStoreContract, HeartbeatsRecordProgressAndCarryCancelRequests) {
+  auto store = open();
+  ASSERT_TRUE(store);
+  ASSERT_TRUE(store->insertJob(makeJob("acme", "j1")).ok());
+  ASSERT_TRUE(store->insertJob(makeJob("acme", "j2")).ok());
+  EXPECT_FALSE(store->requestCancel("j1").ok()) << "a queued job is cancelled directly, not asked";
+  ASSERT_TRUE(store->claimNextJob("replica-a", 1000)->has_value());
+  auto renewed = store->renewLeases("replica-a", {{"j1", 1, "correspond", 0.25}}, 60'000);
+  ASSERT_TRUE(renewed.ok()) << renewed.error().message;
+  EXPECT_EQ(*renewed, std::vector<server::LeaseState>{server::LeaseState::kHeld});
+  auto seen = store->getJob("acme", "j1");
+  EXPECT_EQ(seen->stage, "correspond");
+  EXPECT_DOUBLE_EQ(seen->progress, 0.25);
+  EXPECT_GT(seen->lease_expires_ms, server::store_sql::nowMs() + 50'000) << "renewed for the new lease length";
+  EXPECT_FALSE(seen->cancel_requested);
+
+  ASSERT_TRUE(store->requestCancel("j1").ok());
+  EXPECT_TRUE(store->getJob("acme", "j1")->cancel_requested);
+  // Another replica's name does not renew it; the owner's heartbeat sees the request.
+  EXPECT_EQ(*store->renewLeases("replica-b", {{"j1", 1, "x", 0.0}}, 60'000),
+            std::vector<server::LeaseState>{server::LeaseState::kLost});
+  EXPECT_EQ(*store->renewLeases("replica-a", {{"j1", 1, "transfer", 0.5}}, 60'000),
+            std::vector<server::LeaseState>{server::LeaseState::kCancelRequested});
+  EXPECT_EQ(*store->queuedJobs(), 1);
+}
+
+TEST_P(MetadataStoreContract, ConcurrentClaimersNeverClaimOneJobTwice) {
+  const std::string location = freshLocation();
+  constexpr int kStores = 4, kThreadsPerStore = 2, kJobs = 120;
+  std::vector<std::unique_ptr<MetadataStore>> stores;
+  for (int i = 0; i < kStores; ++i) {
+    stores.push_back(openStore(location));
+    ASSERT_TRUE(stores.back());
+  }
+  for (int i = 0; i < kJobs; ++i) ASSERT_TRUE(stores[0]->insertJob(makeJob("acme", "j" + std::to_string(i))).ok());
+  std::mutex mutex;
+  std::map<std::string, int> claims;
+  std::atomic<int> failures{0};
+  std::vector<std::thread> threads;
+  for (int t = 0; t < kStores * kThreadsPerStore; ++t) {
+    threads.emplace_back([&, t] {
+      MetadataStore& store = *stores[t % kStores];
+      for (;;) {
+        auto claimed = store.claimNextJob("worker-" + std::to_string(t), 30'000);
+        if (!claimed) {
+          ++failures;
+          continue;
+        }
+        if (!*claimed) return;
+        std::lock_guard lock(mutex);
+        ++claims[(*claimed)->id];
+      }
+    });
+  }
+  for (auto& th : threads) th.join();
+  EXPECT_EQ(failures.load(), 0);
+  EXPECT_EQ(claims.size(), static_cast<std::size_t>(kJobs));
+  for (const auto& [id, n] : claims) EXPECT_EQ(n, 1) << id << " claimed " << n << " times";
+  EXPECT_EQ(stores[0]->countJobsByStatus()[JobStatus::kRunning], kJobs);
+}
 }  // namespace
 
 // ---------------------------------------------------------------------------
@@ -634,17 +772,21 @@ TEST_F(PostgresStore, AConnectionTheServerDroppedIsMadeAgain) {
   EXPECT_TRUE(store->getRig("acme", "rig1"));
 }
 
-// A store written at schema 4 (before jobs had components results) is
-// upgraded in place on open, keeping its rows.
+// A store written at schema 4 (before jobs had components results and
+// leases) is upgraded in place on open, keeping its rows; a job it left
+// running has no lease, so the first scan for expired leases requeues it.
 TEST_F(PostgresStore, AnOlderSchemaIsUpgradedInPlace) {
   const std::string location = freshLocation();
   {
     auto store = openStore(location);
     ASSERT_TRUE(store);
     ASSERT_TRUE(store->insertRig(makeRig("acme", "old")).ok());
+    ASSERT_TRUE(store->insertJob(makeJob("acme", "left-running")).ok());
+    ASSERT_TRUE(store->markRunning("left-running", 1, false).ok());
   }
-  runPostgres(location, "DROP INDEX jobs_components_blob; ALTER TABLE jobs DROP COLUMN components_blob; "
-                        "UPDATE rigport_schema SET version = 4");
+  runPostgres(location, std::string(kDropSchemaSixSql) +
+                            "DROP INDEX jobs_components_blob; ALTER TABLE jobs DROP COLUMN components_blob; "
+                            "UPDATE rigport_schema SET version = 4");
   auto store = openStore(location);
   ASSERT_TRUE(store);
   EXPECT_TRUE(store->getRig("acme", "old"));
@@ -653,6 +795,9 @@ TEST_F(PostgresStore, AnOlderSchemaIsUpgradedInPlace) {
   ASSERT_TRUE(store->markFinished(finished(job, JobStatus::kSucceeded)).ok());
   EXPECT_EQ(store->getJob("acme", "after-upgrade")->components_blob, std::string(64, '3'))
       << "version 5's components column must exist";
+  auto expired = store->requeueExpiredLeases();
+  ASSERT_TRUE(expired.ok()) << expired.error().message;
+  EXPECT_EQ(*expired, std::vector<std::string>{"left-running"});
 }
 
 TEST_F(PostgresStore, ANewerSchemaIsRefusedNamingTheDatabase) {
