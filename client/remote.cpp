@@ -338,6 +338,10 @@ api::Result<SubmittedJob> RemoteClient::submitJob(const nlohmann::json& spec,
   // the server, a reset) can be sent again without creating a second job.
   httplib::Headers headers;
   headers.emplace("Idempotency-Key", idempotency_key.empty() ? randomIdempotencyKey() : idempotency_key);
+  // For a load balancer with rig-affinity (docker/nginx.conf): jobs of one
+  // rig go to the replica whose prepared-rig cache holds it. The spec, in the
+  // body, stays what the service reads.
+  if (spec.contains("rig") && spec["rig"].is_string()) headers.emplace("X-Rigport-Rig", spec["rig"].get<std::string>());
 
   const std::string path = "/v1/jobs";
   int transport_retries = 0;

@@ -6,7 +6,7 @@
 // write-temp/fsync/rename/fsync-dir sequence; see "Files are hard", Dan Luu,
 // and the ext4/XFS rename notes in Pillai et al., OSDI 2014). A crash leaves
 // either no blob or a whole one, plus possibly a stray .part file that
-// removeTemporaries() deletes.
+// removeTemporaries deletes.
 #include "server/store.h"
 
 #include <fcntl.h>
@@ -333,11 +333,14 @@ void BlobStore::remove(const std::string& hash) {
   if (::unlink(path.c_str()) == 0) (void)fsyncPath(path.parent_path(), true);
 }
 
-void BlobStore::removeTemporaries() {
+void BlobStore::removeTemporaries(std::chrono::seconds older_than) {
   std::error_code ec;
   const fs::path tmp_dir = root_ / "tmp";
+  const auto cutoff = fs::file_time_type::clock::now() - older_than;
   for (fs::directory_iterator it(tmp_dir, ec), end; !ec && it != end; it.increment(ec)) {
     std::error_code rm_ec;
+    const auto modified = fs::last_write_time(it->path(), rm_ec);
+    if (rm_ec || (older_than.count() > 0 && modified > cutoff)) continue;
     fs::remove(it->path(), rm_ec);
   }
 }

@@ -16,6 +16,10 @@ struct ServerConfig {
   // Where the metadata lives: empty = the embedded SQLite file in data_dir; a
   // postgresql:// URL = a database replicas share (server/store.h).
   std::string store;
+  // Blobs (rigs, inputs, results): empty = data_dir/blobs. Replicas share one
+  // directory on a volume every replica mounts (docs/SCALE_OUT.md says what
+  // the volume must guarantee).
+  std::filesystem::path blob_dir;
   int workers = 0;                       // job worker threads; 0 = hardware threads
   int threads_per_job = 1;               // core threads inside one job (parallelism is across jobs)
   std::size_t cache_bytes = 512ull << 20;  // prepared rigs (3/4) + marker distances (1/4), bytes

@@ -68,7 +68,7 @@ bool isStorageError(const core::Error& e) { return e.code == core::ErrorCode::kI
 
 }  // namespace
 
-JobManager::JobManager(MetadataStore& store, BlobStore& blobs, std::shared_mutex& blob_collection, StorageHealth& storage,
+JobManager::JobManager(MetadataStore& store, BlobStore& blobs, BlobCollection& blob_collection, StorageHealth& storage,
                        Caches& caches, Metrics& metrics, const ServerConfig& config, JsonLog log)
     : store_(store), blobs_(blobs), blob_collection_(blob_collection), storage_(storage), caches_(caches), metrics_(metrics), config_(config), log_(std::move(log)) {
   owner_ = config_.replica_id.empty() ? defaultReplicaId() : config_.replica_id;
@@ -373,7 +373,9 @@ void JobManager::renewLeases() {
   }
   for (std::size_t i = 0; i < answers->size() && i < states.size(); ++i) {
     if ((*answers)[i] == LeaseState::kCancelRequested) states[i]->cancel = true;
-    if ((*answers)[i] == LeaseState::kLost) {
+    // A job whose worker began its final write may be finished already: its
+    // own fenced write tells whether the lease had moved on.
+    if ((*answers)[i] == LeaseState::kLost && !states[i]->finishing) {
       states[i]->lost = true;
       states[i]->cancel = true;  // stop at the next stage boundary, write nothing
       metrics_.countLeaseEvent(Metrics::LeaseEvent::kFencingRejected);
@@ -433,6 +435,7 @@ void JobManager::runOne(JobRecord job, Running& state) {
 
   const auto t_start = Clock::now();
   Execution run = execute(job, state);
+  state.finishing = true;
   if (state.lost) {
     log_.warn("job_abandoned", {{"job", id}, {"tenant", tenant}, {"attempt", attempt}, {"reason", "lease lost"}});
     return;

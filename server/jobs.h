@@ -22,6 +22,8 @@
 #include <optional>
 #include <set>
 #include <shared_mutex>
+
+#include "server/blob_collection.h"
 #include <string>
 #include <thread>
 #include <utility>
@@ -53,7 +55,7 @@ class JobManager {
   // `storage`; the job goes back to the queue (at its place: the oldest
   // first), and no job starts here until storage takes writes again (it fails
   // only when its own data keeps failing, config.storage_retries_per_job times).
-  JobManager(MetadataStore& store, BlobStore& blobs, std::shared_mutex& blob_collection, StorageHealth& storage,
+  JobManager(MetadataStore& store, BlobStore& blobs, BlobCollection& blob_collection, StorageHealth& storage,
              Caches& caches, Metrics& metrics, const ServerConfig& config, JsonLog log);
   ~JobManager();  // stop(0): workers abandon nothing durable, queued/running rows stay for the next start
   JobManager(const JobManager&) = delete;
@@ -100,6 +102,7 @@ class JobManager {
     double progress = 0.0;
     std::atomic<bool> cancel{false};
     std::atomic<bool> lost{false};  // the lease moved on: write nothing
+    std::atomic<bool> finishing{false};  // its final write began (a heartbeat then may find no lease)
   };
   struct Execution {
     core::Result<core::JobOutput> outcome = core::Error{core::ErrorCode::kCancelled, "not run"};
@@ -118,7 +121,7 @@ class JobManager {
 
   MetadataStore& store_;
   BlobStore& blobs_;
-  std::shared_mutex& blob_collection_;
+  BlobCollection& blob_collection_;
   StorageHealth& storage_;
   Caches& caches_;
   Metrics& metrics_;

@@ -30,6 +30,8 @@ int main(int argc, char** argv) {
   app.add_option("--store", config.store,
                  "Metadata store: a postgresql://user@host:port/db URL (replicas sharing one database); "
                  "default: the embedded SQLite file in --data-dir");
+  app.add_option("--blob-dir", config.blob_dir,
+                 "Blob directory (default <data-dir>/blobs); replicas on one --store share one, on a volume all mount");
   app.add_option("--tls-cert", config.tls_certificate_file, "Serve HTTPS: certificate chain (PEM), with --tls-key")
       ->check(CLI::ExistingFile);
   app.add_option("--tls-key", config.tls_private_key_file, "Private key (PEM) of --tls-cert")->check(CLI::ExistingFile);

@@ -13,12 +13,14 @@
 #include <libpq-fe.h>
 
 #include <cctype>
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "server/store_sql.h"
@@ -35,6 +37,9 @@ namespace {
 // pg_advisory_xact_lock key of schema creation and upgrades ("rigport" in ASCII).
 constexpr long long kSchemaLockKey = 0x72696770'6f7274LL;
 
+
+// Session advisory lock key of the blob collection ("rigblob").
+constexpr long long kBlobCollectionLockKey = 0x72696762'6c6f62LL;
 
 // The database's clock in epoch ms: leases are granted and expired by one
 // clock, whatever the replicas' clocks say.
@@ -427,6 +432,39 @@ class PostgresMetadataStore final : public MetadataStore {
 
   bool shared() const override { return true; }
 
+  // One session lock for all of this replica's writers (they count here), so
+  // a writer costs a round trip only when it is the first.
+  core::Status lockBlobCollection(bool exclusive) override {
+    std::unique_lock lock(mutex_);
+    if (!exclusive && shared_holders_++ > 0 && shared_held_) return core::Ok{};
+    const char* sql = exclusive ? "SELECT pg_try_advisory_lock($1)" : "SELECT pg_try_advisory_lock_shared($1)";
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    for (;;) {
+      auto rows = c_->exec(sql, {p(kBlobCollectionLockKey)}, "cannot take the blob-collection lock");
+      if (!rows) return rows.error();
+      if (rows->rows() == 1 && PgRow{rows->get(), 0}.text(0) == "t") break;
+      if (std::chrono::steady_clock::now() > deadline) {
+        return makeError(ErrorCode::kIo, "database " + c_->label() + ": the blob-collection lock stayed taken for 10 s");
+      }
+      // The other side holds it for one blob write or one reference check:
+      // wait without holding this replica's connection.
+      lock.unlock();
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      lock.lock();
+    }
+    if (!exclusive) shared_held_ = true;
+    return core::Ok{};
+  }
+
+  void unlockBlobCollection(bool exclusive) override {
+    std::lock_guard lock(mutex_);
+    if (!exclusive && (--shared_holders_ > 0 || !shared_held_)) return;
+    if (!exclusive) shared_held_ = false;
+    // A connection lost meanwhile lost the lock with it: nothing to release.
+    (void)c_->exec(exclusive ? "SELECT pg_advisory_unlock($1)" : "SELECT pg_advisory_unlock_shared($1)",
+                   {p(kBlobCollectionLockKey)}, "cannot release the blob-collection lock");
+  }
+
   core::Result<bool> deleteFinishedJob(const std::string& tenant, const std::string& id) override {
     std::lock_guard lock(mutex_);
     auto r = c_->command(
@@ -527,6 +565,8 @@ class PostgresMetadataStore final : public MetadataStore {
 
   std::unique_ptr<PgConnection> c_;
   std::mutex mutex_;
+  int shared_holders_ = 0;   // writers holding the blob-collection lock shared
+  bool shared_held_ = false; // ... and the session holds it in the database
 };
 
 // Creates the schema, or checks it, under the advisory lock.

@@ -7,7 +7,7 @@
 
 namespace server {
 
-JobDeletion deleteJob(MetadataStore& store, BlobStore& blobs, std::shared_mutex& blob_collection, Metrics& metrics,
+JobDeletion deleteJob(MetadataStore& store, BlobStore& blobs, BlobCollection& blob_collection, Metrics& metrics,
                       const JsonLog& log, const std::string& tenant, const std::string& id, const char* reason) {
   auto job = store.getJob(tenant, id);
   if (!job) return JobDeletion::kAbsent;
@@ -21,18 +21,13 @@ JobDeletion deleteJob(MetadataStore& store, BlobStore& blobs, std::shared_mutex&
   if (!*deleted) return JobDeletion::kAbsent;  // deleted by a concurrent request (a final job never changes)
   std::set<std::string> hashes{job->result_blob, job->diagnostics_blob, job->components_blob};
   for (const auto& [field, hash] : job->inputs) hashes.insert(hash);
-  int removed = 0;
-  for (const std::string& hash : hashes) {
-    if (hash.empty() || store.blobReferenced(hash)) continue;
-    blobs.remove(hash);
-    ++removed;
-  }
+  const int removed = blob_collection.removeUnreferenced(blobs, hashes);
   metrics.countJobDeleted(reason);
   log.info("job_deleted", {{"job", id}, {"tenant", tenant}, {"reason", reason}, {"blobs_removed", removed}});
   return JobDeletion::kDeleted;
 }
 
-RetentionSweeper::RetentionSweeper(MetadataStore& store, BlobStore& blobs, std::shared_mutex& blob_collection,
+RetentionSweeper::RetentionSweeper(MetadataStore& store, BlobStore& blobs, BlobCollection& blob_collection,
                                    Metrics& metrics, const ServerConfig& config, JsonLog log)
     : store_(store), blobs_(blobs), blob_collection_(blob_collection), metrics_(metrics), config_(config), log_(std::move(log)) {}
 

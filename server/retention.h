@@ -11,6 +11,8 @@
 #include <cstdint>
 #include <mutex>
 #include <shared_mutex>
+
+#include "server/blob_collection.h"
 #include <string>
 #include <thread>
 
@@ -26,14 +28,14 @@ enum class JobDeletion { kDeleted, kAbsent, kUnfinished, kStoreError };
 // Deletes the tenant's job when it is final; queued or running jobs are left
 // alone (kUnfinished: cancel first). `reason` ("request", "retention") goes to
 // the log and the metrics.
-JobDeletion deleteJob(MetadataStore& store, BlobStore& blobs, std::shared_mutex& blob_collection, Metrics& metrics,
+JobDeletion deleteJob(MetadataStore& store, BlobStore& blobs, BlobCollection& blob_collection, Metrics& metrics,
                       const JsonLog& log, const std::string& tenant, const std::string& id, const char* reason);
 
 // A thread deleting expired jobs every config.retention_sweep_s (none when
 // keep_jobs_days is 0).
 class RetentionSweeper {
  public:
-  RetentionSweeper(MetadataStore& store, BlobStore& blobs, std::shared_mutex& blob_collection, Metrics& metrics,
+  RetentionSweeper(MetadataStore& store, BlobStore& blobs, BlobCollection& blob_collection, Metrics& metrics,
                    const ServerConfig& config, JsonLog log);
   ~RetentionSweeper();  // stop()
   RetentionSweeper(const RetentionSweeper&) = delete;
@@ -48,7 +50,7 @@ class RetentionSweeper {
  private:
   MetadataStore& store_;
   BlobStore& blobs_;
-  std::shared_mutex& blob_collection_;
+  BlobCollection& blob_collection_;
   Metrics& metrics_;
   const ServerConfig& config_;
   JsonLog log_;

@@ -260,9 +260,7 @@ void deleteRig(const Request& req, Response& res, RouteContext& ctx) {
   if (!rig || !ctx.store.deleteRig(*tenant, id)) {
     return sendProblem(res, api::makeProblem(api::WireError::kNotFound, "no rig " + id, req.path), ctx);
   }
-  for (const std::string& hash : {rig->rig_blob, rig->landmarks_blob, rig->components_blob}) {
-    if (!hash.empty() && !ctx.store.blobReferenced(hash)) ctx.blobs.remove(hash);
-  }
+  ctx.blob_collection.removeUnreferenced(ctx.blobs, {rig->rig_blob, rig->landmarks_blob, rig->components_blob});
   ctx.caches.rigs.erase(tenantCacheKey(*tenant, id));  // this tenant's next job prepares it again; others keep theirs
   ctx.log.info("rig_deleted", {{"tenant", *tenant}, {"rig", id}});
   res.status = 204;
@@ -353,9 +351,9 @@ void postJob(const Request& req, Response& res, const httplib::ContentReader& re
     // the same bytes and committing its row).
     collection.unlock();
     std::unique_lock exclusive(ctx.blob_collection);
-    for (const auto& [field, hash] : job.inputs) {
-      if (!ctx.store.blobReferenced(hash)) ctx.blobs.remove(hash);
-    }
+    std::set<std::string> stored_alone;
+    for (const auto& [field, hash] : job.inputs) stored_alone.insert(hash);
+    ctx.blob_collection.removeUnreferenced(ctx.blobs, stored_alone);
     return sendProblem(res,
                        api::makeProblem(api::WireError::kConflict,
                                         "Idempotency-Key '" + job.idempotency_key + "' was used for another request (job " +

@@ -6,6 +6,8 @@
 #include <atomic>
 #include <shared_mutex>
 
+#include "server/blob_collection.h"
+
 #include "api/http.h"
 
 #include "server/auth.h"
@@ -35,7 +37,7 @@ struct RouteContext {
   // Uploads hold it shared from adopting blobs until their row is committed;
   // a rig or job delete holds it exclusively while it collects unreferenced blobs,
   // so it never removes a blob a concurrent upload is about to reference.
-  std::shared_mutex& blob_collection;
+  BlobCollection& blob_collection;
   // Red: /readyz and every request that would write answer 503
   // storage-unavailable; a failed write reports here.
   StorageHealth& storage;

@@ -74,7 +74,7 @@ Service::Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<Metad
       keys_(std::move(keys)),
       log_(std::move(log)),
       store_(std::move(store)),
-      blobs_(config.data_dir / "blobs"),
+      blobs_(config.blob_dir.empty() ? config.data_dir / "blobs" : config.blob_dir),
       caches_(config.cache_bytes),
       storage_(*store_, blobs_, config_, log_),
       jobs_(*store_, blobs_, blob_collection_, storage_, caches_, metrics_, config_, log_),
@@ -86,7 +86,9 @@ Service::Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<Metad
             [this](const std::string& event, const std::string& client, const std::string& detail) {
               log_.info(event, {{"client", client}, {"detail", detail}});
             }) {
-  blobs_.removeTemporaries();
+  // Other replicas may be writing into a shared blob directory: only their
+  // leftovers (no write takes an hour) are removed then.
+  blobs_.removeTemporaries(store_->shared() ? std::chrono::hours(1) : std::chrono::seconds(0));
   store_->setErrorReporter([this](const std::string& message) { log_.error("store_error", {{"detail", message}}); });
   http_.set_payload_max_length(config_.max_body_bytes);
   registerRoutes(http_, routes_);

@@ -7,6 +7,8 @@
 #include <memory>
 #include <shared_mutex>
 
+#include "server/blob_collection.h"
+
 #include "api/http.h"
 
 #include "core/base/error.h"
@@ -53,7 +55,7 @@ class Service {
   BlobStore blobs_;
   Caches caches_;
   Metrics metrics_;
-  std::shared_mutex blob_collection_;
+  BlobCollection blob_collection_{*store_};
   StorageHealth storage_;
   JobManager jobs_;
   RetentionSweeper retention_;

@@ -191,6 +191,8 @@ class SqliteMetadataStore final : public MetadataStore {
   core::Status requestCancel(const std::string& id) override;
   core::Result<std::int64_t> queuedJobs() override;
   bool shared() const override { return false; }
+  core::Status lockBlobCollection(bool) override { return core::Ok{}; }
+  void unlockBlobCollection(bool) override {}
   core::Result<bool> deleteFinishedJob(const std::string& tenant, const std::string& id) override;
   std::vector<std::pair<std::string, std::string>> finishedJobsBefore(std::int64_t finished_before_ms,
                                                                       int limit) override;

@@ -5,6 +5,7 @@
 // the blob is durable. Thread-safe.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -39,10 +40,11 @@ class BlobStore {
   // Writes, fsyncs and removes a 64 KiB file where blobs are written: whether
   // the blob storage takes writes now (StorageHealth).
   core::Status probeWrite();
-  // Removes leftover temporary files (from a crash mid-write).
-  // Call at startup before any put()/adopt(): it also deletes the temporary
-  // file of a put() in flight, which would then fail.
-  void removeTemporaries();
+  // Removes leftover temporary files (from a crash mid-write) last modified
+  // at least `older_than` ago. With 0, call it at startup before any
+  // put()/adopt(): it also deletes the temporary file of a put() in flight,
+  // which would then fail.
+  void removeTemporaries(std::chrono::seconds older_than);
   const std::filesystem::path& root() const { return root_; }
 
  private:
@@ -202,6 +204,12 @@ class MetadataStore {
   virtual core::Status requestCancel(const std::string& id) = 0;
   // Queued jobs, all tenants (admission and /metrics).
   virtual core::Result<std::int64_t> queuedJobs() = 0;
+  // The store's half of the blob-collection lock (server/blob_collection.h),
+  // across processes sharing the store: held shared by writers, exclusive by
+  // the collector, waiting up to seconds for the other side. The embedded
+  // store has one process: nothing to do.
+  virtual core::Status lockBlobCollection(bool exclusive) = 0;
+  virtual void unlockBlobCollection(bool exclusive) = 0;
   // Whether other processes may share this store (PostgreSQL). The embedded
   // store has one process, which at start requeues every running job at
   // once; on a shared store running jobs are left to their leases.

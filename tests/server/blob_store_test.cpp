@@ -193,14 +193,20 @@ TEST(BlobStore, RemoveTemporariesDeletesLeftoversButNotBlobs) {
   ASSERT_TRUE(hash.ok());
   std::ofstream(blobs.root() / "tmp" / "0123.part") << "half a blob";
   std::ofstream(blobs.root() / "tmp" / "4567.part") << "another half";
-  blobs.removeTemporaries();
+  // A shared blob directory: another replica's write in flight is young; a
+  // leftover is old.
+  fs::last_write_time(blobs.root() / "tmp" / "0123.part", fs::file_time_type::clock::now() - std::chrono::hours(2));
+  blobs.removeTemporaries(std::chrono::hours(1));
+  EXPECT_FALSE(fs::exists(blobs.root() / "tmp" / "0123.part")) << "a leftover two hours old stays";
+  EXPECT_TRUE(fs::exists(blobs.root() / "tmp" / "4567.part")) << "a write in flight was removed";
+  blobs.removeTemporaries(std::chrono::seconds(0));
   EXPECT_TRUE(fs::is_empty(blobs.root() / "tmp"));
   EXPECT_TRUE(blobs.read(*hash).ok());
 
   blobs.remove(*hash);
   EXPECT_FALSE(blobs.contains(*hash));
   BlobStore fresh(rigport_test::makeTempDir("fresh"));
-  fresh.removeTemporaries();  // no tmp directory yet: a no-op
+  fresh.removeTemporaries(std::chrono::seconds(0));  // no tmp directory yet: a no-op
 }
 
 }  // namespace

@@ -115,7 +115,7 @@ TEST(StoreDurability, AcknowledgedWritesSurviveSigkill) {
       auto store = openStore(dir / "meta.db");
       ASSERT_TRUE(store) << "store does not reopen after SIGKILL";
       BlobStore blobs(dir / "blobs");
-      blobs.removeTemporaries();
+      blobs.removeTemporaries(std::chrono::seconds(0));
       std::istringstream lines(acks);
       std::string line;
       std::set<std::string> finished_ids;
