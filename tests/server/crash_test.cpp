@@ -4,65 +4,19 @@
 // its result intact (byte-identical to the in-process CLI); nothing is lost.
 #include <gtest/gtest.h>
 
-#include <csignal>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <chrono>
-#include <cstdio>
 #include <thread>
 
+#include "tests/server/server_process.h"
 #include "tests/server/service_fixture.h"
 #include "tests/test_support.h"
 
 namespace rigport_test {
 namespace {
 
-// The server binary as a child process; the first stdout line gives the port.
-class ServerProcess {
- public:
-  explicit ServerProcess(const std::filesystem::path& data_dir) {
-    int out[2];
-    if (pipe(out) != 0) return;
-    pid_ = fork();
-    if (pid_ == 0) {
-      dup2(out[1], STDOUT_FILENO);
-      close(out[0]);
-      close(out[1]);
-      const std::string data = data_dir.string();
-      execl(RIGPORT_SERVER_PATH, RIGPORT_SERVER_PATH, "--listen", "127.0.0.1:0", "--data-dir", data.c_str(), "--no-auth",
-            "--workers", "1", static_cast<char*>(nullptr));
-      _exit(127);
-    }
-    close(out[1]);
-    FILE* stream = fdopen(out[0], "r");
-    char line[256] = {0};
-    if (stream && std::fgets(line, sizeof(line), stream)) {
-      const std::string text(line);
-      port_ = std::atoi(text.substr(text.rfind(':') + 1).c_str());
-    }
-    if (stream) std::fclose(stream);
-  }
-  ~ServerProcess() {
-    if (pid_ > 0) kill(SIGKILL);
-  }
-  void kill(int signal) {
-    ::kill(pid_, signal);
-    int status = 0;
-    waitpid(pid_, &status, 0);
-    pid_ = -1;
-  }
-  int port() const { return port_; }
-  std::unique_ptr<httplib::Client> client() const {
-    auto c = std::make_unique<httplib::Client>("127.0.0.1", port_);
-    c->set_read_timeout(60, 0);
-    return c;
-  }
-
- private:
-  pid_t pid_ = -1;
-  int port_ = 0;
-};
+ServerProcess startServer(const std::filesystem::path& data_dir) {
+  return ServerProcess({"--data-dir", data_dir.string(), "--no-auth", "--workers", "1"});
+}
 
 TEST(Crash, KillNineLosesNoAcceptedRigOrJob) {
   const auto dir = makeTempDir("crash");
@@ -74,7 +28,7 @@ TEST(Crash, KillNineLosesNoAcceptedRigOrJob) {
   std::string rig_id;
   std::vector<std::string> accepted;
   for (int round = 0; round < 2; ++round) {
-    ServerProcess server(data);
+    ServerProcess server = startServer(data);
     ASSERT_GT(server.port(), 0) << "rigport-server did not start";
     auto client = server.client();
     if (rig_id.empty()) {
@@ -97,7 +51,7 @@ TEST(Crash, KillNineLosesNoAcceptedRigOrJob) {
     server.kill(SIGKILL);
   }
 
-  ServerProcess server(data);
+  ServerProcess server = startServer(data);
   ASSERT_GT(server.port(), 0);
   auto client = server.client();
   EXPECT_EQ(get(*client, "/v1/rigs/" + rig_id).status, 200) << "an accepted rig was lost";
