@@ -100,6 +100,10 @@ class PgConnection {
       PQreset(conn_);
     } else {
       conn_ = PQconnectdb(url_.c_str());
+      // Server notices ("relation ... already exists, skipping" from the
+      // schema's IF NOT EXISTS) are not the service's log lines: dropped,
+      // not printed raw on stderr. Errors come back with their results.
+      if (conn_) PQsetNoticeProcessor(conn_, [](void*, const char*) {}, nullptr);
     }
     if (!conn_ || PQstatus(conn_) != CONNECTION_OK) {
       return makeError(ErrorCode::kIo, "database " + label_ + ": cannot connect: " + message());
