@@ -33,6 +33,10 @@ class BlobCollection {
   // could not be taken (a blob left behind costs space, a blob deleted under
   // a writer loses its data).
   int removeUnreferenced(BlobStore& blobs, const std::set<std::string>& hashes);
+  // Under lock(): whether the store's lock is held too. A caller about to
+  // delete a row whose blobs it will collect checks this first: a row deleted
+  // without its blobs collected would leave them with no one to find them.
+  bool mayCollect() const { return exclusive_in_store_; }
 
  private:
   MetadataStore& store_;

@@ -98,12 +98,14 @@ void JobManager::start() {
   const int n = config_.workers > 0 ? config_.workers : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   {
     std::lock_guard lock(mutex_);
+    worker_count_ = n;
     hints_ = n;  // look at once: the queue may hold jobs from before
   }
   log_.info("job_queue_started", {{"replica", owner_}, {"workers", n}, {"lease_s", config_.lease_s},
                                   {"store", store_.backend()}});
   for (int i = 0; i < n; ++i) workers_.emplace_back([this] { workerLoop(); });
   lease_keeper_ = std::thread([this] { leaseLoop(); });
+  if (store_.shared()) listener_ = std::thread([this] { listenLoop(); });
 }
 
 api::Result<std::pair<JobRecord, bool>> JobManager::submit(const JobRecord& job) {
@@ -234,12 +236,13 @@ bool JobManager::stop(double grace_s) {
   lease_wake_.notify_all();
   lock.unlock();
   if (lease_keeper_.joinable()) lease_keeper_.join();
+  if (listener_.joinable()) listener_.join();
   return finished;
 }
 
 void JobManager::wakeWorkers(int jobs) {
   std::lock_guard lock(mutex_);
-  hints_ = std::min<int>(hints_ + jobs, static_cast<int>(workers_.size()) + 1);
+  hints_ = std::min(hints_ + jobs, worker_count_ + 1);
   if (jobs == 1) {
     wake_.notify_one();
   } else {
@@ -349,6 +352,29 @@ void JobManager::leaseLoop() {
       log_.warn("job_lease_expired", {{"job", id}, {"replica", owner_}});
     }
     if (!expired->empty()) wakeWorkers(static_cast<int>(expired->size()));
+  }
+}
+
+void JobManager::listenLoop() {
+  for (;;) {
+    {
+      std::lock_guard lock(mutex_);
+      if (lease_stopping_) return;
+    }
+    // Bounded, so a stop is seen within half a second.
+    auto announced = store_.waitForQueuedJobs(std::chrono::milliseconds(500));
+    if (announced && *announced) {
+      int workers = 0;
+      {
+        std::lock_guard lock(mutex_);
+        workers = worker_count_;
+      }
+      wakeWorkers(workers);
+    }
+    if (!announced) {  // the store is away: polling carries on; listen again in a while
+      std::unique_lock lock(mutex_);
+      lease_wake_.wait_for(lock, heartbeat_, [&] { return lease_stopping_; });
+    }
   }
 }
 

@@ -111,6 +111,7 @@ class JobManager {
   };
   void workerLoop();
   void leaseLoop();        // heartbeats, expired leases, requeues that failed
+  void listenLoop();       // shared store: wakes idle workers when another replica queues a job
   void renewLeases();
   void runOne(JobRecord job, Running& state);
   Execution execute(const JobRecord& job, Running& state);  // the job body with stage, cancel and time-limit hooks
@@ -138,6 +139,7 @@ class JobManager {
   std::condition_variable lease_wake_;
   int waiters_ = 0;                                          // requests in waitUntilSettled
   int hints_ = 0;                                            // jobs known queued for idle workers
+  int worker_count_ = 0;                                     // set by start()
   int reserved_ = 0;                                         // submissions between capacity check and commit
   std::map<std::string, std::shared_ptr<Running>> running_;  // by job id
   std::vector<std::pair<std::string, int>> give_back_;       // (id, attempt) to requeue once the store answers
@@ -147,6 +149,7 @@ class JobManager {
   bool lease_stopping_ = false;
   std::vector<std::thread> workers_;
   std::thread lease_keeper_;
+  std::thread listener_;
 };
 
 // The wire view of a stored job (with live stage/progress when running).

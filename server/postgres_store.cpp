@@ -11,6 +11,9 @@
 // transaction holding an advisory lock, so replicas starting together do not
 // race.
 #include <libpq-fe.h>
+#include <poll.h>
+
+#include <cerrno>
 
 #include <cctype>
 #include <chrono>
@@ -37,6 +40,11 @@ namespace {
 // pg_advisory_xact_lock key of schema creation and upgrades ("rigport" in ASCII).
 constexpr long long kSchemaLockKey = 0x72696770'6f7274LL;
 
+
+// The channel a job queued (inserted or requeued) is announced on: a
+// wake-up hint for other replicas' idle workers, who also poll.
+constexpr const char* kListenSql = "LISTEN rigport_jobs_queued";
+constexpr const char* kNotifySql = "SELECT pg_notify('rigport_jobs_queued', '')";
 
 // Session advisory lock key of the blob collection ("rigblob").
 constexpr long long kBlobCollectionLockKey = 0x72696762'6c6f62LL;
@@ -144,6 +152,29 @@ class PgConnection {
 
   const std::string& lastSqlState() const { return last_sqlstate_; }
   const std::string& label() const { return label_; }
+  const std::string& url() const { return url_; }
+  bool connected() const { return conn_ && PQstatus(conn_) == CONNECTION_OK; }
+
+  // On a LISTENing connection: waits up to `timeout` for notifications;
+  // true when at least one came (all pending are consumed).
+  core::Result<bool> awaitNotification(std::chrono::milliseconds timeout) {
+    const auto drain = [this] {
+      bool any = false;
+      while (PGnotify* n = PQnotifies(conn_)) {
+        any = true;
+        PQfreemem(n);
+      }
+      return any;
+    };
+    const auto lost = [this] { return makeError(ErrorCode::kIo, "database " + label_ + ": listening: " + message()); };
+    if (!connected() || PQconsumeInput(conn_) == 0) return lost();
+    if (drain()) return true;
+    pollfd fd{PQsocket(conn_), POLLIN, 0};
+    const int ready = ::poll(&fd, 1, static_cast<int>(timeout.count()));
+    if (ready < 0 && errno != EINTR) return makeError(ErrorCode::kIo, "database " + label_ + ": poll failed");
+    if (ready > 0 && PQconsumeInput(conn_) == 0) return lost();
+    return drain();
+  }
 
  private:
   std::string message() const {
@@ -223,7 +254,8 @@ std::string p(std::int64_t v) { return std::to_string(v); }
 
 class PostgresMetadataStore final : public MetadataStore {
  public:
-  explicit PostgresMetadataStore(std::unique_ptr<PgConnection> connection) : c_(std::move(connection)) {}
+  explicit PostgresMetadataStore(std::unique_ptr<PgConnection> connection)
+      : c_(std::move(connection)), listener_(std::make_unique<PgConnection>(c_->url(), c_->label())) {}
   const char* backend() const override { return "postgresql"; }
 
   core::Result<std::pair<RigRecord, bool>> insertRig(const RigRecord& rig) override {
@@ -313,6 +345,8 @@ class PostgresMetadataStore final : public MetadataStore {
                            "cannot insert input " + field + " of job " + stored.id);
       if (!r) return r.error();
     }
+    // Delivered at commit, to every replica LISTENing.
+    if (auto r = c_->exec(kNotifySql, {}, "cannot announce job " + stored.id); !r) return r.error();
     if (auto ok = tx.commit(); !ok) return ok.error();
     return std::pair{std::move(stored), true};
   }
@@ -380,6 +414,7 @@ class PostgresMetadataStore final : public MetadataStore {
     auto r = c_->command(kRequeue.c_str(), {id, p(attempt)}, "cannot requeue job " + id);
     if (!r) return r.error();
     if (r->affected() == 0) return transitionRefused(id, "requeue", attempt);
+    (void)c_->exec(kNotifySql, {}, "cannot announce job " + id);  // a hint: polling finds it anyway
     return core::Ok{};
   }
 
@@ -415,6 +450,7 @@ class PostgresMetadataStore final : public MetadataStore {
     static const std::string kRequeue = dollarParams(requeueExpiredSql(kDatabaseNowMs));
     auto rows = c_->exec(kRequeue.c_str(), {}, "cannot requeue jobs with expired leases");
     if (!rows) return rows.error();
+    if (rows->rows() > 0) (void)c_->exec(kNotifySql, {}, "cannot announce requeued jobs");
     return readRows<std::string>(*rows, [](const PgRow& r) { return r.text(0); });
   }
 
@@ -435,6 +471,18 @@ class PostgresMetadataStore final : public MetadataStore {
   }
 
   bool shared() const override { return true; }
+
+  core::Result<bool> waitForQueuedJobs(std::chrono::milliseconds timeout) override {
+    std::lock_guard lock(listen_mutex_);
+    if (!listening_ || !listener_->connected()) {
+      listening_ = false;  // a new session (after a reconnect) listens again
+      if (auto ok = listener_->script(kListenSql, "cannot listen for queued jobs"); !ok) return ok.error();
+      listening_ = true;
+    }
+    auto notified = listener_->awaitNotification(timeout);
+    if (!notified) listening_ = false;
+    return notified;
+  }
 
   // One session lock for all of this replica's writers (they count here), so
   // a writer costs a round trip only when it is the first.
@@ -569,6 +617,10 @@ class PostgresMetadataStore final : public MetadataStore {
 
   std::unique_ptr<PgConnection> c_;
   std::mutex mutex_;
+  // A second session, only LISTENing for kQueuedChannel (connected on first use).
+  std::unique_ptr<PgConnection> listener_;
+  std::mutex listen_mutex_;
+  bool listening_ = false;
   int shared_holders_ = 0;   // writers holding the blob-collection lock shared
   bool shared_held_ = false; // ... and the session holds it in the database
 };

@@ -13,6 +13,10 @@ JobDeletion deleteJob(MetadataStore& store, BlobStore& blobs, BlobCollection& bl
   if (!job) return JobDeletion::kAbsent;
   if (!api::isFinal(job->status)) return JobDeletion::kUnfinished;
   std::unique_lock collection(blob_collection);
+  if (!blob_collection.mayCollect()) {
+    log.error("job_delete_failed", {{"job", id}, {"tenant", tenant}, {"detail", "the blob-collection lock could not be taken"}});
+    return JobDeletion::kStoreError;  // retried: by the next sweep, or by the client after the 503
+  }
   auto deleted = store.deleteFinishedJob(tenant, id);
   if (!deleted) {
     log.error("job_delete_failed", {{"job", id}, {"tenant", tenant}, {"detail", deleted.error().message}});

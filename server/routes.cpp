@@ -256,6 +256,7 @@ void deleteRig(const Request& req, Response& res, RouteContext& ctx) {
   if (!tenant || !storageWritable(req, res, ctx)) return;
   const std::string id = req.matches[1];
   std::unique_lock collection(ctx.blob_collection);
+  if (!ctx.blob_collection.mayCollect()) return sendStorageFault(req, res, ctx, "rig_delete", "rig " + id);
   auto rig = ctx.store.getRig(*tenant, id);
   if (!rig || !ctx.store.deleteRig(*tenant, id)) {
     return sendProblem(res, api::makeProblem(api::WireError::kNotFound, "no rig " + id, req.path), ctx);

@@ -191,6 +191,7 @@ class SqliteMetadataStore final : public MetadataStore {
   core::Status requestCancel(const std::string& id) override;
   core::Result<std::int64_t> queuedJobs() override;
   bool shared() const override { return false; }
+  core::Result<bool> waitForQueuedJobs(std::chrono::milliseconds) override { return false; }
   core::Status lockBlobCollection(bool) override { return core::Ok{}; }
   void unlockBlobCollection(bool) override {}
   core::Result<bool> deleteFinishedJob(const std::string& tenant, const std::string& id) override;

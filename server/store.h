@@ -210,6 +210,12 @@ class MetadataStore {
   // store has one process: nothing to do.
   virtual core::Status lockBlobCollection(bool exclusive) = 0;
   virtual void unlockBlobCollection(bool exclusive) = 0;
+  // Waits up to `timeout` for a job queued by any process on the store
+  // (PostgreSQL: LISTEN/NOTIFY on a session of its own); true when one was
+  // announced. Only a hint to wake idle workers sooner: workers poll anyway.
+  // The embedded store announces nothing (its one process wakes its own
+  // workers): false at once.
+  virtual core::Result<bool> waitForQueuedJobs(std::chrono::milliseconds timeout) = 0;
   // Whether other processes may share this store (PostgreSQL). The embedded
   // store has one process, which at start requeues every running job at
   // once; on a shared store running jobs are left to their leases.
