@@ -722,6 +722,29 @@ TEST_F(PostgresStore, ReplicasStartingTogetherCreateTheSchemaOnce) {
   EXPECT_TRUE(stores[kReplicas - 1]->getRig("acme", "rig1")) << "the replicas do not share one database";
 }
 
+// LISTEN/NOTIFY: a job queued through one replica's store wakes a replica
+// waiting on another (the hint its idle workers get; they also poll).
+TEST_F(PostgresStore, AJobQueuedOnOneReplicaIsAnnouncedToTheOthers) {
+  const std::string location = freshLocation();
+  auto waiting = openStore(location);
+  auto submitting = openStore(location);
+  ASSERT_TRUE(waiting && submitting);
+  // Listening from here on; what other tests on this database announced is drained.
+  for (int i = 0; i < 100; ++i) {
+    auto pending = waiting->waitForQueuedJobs(std::chrono::milliseconds(0));
+    ASSERT_TRUE(pending.ok()) << pending.error().message;
+    if (!*pending) break;
+  }
+  std::thread submit([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    EXPECT_TRUE(submitting->insertJob(makeJob("acme", "announced")).ok());
+  });
+  auto announced = waiting->waitForQueuedJobs(std::chrono::seconds(30));
+  submit.join();
+  ASSERT_TRUE(announced.ok()) << announced.error().message;
+  EXPECT_TRUE(*announced);
+}
+
 TEST_F(PostgresStore, ReplicasShareJobsAndOneIdempotencyKeyMakesOneJob) {
   const std::string location = freshLocation();
   auto a = openStore(location);
