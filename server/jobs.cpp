@@ -165,11 +165,15 @@ api::Result<JobRecord> JobManager::cancel(const std::string& tenant, const std::
                               instance);
     }
     if (job->status == api::JobStatus::kRunning) {
+      core::Status asked = core::Ok{};
       {
+        // Held across the store write: a worker of this replica registering
+        // the job meanwhile either is seen here or, after this, reads the
+        // flag from the store (workerLoop). Others see it at their next heartbeat.
         std::lock_guard lock(mutex_);
         if (auto it = running_.find(id); it != running_.end()) it->second->cancel = true;
+        asked = store_.requestCancel(id);
       }
-      auto asked = store_.requestCancel(id);  // its owner, here or elsewhere, sees it at its next heartbeat
       if (!asked && isStorageError(asked.error())) return unavailable(asked.error());
       if (!asked) continue;
       log_.info("job_cancel_requested", {{"job", id}, {"tenant", tenant}});
@@ -293,6 +297,9 @@ void JobManager::workerLoop() {
       giveBack(job.id, job.attempts);
       return;
     }
+    // A cancel asked between the claim and the registration above is in the
+    // store only (cancel holds mutex_ across its write).
+    if (auto now = store_.getJob(job.tenant, job.id); now && now->cancel_requested) state->cancel = true;
     const std::string id = job.id;
     runOne(std::move(job), *state);
     std::lock_guard lock(mutex_);
