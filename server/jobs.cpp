@@ -285,7 +285,6 @@ void JobManager::workerLoop() {
     next_look = Clock::now();  // there may be more
     JobRecord job = std::move(**claimed);
     auto state = std::make_shared<Running>();
-    state->tenant = job.tenant;
     state->attempt = job.attempts;
     bool stop_now = false;
     {

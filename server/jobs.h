@@ -96,7 +96,6 @@ class JobManager {
 
  private:
   struct Running {
-    std::string tenant;
     int attempt = 0;  // the fencing token of the claim
     std::string stage = "queued";
     double progress = 0.0;
