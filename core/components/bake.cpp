@@ -5,6 +5,7 @@
 #include <algorithm>
 
 #include "core/components/pose.h"
+#include "core/components/pose_spec.h"
 
 namespace core {
 
@@ -20,7 +21,7 @@ Result<MorphTarget> bakePreset(const Rig& rig, const ComponentsDocument& doc, co
                                BakeReport& report) {
   auto controls = presetControls(doc, name);
   if (!controls) return controls.error();
-  auto pose = evaluatePose(rig.mesh.positions, rig.mesh.triangles, doc, *controls);
+  auto pose = evaluatePose(rig.mesh.positions, rig.mesh.triangles, doc, *controls, jointPositionOptions(rig.nodes, rig.nodes));
   if (!pose) return makeError(pose.error().code, "preset '" + name + "': " + pose.error().message);
   MorphTarget target;
   target.name = name;
@@ -40,6 +41,12 @@ Result<MorphTarget> bakePreset(const Rig& rig, const ComponentsDocument& doc, co
     if (!rotation.isZero(0.0)) {
       report.warnings.push_back("preset '" + name + "' turns joint '" + joint +
                                 "', which a morph target cannot hold: the rotation is not baked");
+    }
+  }
+  for (const auto& [joint, turn] : pose->joint_aims) {
+    if (!turn.isIdentity(1e-12)) {
+      report.warnings.push_back("preset '" + name + "' aims joint '" + joint +
+                                "', which a morph target cannot hold: the aim is not baked");
     }
   }
   for (const std::string& control : pose->clamped_controls) {

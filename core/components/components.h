@@ -97,14 +97,17 @@ struct PointConstraint {
 
 // Turns the object so its aim axis points at the targets' weighted average,
 // its up axis as close to world_up as the aim allows. A cluster turns by the
-// change from its rest aim (the rest pose deforms nothing).
+// change from its rest aim (the rest pose deforms nothing); so does a joint
+// of the rig (paper 001's eye rig: the eye turned by a locator it aims at),
+// which the pose hands to the skeleton (ComponentsPose::joint_aims).
 struct AimConstraint {
   std::string name;
-  std::string constrained;  // a locator or cluster name
+  std::string constrained;  // a locator or cluster name; with `joint`, a joint (node) name of the rig
   std::vector<ConstraintTarget> targets;
   Eigen::Vector3d aim_axis = Eigen::Vector3d::UnitZ();  // object frame
   Eigen::Vector3d up_axis = Eigen::Vector3d::UnitY();   // object frame, not parallel to aim_axis
   Eigen::Vector3d world_up = Eigen::Vector3d::UnitY();  // model frame
+  bool joint = false;  // JSON: "constrained_joint" instead of "constrained"
   bool operator==(const AimConstraint&) const = default;
 };
 
@@ -191,7 +194,9 @@ struct CollisionShape {
   }
 };
 
-enum class PushDirection { kClosest, kVector };
+// kFromPoint: along the ray from a point through the vertex (paper 001's
+// sculptor deformer: rays traced from the eye's centre out of the cornea).
+enum class PushDirection { kClosest, kVector, kFromPoint };
 
 // Points inside the collision surface are pushed out onto it.
 struct PushToSurface {
@@ -199,6 +204,7 @@ struct PushToSurface {
   CollisionShape surface;
   PushDirection direction = PushDirection::kClosest;
   Eigen::Vector3d vector = Eigen::Vector3d::UnitZ();  // kVector: the push direction
+  Binding from;                                       // kFromPoint: where the rays start
   std::vector<int> members;  // empty: all vertices not on the surface itself
   bool operator==(const PushToSurface&) const = default;
 };
@@ -242,9 +248,10 @@ struct CreaseCluster {
   bool operator==(const CreaseCluster&) const = default;
 };
 
-enum class DriveTargetKind { kMuscle, kCluster, kMorph, kJoint };
+enum class DriveTargetKind { kMuscle, kCluster, kMorph, kJoint, kLocator };
 
-// Cluster channels a control may drive (added to the authored transform).
+// Cluster channels a control may drive (added to the authored transform);
+// a locator takes the translate channels (moved from its binding).
 enum class ClusterChannel {
   kTranslateX, kTranslateY, kTranslateZ,  // model units
   kRotateX, kRotateY, kRotateZ,           // degrees, applied X then Y then Z
@@ -255,8 +262,8 @@ enum class JointChannel { kRotateX, kRotateY, kRotateZ };  // degrees
 // One term of a control's linear map: target += gain * control value.
 struct ControlDrive {
   DriveTargetKind kind = DriveTargetKind::kMuscle;
-  std::string name;  // muscle, cluster, morph target or joint name
-  ClusterChannel cluster_channel = ClusterChannel::kTranslateX;  // kCluster
+  std::string name;  // muscle, cluster, morph target, joint or locator name
+  ClusterChannel cluster_channel = ClusterChannel::kTranslateX;  // kCluster; kLocator: translate channels only
   JointChannel joint_channel = JointChannel::kRotateX;           // kJoint
   double gain = 1.0;
   bool operator==(const ControlDrive&) const = default;

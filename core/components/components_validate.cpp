@@ -238,8 +238,12 @@ Status Checker::checkConstraints() const {
   for (std::size_t i = 0; i < doc_.aim_constraints.size(); ++i) {
     const AimConstraint& c = doc_.aim_constraints[i];
     const std::string where = elementLabel("aim_constraints", i, c.name);
-    if (auto ok = checkObject(where, c.constrained); !ok) return ok;
-    if (auto [it, fresh] = aim_constrained.emplace(c.constrained, where); !fresh) {
+    if (c.joint && c.constrained.empty()) return fail(where, "constrained_joint must be a non-empty name");
+    if (!c.joint) {
+      if (auto ok = checkObject(where, c.constrained); !ok) return ok;
+    }
+    // A joint and a locator may share a name: they are different objects.
+    if (auto [it, fresh] = aim_constrained.emplace((c.joint ? "joint " : "") + c.constrained, where); !fresh) {
       return fail(where, "constrained: \"" + c.constrained + "\" is already constrained by " + it->second);
     }
     if (auto ok = checkTargets(where, c.targets); !ok) return ok;
@@ -270,7 +274,7 @@ Status Checker::checkConstraintCycles() const {
   }
   for (std::size_t i = 0; i < doc_.aim_constraints.size(); ++i) {
     const auto& c = doc_.aim_constraints[i];
-    add(c.constrained, c.targets, elementLabel("aim_constraints", i, c.name));
+    if (!c.joint) add(c.constrained, c.targets, elementLabel("aim_constraints", i, c.name));  // nothing targets a joint's aim
   }
   std::map<std::string, int> state;  // 1: on the path, 2: done
   std::vector<std::string> path;
@@ -397,6 +401,9 @@ Status Checker::checkDeformers() const {
     if (p.direction == PushDirection::kVector && (!p.vector.allFinite() || p.vector.norm() < 1e-12)) {
       return fail(where, "direction must be \"closest\" or a finite non-zero vector");
     }
+    if (p.direction == PushDirection::kFromPoint) {
+      if (auto ok = checkBinding(where, "direction.from", p.from); !ok) return ok;
+    }
     if (auto ok = checkMembers(where, p.members); !ok) return ok;
   }
   return Ok{};
@@ -468,6 +475,15 @@ Status Checker::checkControls() const {
         case DriveTargetKind::kCluster:
           if (indexByName(doc_.clusters, drive.name) < 0) {
             return unknown(where, field + ".cluster", "cluster", drive.name, cluster_names_);
+          }
+          break;
+        case DriveTargetKind::kLocator:
+          if (indexByName(doc_.locators, drive.name) < 0) {
+            return unknown(where, field + ".locator", "locator", drive.name, locator_names_);
+          }
+          if (drive.cluster_channel != ClusterChannel::kTranslateX && drive.cluster_channel != ClusterChannel::kTranslateY &&
+              drive.cluster_channel != ClusterChannel::kTranslateZ) {
+            return fail(where, field + ".channel: a locator takes translate_x, translate_y or translate_z only");
           }
           break;
         case DriveTargetKind::kMorph:

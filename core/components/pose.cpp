@@ -72,6 +72,10 @@ Status applyControls(PoseState& s, const std::map<std::string, double>& control_
           s.cluster_channels[static_cast<std::size_t>(indexByName(doc.clusters, drive.name))]
                             [static_cast<std::size_t>(drive.cluster_channel)] += amount;
           break;
+        case DriveTargetKind::kLocator:
+          s.locator_current[static_cast<std::size_t>(indexByName(doc.locators, drive.name))](
+              static_cast<int>(drive.cluster_channel)) += amount;  // translate_x/y/z: validated
+          break;
         case DriveTargetKind::kMorph: s.pose.morph_weights[drive.name] += amount; break;
         case DriveTargetKind::kJoint: {
           auto [it, fresh] = s.pose.joint_rotations.emplace(drive.name, Eigen::Vector3d::Zero());
@@ -155,7 +159,9 @@ Status applyConstraints(PoseState& s) {
   const ComponentsDocument& doc = s.doc;
   std::map<std::string, int> point_of, aim_of;
   for (std::size_t i = 0; i < doc.point_constraints.size(); ++i) point_of[doc.point_constraints[i].constrained] = static_cast<int>(i);
-  for (std::size_t i = 0; i < doc.aim_constraints.size(); ++i) aim_of[doc.aim_constraints[i].constrained] = static_cast<int>(i);
+  for (std::size_t i = 0; i < doc.aim_constraints.size(); ++i) {
+    if (!doc.aim_constraints[i].joint) aim_of[doc.aim_constraints[i].constrained] = static_cast<int>(i);
+  }
   std::set<std::string> done;
   std::function<Status(const std::string&)> evaluate = [&](const std::string& object) -> Status {
     if (!done.insert(object).second) return Ok{};
@@ -217,7 +223,31 @@ Status applyConstraints(PoseState& s) {
     if (auto ok = evaluate(c.constrained); !ok) return ok;
   }
   for (const auto& c : doc.aim_constraints) {
-    if (auto ok = evaluate(c.constrained); !ok) return ok;
+    if (!c.joint) {
+      if (auto ok = evaluate(c.constrained); !ok) return ok;
+    }
+  }
+  // Joints last: they aim at locators (now all placed) and nothing in the
+  // document follows a joint's turn.
+  for (std::size_t i = 0; i < doc.aim_constraints.size(); ++i) {
+    const AimConstraint& c = doc.aim_constraints[i];
+    if (!c.joint) continue;
+    const std::string where = "aim_constraints[" + std::to_string(i) + "] \"" + c.name + "\"";
+    const auto now = s.options.joint_positions.find(c.constrained);
+    const auto rest = s.options.joint_rest_positions.find(c.constrained);
+    if (now == s.options.joint_positions.end() || rest == s.options.joint_rest_positions.end()) {
+      return makeError(ErrorCode::kInvalidArgument,
+                       where + ": joint \"" + c.constrained + "\" has no position (posed and rest) in PoseOptions");
+    }
+    auto targets = targetPositions(s, c.targets, where, true);
+    if (!targets) return targets.error();
+    const Eigen::Vector3d goal = weightedAverage(targets->now, targets->weights);
+    const Eigen::Vector3d rest_goal = weightedAverage(targets->rest, targets->weights);
+    if ((goal - now->second).norm() < 1e-12 || (rest_goal - rest->second).norm() < 1e-12) {
+      return makeError(ErrorCode::kInvalidArgument, where + ": the targets' average coincides with joint \"" + c.constrained + "\"");
+    }
+    s.pose.joint_aims[c.constrained] = aimRotation(now->second, goal, c.aim_axis, c.up_axis, c.world_up) *
+                                       aimRotation(rest->second, rest_goal, c.aim_axis, c.up_axis, c.world_up).transpose();
   }
   return Ok{};
 }

@@ -36,6 +36,9 @@ struct ComponentsPose {
   std::map<std::string, std::vector<Eigen::Vector3d>> lattice_points;  // deformed control points, drivers applied
   std::map<std::string, double> morph_weights;                 // summed control drives, for the blend shapes
   std::map<std::string, Eigen::Vector3d> joint_rotations;      // Euler degrees (x, y, z), for the skeleton
+  // Aim-constrained joints: the turn from their rest aim, model frame (the
+  // skeleton applies it to the joint's rest orientation: poseRig).
+  std::map<std::string, Eigen::Matrix3d> joint_aims;
 };
 
 // rest_positions: #V by 3 (model units), triangles: #F by 3, of a mesh with

@@ -11,6 +11,8 @@
 
 #include "core/components/cluster.h"
 #include "core/components/pose.h"
+#include "core/geometry/mesh.h"
+#include "core/geometry/point_cloud_index.h"
 #include "core/io/json_text.h"
 #include "core/io/mesh_io.h"
 #include "core/rig/skinning.h"
@@ -193,9 +195,32 @@ std::vector<Node> rotatedNodes(const std::vector<Node>& nodes, const std::map<st
   return out;
 }
 
-// Joint positions for constraints that target joints: at rest, and at the
-// spec's own joint rotations (those the controls drive come out of the
-// evaluation that needs these).
+// Aim-constrained joints turned from their rest orientation by the aim's
+// turn (model frame) under their parents as posed: local rotation
+// P^T * turn * W_rest, rotations only (scales on the way taken as uniform).
+// The aim sets the joint's orientation: its own rotations give way.
+std::vector<Node> aimedNodes(const std::vector<Node>& rest_nodes, std::vector<Node> nodes,
+                             const std::map<std::string, Eigen::Matrix3d>& aims) {
+  if (aims.empty()) return nodes;
+  const std::map<std::string, int> index = nodeIndexByName(nodes);
+  const std::vector<Eigen::Matrix4d> rest_world = nodeWorldTransforms(rest_nodes);
+  auto rotationOf = [](const Eigen::Matrix4d& m) {
+    Eigen::Matrix3d r = m.topLeftCorner<3, 3>();
+    for (int k = 0; k < 3; ++k) r.col(k).normalize();
+    return r;
+  };
+  for (const auto& [name, turn] : aims) {
+    const auto n = static_cast<std::size_t>(index.at(name));
+    const int parent = nodes[n].parent;
+    const Eigen::Matrix3d parent_rotation =
+        parent < 0 ? Eigen::Matrix3d::Identity() : rotationOf(nodeWorldTransforms(nodes)[static_cast<std::size_t>(parent)]);
+    nodes[n].rotation = Eigen::Quaterniond(parent_rotation.transpose() * turn * rotationOf(rest_world[n])).normalized();
+  }
+  return nodes;
+}
+
+}  // namespace
+
 PoseOptions jointPositionOptions(const std::vector<Node>& rest_nodes, const std::vector<Node>& spec_nodes) {
   const std::vector<Eigen::Matrix4d> rest = nodeWorldTransforms(rest_nodes);
   const std::vector<Eigen::Matrix4d> posed = nodeWorldTransforms(spec_nodes);
@@ -207,6 +232,8 @@ PoseOptions jointPositionOptions(const std::vector<Node>& rest_nodes, const std:
   }
   return options;
 }
+
+namespace {
 
 // Adds what the controls drive to the report's morph weights and joint
 // rotations; a name the rig lacks is an error when its amount is not zero.
@@ -221,6 +248,7 @@ Status addDrivenAmounts(const Rig& rig, const ComponentsPose& pose, const PoseLa
     }
   }
   const std::map<std::string, int> nodes = nodeIndexByName(rig.nodes);
+  for (const auto& [name, turn] : pose.joint_aims) report.joint_aims[name] = turn;  // joints checked before evaluating
   for (const auto& [name, degrees] : pose.joint_rotations) {
     if (nodes.count(name)) {
       auto [it, fresh] = report.joint_rotations.emplace(name, Eigen::Vector3d::Zero());
@@ -234,6 +262,54 @@ Status addDrivenAmounts(const Rig& rig, const ComponentsPose& pose, const PoseLa
   return Ok{};
 }
 
+// An open part (lashes, gums: not isSolid) rides on the face's components
+// motion: a piece of it that touches the face (comes within kPartAttachReach
+// of the face's size) is attached by the face vertices it touches there,
+// and each of its vertices moves as its nearest few of those (inverse
+// distance), so a lash strip closes with its lid as one strip. Solid parts
+// (eyeballs, teeth) and loose pieces move only by their joints.
+constexpr double kPartAttachReach = 0.005;  // of the face's bounding-box diagonal
+constexpr int kPartAnchors = 3;
+
+void moveOpenPartsWithFace(std::vector<RigPart>& parts, const Eigen::MatrixX3d& rest_face,
+                           const Eigen::MatrixX3d& displacement) {
+  if (parts.empty() || displacement.isZero(0.0)) return;
+  const PointCloudIndex face(rest_face);
+  const double reach = kPartAttachReach * boundingBoxDiagonal(rest_face);
+  for (RigPart& part : parts) {
+    if (isSolid(part.mesh)) continue;
+    const std::vector<PointCloudIndex::Neighbour> nearest = face.nearest(part.mesh.positions);
+    const MeshPieces pieces = meshPieces(part.mesh, coincidentVertexRepresentatives(part.mesh.positions));
+    std::vector<char> attached(static_cast<std::size_t>(pieces.count), 0);
+    std::vector<int> anchors;  // face vertices the part touches
+    for (std::size_t v = 0; v < nearest.size(); ++v) {
+      const int piece = pieces.vertex_piece[v];
+      if (piece < 0 || nearest[v].index < 0 || nearest[v].sq_distance > reach * reach) continue;
+      attached[static_cast<std::size_t>(piece)] = 1;
+      anchors.push_back(nearest[v].index);
+    }
+    if (anchors.empty()) continue;
+    std::sort(anchors.begin(), anchors.end());
+    anchors.erase(std::unique(anchors.begin(), anchors.end()), anchors.end());
+    Eigen::MatrixX3d anchor_rest(static_cast<Eigen::Index>(anchors.size()), 3);
+    for (std::size_t a = 0; a < anchors.size(); ++a) anchor_rest.row(static_cast<Eigen::Index>(a)) = rest_face.row(anchors[a]);
+    const PointCloudIndex anchor_index(anchor_rest);
+    for (std::size_t v = 0; v < nearest.size(); ++v) {
+      const int piece = pieces.vertex_piece[v];
+      if (piece < 0 || !attached[static_cast<std::size_t>(piece)]) continue;
+      const auto row = static_cast<Eigen::Index>(v);
+      Eigen::RowVector3d moved = Eigen::RowVector3d::Zero();
+      double total = 0.0;
+      for (const auto& n : anchor_index.nearest(Eigen::Vector3d(part.mesh.positions.row(row).transpose()), kPartAnchors)) {
+        const double w = 1.0 / (std::sqrt(n.sq_distance) + 1e-6 * reach);
+        moved += w * displacement.row(anchors[static_cast<std::size_t>(n.index)]);
+        total += w;
+      }
+      part.mesh.positions.row(row) += moved / total;
+    }
+  }
+}
+
 // Components on the face: the posed face replaces the rig's rest face;
 // control values and clamped controls and the driven amounts go to `report`.
 Status applyComponents(Rig& rig, const ComponentsDocument& doc, const PoseSpec& spec, const PoseLabels& labels,
@@ -242,12 +318,22 @@ Status applyComponents(Rig& rig, const ComponentsDocument& doc, const PoseSpec& 
   if (auto ok = validateComponents(doc, labels.components, counts); !ok) return ok.error();
   auto controls = specControlValues(doc, spec);
   if (!controls) return makeError(controls.error().code, labels.components + ": " + controls.error().message);
+  const std::map<std::string, int> nodes = nodeIndexByName(rig.nodes);
+  for (std::size_t i = 0; i < doc.aim_constraints.size(); ++i) {
+    const AimConstraint& c = doc.aim_constraints[i];
+    if (c.joint && !nodes.count(c.constrained)) {
+      return makeError(ErrorCode::kInvalidArgument, labels.components + ": aim_constraints[" + std::to_string(i) + "] \"" +
+                                                        c.name + "\": the rig has no joint \"" + c.constrained + "\"" +
+                                                        didYouMean(c.constrained, keysOf(nodes)));
+    }
+  }
   const PoseOptions options = jointPositionOptions(rig.nodes, rotatedNodes(rig.nodes, spec.joint_rotations));
   auto pose = evaluatePose(rig.mesh.positions, rig.mesh.triangles, doc, *controls, options);
   if (!pose) return makeError(pose.error().code, labels.components + ": " + pose.error().message);
   if (auto ok = addDrivenAmounts(rig, *pose, labels, report); !ok) return ok;
   report.control_values = pose->control_values;
   report.clamped_controls = pose->clamped_controls;
+  moveOpenPartsWithFace(rig.parts, rig.mesh.positions, pose->positions - rig.mesh.positions);
   rig.mesh.positions = std::move(pose->positions);
   return Ok{};
 }
@@ -313,7 +399,7 @@ Result<PosedRig> poseRig(Rig rig, const ComponentsDocument* components, const Po
     it->second += degrees;
   }
 
-  const std::vector<Node> posed_nodes = rotatedNodes(rig.nodes, report.joint_rotations);
+  const std::vector<Node> posed_nodes = aimedNodes(rig.nodes, rotatedNodes(rig.nodes, report.joint_rotations), report.joint_aims);
   const std::vector<Eigen::Matrix4d> rest_world = nodeWorldTransforms(rig.nodes);
   const std::vector<Eigen::Matrix4d> posed_world = nodeWorldTransforms(posed_nodes);
   Rig& posed = out.rig;

@@ -9,8 +9,11 @@
 // ("did you mean") and evaluates in this order:
 //   controls -> evaluatePose on the face's rest positions (core/components/pose.h)
 //   -> the posed face replaces its rest -> morph weights and joint rotations
-//   (given + driven by the controls) through poseMesh (core/rig/skinning.h),
-//   on the face and on every part (components do not move parts).
+//   (given + driven by the controls; an aim-constrained joint takes its aim)
+//   through poseMesh (core/rig/skinning.h), on the face and on every part.
+//   Components move a solid part (eyeball, teeth) only through the joints
+//   they turn; an open part touching the face (lashes) rides on the face's
+//   components motion as well.
 #pragma once
 
 #include <filesystem>
@@ -23,6 +26,7 @@
 
 #include "core/base/error.h"
 #include "core/components/components.h"
+#include "core/components/pose.h"
 #include "core/rig/rig.h"
 
 namespace core {
@@ -50,8 +54,13 @@ struct PoseReport {
   std::vector<std::string> clamped_controls;                // given outside their control's range
   std::map<std::string, double> morph_weights;              // named by the pose or its controls: the summed weight
   std::map<std::string, Eigen::Vector3d> joint_rotations;   // the same for joints, Euler degrees
+  std::map<std::string, Eigen::Matrix3d> joint_aims;         // aim-constrained joints: turn from rest, model frame
   int moved_face_vertices = 0;                              // face vertices off their rest position
 };
+
+// Joint (named node) positions for constraints that target or aim joints:
+// at rest (rest_nodes) and at a pose (posed_nodes).
+PoseOptions jointPositionOptions(const std::vector<Node>& rest_nodes, const std::vector<Node>& posed_nodes);
 
 struct PosedRig {
   // The face and every part at the pose, static: no skin, weights, morph

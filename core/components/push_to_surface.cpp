@@ -104,6 +104,15 @@ Eigen::MatrixX3d evaluatePushToSurface(const Eigen::MatrixX3d& positions, const 
     }
   }
   const Eigen::Vector3d direction = push.vector.normalized();
+  const Eigen::Vector3d from =
+      push.direction == PushDirection::kFromPoint ? resolveBinding(push.from, positions, triangles) : Eigen::Vector3d::Zero();
+  // kFromPoint: the ray from `from` through p; nothing to push along at `from` itself.
+  auto rayThrough = [&](const Eigen::Vector3d& p, Eigen::Vector3d& ray) {
+    const Eigen::Vector3d d = p - from;
+    if (d.norm() < 1e-12) return false;
+    ray = d.normalized();
+    return true;
+  };
   if (shape.kind == CollisionShapeKind::kTriangles) {
     const TriangleSurface surface = makeTriangleSurface(positions, shape);
     const ClosestPointIndex index(positions, surface.triangles);
@@ -111,11 +120,12 @@ Eigen::MatrixX3d evaluatePushToSurface(const Eigen::MatrixX3d& positions, const 
       const Eigen::Vector3d p = positions.row(v).transpose();
       const SurfacePoint hit = index.closestPoint(p);
       if (!hit.found() || (p - hit.point).dot(featureNormal(surface, hit.face, hit.barycentric)) >= 0.0) continue;
+      Eigen::Vector3d ray = direction;
       if (push.direction == PushDirection::kClosest) {
         out.row(v) = hit.point.transpose();
-      } else {
-        const double t = rayExit(positions, surface, p, direction);
-        if (std::isfinite(t)) out.row(v) = (p + t * direction).transpose();
+      } else if (push.direction == PushDirection::kVector || rayThrough(p, ray)) {
+        const double t = rayExit(positions, surface, p, ray);
+        if (std::isfinite(t)) out.row(v) = (p + t * ray).transpose();
       }
     }
     return out;
@@ -134,6 +144,11 @@ Eigen::MatrixX3d evaluatePushToSurface(const Eigen::MatrixX3d& positions, const 
     if (r >= 1.0) continue;
     if (push.direction == PushDirection::kVector) {
       out.row(v) = fromUnit(q + unitSphereExit(q, unit_direction) * unit_direction).transpose();
+    } else if (push.direction == PushDirection::kFromPoint) {
+      Eigen::Vector3d ray;
+      if (!rayThrough(positions.row(v).transpose(), ray)) continue;
+      const Eigen::Vector3d unit_ray = (rotation.transpose() * ray).cwiseQuotient(radii);
+      out.row(v) = fromUnit(q + unitSphereExit(q, unit_ray) * unit_ray).transpose();
     } else {
       // At the very centre every direction is closest: take the push vector's.
       const Eigen::Vector3d radial = r > 1e-12 ? Eigen::Vector3d(q / r) : unit_direction.normalized();

@@ -16,6 +16,8 @@ namespace core {
 //             the angle-weighted pseudo-normal, Baerentzen & Aanaes 2005;
 //             sphere: radially; ellipsoid: radially in its unit-sphere frame)
 //   kVector:  along push.vector to where it leaves the surface.
+//   kFromPoint: along the ray from push.from through it, to where it leaves
+//             the surface (a vertex at push.from stays).
 // Returns #V by 3.
 Eigen::MatrixX3d evaluatePushToSurface(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles,
                                        const PushToSurface& push);

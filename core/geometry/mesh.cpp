@@ -501,4 +501,9 @@ Status validateSurfaceMesh(const Mesh& mesh, const std::string& label) {
   return Ok{};
 }
 
+bool isSolid(const Mesh& mesh) {
+  if (mesh.triangleCount() == 0) return false;
+  return boundaryLoops(weldedTopology(mesh, coincidentVertexRepresentatives(mesh.positions))).empty();
+}
+
 }  // namespace core

@@ -81,6 +81,11 @@ MeshPieces meshPieces(const Mesh& mesh, const std::vector<int>& representative);
 // cut), the mouth, the eyes.
 std::vector<BoundaryLoop> boundaryLoops(const Mesh& mesh);
 
+// Whether every connected piece of the mesh (split points welded) is closed:
+// no boundary edge. A rig part that is solid (an eyeball, teeth) moves as a
+// rigid body; an open one (lashes, gums) deforms with the face.
+bool isSolid(const Mesh& mesh);
+
 // computeVertexNormals with the copies of a split point (see
 // coincidentVertexRepresentatives) sharing one normal, that of all faces
 // around the point: the two sides of a UV seam shade and match as one

@@ -4,6 +4,7 @@
 // reads as a plain list of its fields, and nothing thrown leaves this file.
 #include "core/io/components_io.h"
 
+#include <array>
 #include <cmath>
 #include <initializer_list>
 #include <limits>
@@ -270,11 +271,16 @@ void readRigObjects(const Json& doc, ComponentsDocument& out) {
                                                     constraintTargets(e, where), boolean(e, "maintain_offset", where, true)});
   });
   forEach(doc, "aim_constraints", [&](const Json& e, const std::string& where) {
-    checkKeys(e, where, {"name", "constrained", "targets", "aim_axis", "up_axis", "world_up"});
-    out.aim_constraints.push_back(AimConstraint{text(e, "name", where), text(e, "constrained", where), constraintTargets(e, where),
+    checkKeys(e, where, {"name", "constrained", "constrained_joint", "targets", "aim_axis", "up_axis", "world_up"});
+    if (e.contains("constrained") == e.contains("constrained_joint")) {
+      fail(where, "needs exactly one of \"constrained\" (a locator or cluster) or \"constrained_joint\"");
+    }
+    const bool joint = e.contains("constrained_joint");
+    out.aim_constraints.push_back(AimConstraint{text(e, "name", where), text(e, joint ? "constrained_joint" : "constrained", where),
+                                                constraintTargets(e, where),
                                                 vec3(e, "aim_axis", where, Eigen::Vector3d::UnitZ()),
                                                 vec3(e, "up_axis", where, Eigen::Vector3d::UnitY()),
-                                                vec3(e, "world_up", where, Eigen::Vector3d::UnitY())});
+                                                vec3(e, "world_up", where, Eigen::Vector3d::UnitY()), joint});
   });
 }
 
@@ -354,7 +360,13 @@ void readCurvesAndDeformers(const Json& doc, ComponentsDocument& out) {
     }
     if (e.contains("direction")) {
       if (e["direction"].is_string()) {
-        if (e["direction"].get<std::string>() != "closest") fail(where, "direction must be \"closest\" or a vector [x, y, z]");
+        if (e["direction"].get<std::string>() != "closest") {
+          fail(where, "direction must be \"closest\", a vector [x, y, z] or {\"from\": binding}");
+        }
+      } else if (e["direction"].is_object()) {
+        checkKeys(e["direction"], where + ": direction", {"from"});
+        p.direction = PushDirection::kFromPoint;
+        p.from = binding(required(e["direction"], "from", where), where, "direction.from");
       } else {
         p.direction = PushDirection::kVector;
         p.vector = toVector<3>(e["direction"], where, "direction");
@@ -407,21 +419,31 @@ void readDrives(const Json& doc, ComponentsDocument& out) {
     for (std::size_t i = 0; i < drives.size(); ++i) {
       const Json& d = drives[i];
       const std::string field = "drives[" + std::to_string(i) + "]";
-      checkKeys(d, where + ": " + field, {"muscle", "cluster", "morph", "joint", "channel", "gain"});
+      checkKeys(d, where + ": " + field, {"muscle", "cluster", "morph", "joint", "locator", "channel", "gain"});
       ControlDrive drive;
-      const int kinds = int(d.contains("muscle")) + int(d.contains("cluster")) + int(d.contains("morph")) + int(d.contains("joint"));
-      if (kinds != 1) fail(where, field + " needs exactly one of \"muscle\", \"cluster\", \"morph\" or \"joint\"");
-      const char* key = d.contains("muscle") ? "muscle" : d.contains("cluster") ? "cluster" : d.contains("morph") ? "morph" : "joint";
-      drive.kind = d.contains("muscle")    ? DriveTargetKind::kMuscle
-                   : d.contains("cluster") ? DriveTargetKind::kCluster
-                   : d.contains("morph")   ? DriveTargetKind::kMorph
-                                           : DriveTargetKind::kJoint;
+      constexpr std::array<std::pair<const char*, DriveTargetKind>, 5> kKinds{{{"muscle", DriveTargetKind::kMuscle},
+                                                                               {"cluster", DriveTargetKind::kCluster},
+                                                                               {"morph", DriveTargetKind::kMorph},
+                                                                               {"joint", DriveTargetKind::kJoint},
+                                                                               {"locator", DriveTargetKind::kLocator}}};
+      const char* key = nullptr;
+      int kinds = 0;
+      for (const auto& [name, kind] : kKinds) {
+        if (!d.contains(name)) continue;
+        ++kinds;
+        key = name;
+        drive.kind = kind;
+      }
+      if (kinds != 1) fail(where, field + " needs exactly one of \"muscle\", \"cluster\", \"morph\", \"joint\" or \"locator\"");
       if (!d[key].is_string()) fail(where, field + "." + key + " must be a string");
       drive.name = d[key].get<std::string>();
-      const bool has_channel = drive.kind == DriveTargetKind::kCluster || drive.kind == DriveTargetKind::kJoint;
+      const bool has_channel = drive.kind == DriveTargetKind::kCluster || drive.kind == DriveTargetKind::kJoint ||
+                               drive.kind == DriveTargetKind::kLocator;
       if (has_channel && !d.contains("channel")) fail(where, field + " needs a \"channel\"");
-      if (!has_channel && d.contains("channel")) fail(where, field + ".channel applies to cluster and joint drives only");
-      if (drive.kind == DriveTargetKind::kCluster) drive.cluster_channel = enumByName(d["channel"], where, field + ".channel", kClusterChannels);
+      if (!has_channel && d.contains("channel")) fail(where, field + ".channel applies to cluster, joint and locator drives only");
+      if (drive.kind == DriveTargetKind::kCluster || drive.kind == DriveTargetKind::kLocator) {
+        drive.cluster_channel = enumByName(d["channel"], where, field + ".channel", kClusterChannels);
+      }
       if (drive.kind == DriveTargetKind::kJoint) drive.joint_channel = enumByName(d["channel"], where, field + ".channel", kJointChannels);
       drive.gain = number(d, "gain", where, 1.0);
       c.drives.push_back(drive);
@@ -512,7 +534,7 @@ void writeRigObjects(const ComponentsDocument& doc, OrderedJson& out) {
                                                    {"targets", writeTargets(c.targets)}, {"maintain_offset", c.maintain_offset}});
   }
   for (const AimConstraint& c : doc.aim_constraints) {
-    out["aim_constraints"].push_back(OrderedJson{{"name", c.name}, {"constrained", c.constrained},
+    out["aim_constraints"].push_back(OrderedJson{{"name", c.name}, {c.joint ? "constrained_joint" : "constrained", c.constrained},
                                                  {"targets", writeTargets(c.targets)}, {"aim_axis", writeVec(c.aim_axis)},
                                                  {"up_axis", writeVec(c.up_axis)}, {"world_up", writeVec(c.world_up)}});
   }
@@ -556,7 +578,9 @@ void writeCurvesAndDeformers(const ComponentsDocument& doc, OrderedJson& out) {
       surface["ellipsoid"] = OrderedJson{{"center", writeBinding(s.center)}, {"radii", writeVec(s.radii)},
                                          {"rotation_quaternion", writeQuaternion(s.rotation)}};
     }
-    OrderedJson direction = p.direction == PushDirection::kClosest ? OrderedJson("closest") : writeVec(p.vector);
+    OrderedJson direction = p.direction == PushDirection::kClosest  ? OrderedJson("closest")
+                            : p.direction == PushDirection::kVector ? writeVec(p.vector)
+                                                                     : OrderedJson{{"from", writeBinding(p.from)}};
     out["push_to_surfaces"].push_back(OrderedJson{{"name", p.name}, {"surface", std::move(surface)},
                                                   {"direction", std::move(direction)}, {"members", writeArray(p.members)}});
   }
@@ -588,6 +612,10 @@ void writeDrives(const ComponentsDocument& doc, OrderedJson& out) {
         case DriveTargetKind::kMuscle: j["muscle"] = d.name; break;
         case DriveTargetKind::kCluster:
           j["cluster"] = d.name;
+          j["channel"] = clusterChannelName(d.cluster_channel);
+          break;
+        case DriveTargetKind::kLocator:
+          j["locator"] = d.name;
           j["channel"] = clusterChannelName(d.cluster_channel);
           break;
         case DriveTargetKind::kMorph: j["morph"] = d.name; break;

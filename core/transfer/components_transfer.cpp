@@ -164,15 +164,17 @@ void mapGeometry(ComponentsDocument& doc, const ComponentsMapper& m) {
   for (PushToSurface& p : doc.push_to_surfaces) {
     mapCollision(p.surface, m);
     p.vector = m.direction(p.vector);
+    p.from = m.binding(p.from);
   }
   for (Muscle& mu : doc.muscles) {
     mu.origin = m.binding(mu.origin);
     mu.insertion = m.binding(mu.insertion);
   }
-  // Controls driving a cluster's translation move it in model units.
+  // Controls driving a cluster's or locator's translation move it in model units.
   for (Control& c : doc.controls) {
     for (ControlDrive& d : c.drives) {
-      const bool translate = d.kind == DriveTargetKind::kCluster && (d.cluster_channel == ClusterChannel::kTranslateX ||
+      const bool moves = d.kind == DriveTargetKind::kCluster || d.kind == DriveTargetKind::kLocator;
+      const bool translate = moves && (d.cluster_channel == ClusterChannel::kTranslateX ||
                                                                      d.cluster_channel == ClusterChannel::kTranslateY ||
                                                                      d.cluster_channel == ClusterChannel::kTranslateZ);
       if (translate) d.gain = m.length(d.gain);

@@ -9,11 +9,6 @@
 
 namespace core {
 
-bool isSolid(const Mesh& mesh) {
-  if (mesh.triangleCount() == 0) return false;
-  return boundaryLoops(weldedTopology(mesh, coincidentVertexRepresentatives(mesh.positions))).empty();
-}
-
 namespace {
 
 // Rows of `m` times `a` (each row a vector): m * a^T.

@@ -4,7 +4,8 @@
 // is a solid (an eyeball, a set of teeth): it moves as one rigid body, the
 // similarity that best fits the dense map over its vertices, so an eyeball
 // stays a sphere and a tooth a tooth. Any other part (lashes, gums and
-// tongue: open sheets) deforms, each vertex through the dense map.
+// tongue: open sheets) deforms, each vertex through the dense map
+// (isSolid, core/geometry/mesh.h, tells them apart).
 #pragma once
 
 #include <functional>
@@ -43,9 +44,5 @@ CarriedParts carryParts(const std::vector<RigPart>& parts, const TpsWarp& dense_
 // What a rig without shapes or without a skin keeps of its parts: their
 // shapes dropped when `shapes` is off, their weights when there is no skin.
 void dropPartChannels(std::vector<RigPart>& parts, bool shapes, bool skinned);
-
-// Whether every connected piece of the mesh (split points welded) is closed:
-// no boundary edge. Such a part is carried as a rigid body.
-bool isSolid(const Mesh& mesh);
 
 }  // namespace core

@@ -111,6 +111,38 @@ TEST(ComponentsIo, ErrorsNameTheComponentAndField) {
   EXPECT_EQ(version.error().code, core::ErrorCode::kUnsupported);
 }
 
+// The eye rig's pieces: a control moving a locator, a joint aimed at it, a
+// sculptor pushing along rays from a point.
+constexpr const char* kEyeRig = R"({"format": "rigport.components", "version": 1,
+  "locators": [{"name": "aim", "binding": {"position": [0, 1, 5]}}],
+  "aim_constraints": [{"name": "eye_aim", "constrained_joint": "eye", "targets": [{"locator": "aim"}]}],
+  "push_to_surfaces": [{"name": "sculptor", "surface": {"sphere": {"center": {"position": [0, 1, 0]}, "radius": 0.5}},
+                        "direction": {"from": {"position": [0, 1, -0.1]}}, "members": [2, 3]}],
+  "controls": [{"name": "look_left", "drives": [{"locator": "aim", "channel": "translate_x", "gain": 5}]}]})";
+
+TEST(ComponentsIo, EyeRigPiecesReadWriteAndNameTheirErrors) {
+  auto doc = core::parseComponents(kEyeRig, "eyes.json");
+  ASSERT_TRUE(doc) << doc.error().message;
+  ASSERT_EQ(doc->aim_constraints.size(), 1u);
+  EXPECT_TRUE(doc->aim_constraints[0].joint);
+  EXPECT_EQ(doc->aim_constraints[0].constrained, "eye");
+  EXPECT_EQ(doc->push_to_surfaces[0].direction, core::PushDirection::kFromPoint);
+  EXPECT_EQ(doc->push_to_surfaces[0].from.position, Eigen::Vector3d(0, 1, -0.1));
+  EXPECT_EQ(doc->controls[0].drives[0].kind, core::DriveTargetKind::kLocator);
+  auto back = core::parseComponents(core::formatComponents(*doc), "eyes.json");
+  ASSERT_TRUE(back) << back.error().message;
+  EXPECT_TRUE(*back == *doc);
+  const std::string text = kEyeRig;
+  expectError(replaced(text, "\"translate_x\"", "\"rotate_x\""),
+              "controls[0] \"look_left\": drives[0].channel: a locator takes translate_x, translate_y or translate_z only");
+  expectError(replaced(text, "{\"locator\": \"aim\", \"channel\"", "{\"locator\": \"aimm\", \"channel\""),
+              "drives[0].locator: unknown locator \"aimm\" (did you mean \"aim\"?)");
+  expectError(replaced(text, "\"constrained_joint\": \"eye\"", "\"constrained_joint\": \"eye\", \"constrained\": \"aim\""),
+              "aim_constraints[0] \"eye_aim\": needs exactly one of \"constrained\" (a locator or cluster) or \"constrained_joint\"");
+  expectError(replaced(text, "{\"from\": {\"position\": [0, 1, -0.1]}}", "{\"from\": {\"vertex\": -4}}"),
+              "push_to_surfaces[0] \"sculptor\"");
+}
+
 TEST(ComponentsIo, ValidationCatchesCyclesNonFiniteValuesAndDuplicates) {
   core::ComponentsDocument doc = fullDocument();
   doc.point_constraints.push_back({"nose_follow", "nose", {{core::TargetKind::kLocator, "brow", -1, 1.0}}, true});

@@ -217,10 +217,68 @@ TEST(PoseRig, PresetMovesTheClusterAndDrivesItsMorphWeight) {
   EXPECT_DOUBLE_EQ(posed->report.morph_weights.at("jawOpen"), 0.5);
 }
 
+TEST(PoseRig, AnOpenPartTouchingTheFaceRidesOnItsComponentsASolidOneDoesNot) {
+  // A lash-like triangle with one corner on face vertex 1 (which the preset
+  // raises by 0.5) and a closed tetrahedron touching the same vertex.
+  core::Rig rig = quadRig();
+  core::RigPart lash;
+  lash.name = "lash";
+  lash.node = 0;
+  lash.mesh.positions.resize(3, 3);
+  lash.mesh.positions << 1.0, 0.0, 0.001, 1.5, 0.0, 0.3, 1.2, 0.3, 0.3;
+  lash.mesh.triangles.resize(1, 3);
+  lash.mesh.triangles << 0, 1, 2;
+  core::RigPart ball = lash;
+  ball.name = "ball";
+  ball.mesh.positions.resize(4, 3);
+  ball.mesh.positions << 1.0, 0.0, 0.001, 1.3, 0.0, 0.3, 1.0, 0.3, 0.3, 1.3, 0.3, 0.6;
+  ball.mesh.triangles.resize(4, 3);
+  ball.mesh.triangles << 0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3;
+  rig.parts.push_back(lash);
+  rig.parts.push_back(ball);
+  const core::ComponentsDocument doc = quadComponents();
+  auto posed = core::poseRig(rig, &doc, spec(R"({"preset": "up"})"), kLabels);
+  ASSERT_TRUE(posed) << posed.error().message;
+  ASSERT_EQ(posed->rig.parts.size(), 3u);
+  const Eigen::MatrixX3d lash_motion = posed->rig.parts[1].mesh.positions - lash.mesh.positions;
+  for (Eigen::Index v = 0; v < 3; ++v) EXPECT_LT((lash_motion.row(v) - Eigen::RowVector3d(0, 0.5, 0)).norm(), 1e-12) << v;
+  EXPECT_LT((posed->rig.parts[2].mesh.positions - ball.mesh.positions).norm(), 1e-12);
+}
+
 std::string poseError(const core::ComponentsDocument* doc, const std::string& json, core::Rig rig = quadRig()) {
   auto posed = core::poseRig(std::move(rig), doc, spec(json), kLabels);
   EXPECT_FALSE(posed) << json;
   return posed ? std::string() : posed.error().message;
+}
+
+TEST(PoseRig, AnAimedJointTurnsToItsTargetWithWhatItCarries) {
+  // The jaw at (0, 1, 0) aims at a locator 5 in front of it; look_left moves
+  // the locator 5 along +X: the jaw turns 45 degrees about +Y (its up).
+  auto doc = core::parseComponents(R"({"format": "rigport.components", "version": 1,
+      "locators": [{"name": "aim", "binding": {"position": [0, 1, 5]}}],
+      "aim_constraints": [{"name": "jaw_aim", "constrained_joint": "jaw", "targets": [{"locator": "aim"}]}],
+      "controls": [{"name": "look_left", "drives": [{"locator": "aim", "channel": "translate_x", "gain": 5}]}]})",
+                                   "quad.components.json");
+  ASSERT_TRUE(doc) << doc.error().message;
+  auto rest = core::poseRig(quadRig(), &*doc, spec("{}"), kLabels);
+  ASSERT_TRUE(rest) << rest.error().message;
+  EXPECT_LT((rest->rig.mesh.positions - quadRig().mesh.positions).norm(), 1e-12);  // rest aim: no turn
+  auto posed = core::poseRig(quadRig(), &*doc, spec(R"({"controls": {"look_left": 1}})"), kLabels);
+  ASSERT_TRUE(posed) << posed.error().message;
+  ASSERT_EQ(posed->report.joint_aims.count("jaw"), 1u);
+  const double h = std::sqrt(0.5);
+  const Eigen::MatrixX3d& p = posed->rig.mesh.positions;
+  EXPECT_LT((p.row(2) - Eigen::RowVector3d(h, 2.0, -h)).norm(), 1e-12);  // (1, 1, 0) from the jaw, turned
+  EXPECT_LT((p.row(3) - Eigen::RowVector3d(0.0, 2.0, 0.0)).norm(), 1e-12);  // on the axis: stays
+  // The tooth on the jaw's node turns with it: (0, 0.5, 0.1) from the jaw -> (0.1 h, 0.5, 0.1 h).
+  EXPECT_LT((posed->rig.parts[0].mesh.positions.row(2) - Eigen::RowVector3d(0.1 * h, 1.5, 0.1 * h)).norm(), 1e-12);
+
+  // A joint the rig lacks is named.
+  core::ComponentsDocument missing = *doc;
+  missing.aim_constraints[0].constrained = "jaww";
+  const std::string message = poseError(&missing, "{}");
+  EXPECT_TRUE(contains(message, "aim_constraints[0] \"jaw_aim\": the rig has no joint \"jaww\" (did you mean \"jaw\"?)"))
+      << message;
 }
 
 TEST(PoseRig, UnknownNamesAreRefusedWithTheirField) {

@@ -34,6 +34,27 @@ TEST(PushToSurface, AlongAVectorToWhereItLeaves) {
   EXPECT_LT((out.row(0) - Eigen::RowVector3d(1.6, 0.0, 0.8)).norm(), 1e-12);  // 0.6^2 + 0.8^2 = 1
 }
 
+TEST(PushToSurface, FromAPointAlongTheRayThroughEachVertex) {
+  // The sculptor of paper 001: rays from a point, here 0.5 behind the unit
+  // sphere's centre. (0.3, 0, 0) leaves along (0.3, 0, 0.5): |p + t d| = 1 at
+  // t = -p.d + sqrt((p.d)^2 - |p|^2 + 1) = 0.81199..., (0.71779, 0, 0.69627).
+  core::PushToSurface p = sphere(1.0);
+  p.surface.center = core::Binding::atPosition(Eigen::Vector3d::Zero());
+  p.direction = core::PushDirection::kFromPoint;
+  p.from = core::Binding::atPosition({0.0, 0.0, -0.5});
+  Eigen::MatrixX3d points(3, 3);
+  points << 0.3, 0.0, 0.0,  // inside
+      0.0, 0.0, -0.5,       // at the rays' start: no direction, stays
+      2.0, 0.0, 0.0;        // outside
+  const Eigen::MatrixX3d out = core::evaluatePushToSurface(points, Eigen::MatrixX3i(0, 3), p);
+  EXPECT_LT((out.row(0) - Eigen::RowVector3d(0.7177689, 0.0, 0.6962814)).norm(), 1e-6);
+  EXPECT_NEAR(out.row(0).norm(), 1.0, 1e-12);
+  const Eigen::Vector3d ray = (out.row(0) - Eigen::RowVector3d(0, 0, -0.5)).transpose();
+  EXPECT_LT(ray.normalized().cross(Eigen::Vector3d(0.3, 0.0, 0.5).normalized()).norm(), 1e-12);  // on the ray
+  EXPECT_EQ(out.row(1), points.row(1));
+  EXPECT_EQ(out.row(2), points.row(2));
+}
+
 TEST(PushToSurface, EllipsoidAlongItsAxes) {
   core::PushToSurface p;
   p.surface.kind = core::CollisionShapeKind::kEllipsoid;
