@@ -40,6 +40,7 @@ int runMuscleRig(const MuscleRigArgs& args) {
   options.wire_dropoff = args.wire_dropoff;
   options.expression_gain = args.expression_gain;
   options.label = args.landmarks.filename().string();  // landmark errors name the landmarks file
+  options.joints = core::namedNodePositions(rig);  // an eye joint among them is aimed with the eye rig
   auto built = core::buildMuscleRig(rig.mesh, *landmarks, options);
   if (!built) return failWith(built.error());
   const core::ComponentsDocument& doc = built->components;

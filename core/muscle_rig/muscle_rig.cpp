@@ -339,6 +339,7 @@ Result<MuscleRig> buildMuscleRig(const Mesh& face, const LandmarkSet& landmarks,
   addMuscles(doc, builder, *frame);
   for (const WireSpec& spec : wireSpecs(*frame)) addWire(doc, spec, face, *frame, regions, builder, options);
   addJawAndLids(doc, face, *frame, regions, options);
+  addEyes(doc, face, *frame, regions, options);
   addCreasesAndSkull(doc, face, *frame, regions);
   addExpressionControls(doc);
   addExpressionPresets(doc);

@@ -9,12 +9,14 @@
 // vice versa; crease clusters triggered by the frontalis and corrugators; a
 // skull sphere the forehead is pushed out of; jaw and eyelid clusters (the
 // paper's jaw and eyelid joints, as clusters so that any mesh, skinned or
-// not, takes the rig without a new skeleton); descriptive controls (Table
+// not, takes the rig without a new skeleton); the eye rig (gaze aim, lids
+// following it, lower lids, eyelid sculptors); descriptive controls (Table
 // 6.2) and 15 expression presets (the six universal ones first).
 //
 // Every distance is a fraction of the face's inter-ocular distance (face_frame.h).
 #pragma once
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -30,6 +32,9 @@ struct MuscleRigOptions {
   double muscle_depth = 0.12;      // muscle origins sit this far (iod) behind the skin: the skull attachment
   double expression_gain = 1.0;    // scales how far each muscle moves the skin at full contraction
   double jaw_open_degrees = 22.0;  // jaw rotation at jaw_open = 1
+  // The rig's named joints at rest, model units: a joint at an eye's centre
+  // (within 0.15 iod of where the eye rig puts it) is aimed with the eye.
+  std::map<std::string, Eigen::Vector3d> joints;
   std::string label = "face";      // starts every message (usually the mesh file name)
 };
 

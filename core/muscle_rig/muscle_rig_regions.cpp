@@ -12,11 +12,6 @@ namespace core::muscle_rig_detail {
 
 namespace {
 
-double smoothStep(double t) {
-  t = std::clamp(t, 0.0, 1.0);
-  return t * t * (3.0 - 2.0 * t);
-}
-
 // The model axis closest to `direction` and the sign that matches it: cluster
 // rotation channels turn about model axes.
 std::pair<ClusterChannel, double> rotationChannelAbout(const Eigen::Vector3d& direction) {
@@ -26,15 +21,14 @@ std::pair<ClusterChannel, double> rotationChannelAbout(const Eigen::Vector3d& di
   return {channels[axis], direction(axis) >= 0.0 ? 1.0 : -1.0};
 }
 
-// A control moving a cluster by `offset` (model units) at value 1.
-void addTranslateDrives(Control& control, const std::string& cluster, const Eigen::Vector3d& offset) {
+}  // namespace
+
+void addTranslateDrives(Control& control, const std::string& cluster, const Eigen::Vector3d& offset, DriveTargetKind kind) {
   const ClusterChannel channels[] = {ClusterChannel::kTranslateX, ClusterChannel::kTranslateY, ClusterChannel::kTranslateZ};
   for (int k = 0; k < 3; ++k) {
-    if (offset(k) != 0.0) control.drives.push_back({DriveTargetKind::kCluster, cluster, channels[k], JointChannel::kRotateX, offset(k)});
+    if (offset(k) != 0.0) control.drives.push_back({kind, cluster, channels[k], JointChannel::kRotateX, offset(k)});
   }
 }
-
-}  // namespace
 
 void addJawAndLids(ComponentsDocument& doc, const Mesh& face, const FaceFrame& f, const FaceRegions& regions,
                    const MuscleRigOptions& options) {
@@ -99,6 +93,10 @@ void addJawAndLids(ComponentsDocument& doc, const Mesh& face, const FaceFrame& f
     Control blink{std::string("blink") + sideSuffix(s), 0.0, 1.0, 0.0, {}};
     addTranslateDrives(blink, lid.name, -0.9 * opening * f.iod * f.up);
     doc.controls.push_back(blink);
+    // The other way: the upper lid raised off the eye (surprise, fear).
+    Control widen{std::string("widen_eye") + sideSuffix(s), 0.0, 1.0, 0.0, {}};
+    addTranslateDrives(widen, lid.name, 0.3 * opening * f.iod * f.up);
+    doc.controls.push_back(widen);
   }
 }
 

@@ -90,4 +90,15 @@ std::vector<Eigen::Matrix4d> nodeWorldTransforms(const std::vector<Node>& nodes)
   return world;
 }
 
+std::map<std::string, Eigen::Vector3d> namedNodePositions(const Rig& rig) {
+  const std::vector<Eigen::Matrix4d> world = nodeWorldTransforms(rig.nodes);
+  std::map<std::string, Eigen::Vector3d> positions;
+  for (std::size_t n = 0; n < rig.nodes.size(); ++n) {
+    if (!rig.nodes[n].name.empty() && static_cast<int>(n) != rig.mesh_node) {
+      positions.emplace(rig.nodes[n].name, world[n].topRightCorner<3, 1>());
+    }
+  }
+  return positions;
+}
+
 }  // namespace core

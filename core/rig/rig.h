@@ -136,4 +136,8 @@ void appendVertexCopies(Rig& rig, const std::vector<int>& copy_of);
 // Joint world (global rest) transforms from the nodes' local TRS: #nodes 4x4.
 std::vector<Eigen::Matrix4d> nodeWorldTransforms(const std::vector<Node>& nodes);
 
+// World positions at rest of the rig's named nodes but the face's own node
+// (its joints and the nodes parts hang from), by name.
+std::map<std::string, Eigen::Vector3d> namedNodePositions(const Rig& rig);
+
 }  // namespace core

@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include "core/components/pose.h"
+#include "core/components/pose_spec.h"
 #include "core/io/landmarks.h"
 #include "core/io/rig_io.h"
 #include "core/muscle_rig/muscle_rig.h"
@@ -45,6 +46,49 @@ TEST(IctMuscleRig, BuildsRestsAndExpressesOnTheIctFace) {
   ASSERT_TRUE(rest.ok());
   EXPECT_LT((rest->positions - ict->rig.mesh.positions).cwiseAbs().maxCoeff(), 1e-9);
   expectExpressionDirections(ict->rig.mesh, ict->landmarks, *rig);
+}
+
+TEST(IctMuscleRig, TheEyeballsLookWhereTheGazeGoesAndTheLidsFollow) {
+  RIGPORT_REQUIRE_SHARED_DATA(data);
+  auto full = core::readRig(data / "ict/source_face_full.glb");
+  auto landmarks = core::readLandmarks(data / "ict/source_face.landmarks.json");
+  ASSERT_TRUE(full.ok() && landmarks.ok());
+  core::MuscleRigOptions options;
+  options.joints = core::namedNodePositions(full->rig);
+  auto rig = core::buildMuscleRig(full->rig.mesh, *landmarks, options);
+  ASSERT_TRUE(rig.ok()) << rig.error().message;
+  int joint_aims = 0;
+  for (const core::AimConstraint& aim : rig->components.aim_constraints) joint_aims += aim.joint ? 1 : 0;
+  EXPECT_EQ(joint_aims, 2);  // the ICT rig's two eye joints, found by position
+  core::PoseSpec look;
+  look.controls = {{"look_left", 1.0}};
+  auto rest = core::poseRig(full->rig, &rig->components, {});
+  auto posed = core::poseRig(full->rig, &rig->components, look);
+  ASSERT_TRUE(rest.ok() && posed.ok()) << (posed ? rest.error().message : posed.error().message);
+  int eyeballs = 0;
+  for (std::size_t p = 0; p < posed->rig.parts.size(); ++p) {
+    const std::string& name = posed->rig.parts[p].name;
+    if (name.find("eyeball") == std::string::npos) continue;
+    ++eyeballs;
+    const Eigen::MatrixX3d& before = rest->rig.parts[p].mesh.positions;
+    const Eigen::MatrixX3d& after = posed->rig.parts[p].mesh.positions;
+    // The front of the eye (largest z: glTF heads look down +Z) turns to the subject's left (+X), by about
+    // 30 degrees of the eye's radius; the eyeball stays the same ball.
+    Eigen::Index front = 0;
+    before.col(2).maxCoeff(&front);
+    EXPECT_GT(after(front, 0) - before(front, 0), 0.3) << name;
+    for (const Eigen::Index anchor : {Eigen::Index{0}, front}) {  // rigid: distances within it kept
+      const Eigen::VectorXd d_before = (before.rowwise() - before.row(anchor)).rowwise().norm();
+      const Eigen::VectorXd d_after = (after.rowwise() - after.row(anchor)).rowwise().norm();
+      EXPECT_LT((d_after - d_before).cwiseAbs().maxCoeff(), 1e-4) << name;
+    }
+  }
+  EXPECT_EQ(eyeballs, 2);
+  // The lids follow, less than the eye: the upper lid's landmark moves left by a fraction of the eye's front.
+  const int lid = landmarks->landmarks[static_cast<std::size_t>(landmarks->indexOf("eye_left_1"))].vertex;
+  const double lid_motion = posed->rig.mesh.positions(lid, 0) - rest->rig.mesh.positions(lid, 0);
+  EXPECT_GT(lid_motion, 0.02);
+  EXPECT_LT(lid_motion, 0.5);
 }
 
 // E of a displacement field against the truth (docs/ACCURACY.md).

@@ -4,6 +4,7 @@
 // frame), the upper-lip wires leave the lower lip alone, the rig scales with
 // the face, and a missing landmark is named.
 #include <algorithm>
+#include <cmath>
 #include <set>
 
 #include <gtest/gtest.h>
@@ -32,7 +33,7 @@ TEST(MuscleRig, BuildsThePapersMusclesWiresControlsAndPresets) {
   EXPECT_EQ(doc.presets.size(), 15u);  // section 6.2.3
   for (const char* name : {"joy", "sadness", "anger", "fear", "surprise", "disgust"}) EXPECT_TRUE(doc.presets.count(name)) << name;
   EXPECT_FALSE(doc.crease_clusters.empty());
-  EXPECT_EQ(doc.push_to_surfaces.size(), 1u);
+  EXPECT_EQ(doc.push_to_surfaces.size(), 3u);  // the skull, two eyelid sculptors
   EXPECT_GE(doc.controls.size(), 26u + 3u);  // a descriptive control per muscle, jaw, two blinks
   EXPECT_TRUE(core::validateComponents(doc, "rig", {head.mesh.positions.rows(), head.mesh.triangles.rows()}).ok());
 }
@@ -91,6 +92,82 @@ TEST(MuscleRig, UpperLipWiresLeaveTheLowerLipAlone) {
   EXPECT_GT(motion.at("mouth_outer_3").y(), 0.02);
   EXPECT_LT(motion.at("mouth_outer_9").norm(), 0.1 * motion.at("mouth_outer_3").norm());
   EXPECT_LT(motion.at("mouth_inner_6").norm(), 0.1 * motion.at("mouth_outer_3").norm());
+}
+
+TEST(MuscleRig, TheEyesLookTheLidsFollowAndTheLowerLidsRise) {
+  const auto head = headWithParting();
+  auto rig = core::buildMuscleRig(head.mesh, head.landmarks);
+  ASSERT_TRUE(rig.ok()) << rig.error().message;
+  const core::ComponentsDocument& doc = rig->components;
+  for (const char* name : {"eye_centre_L", "eye_centre_R", "eye_aim_L", "eye_aim_R", "eyes_aim"}) {
+    EXPECT_GE(core::indexByName(doc.locators, name), 0) << name;
+  }
+  // Gaze left (the subject's): both eyes' lid rims move left (+x in the
+  // face's frame), by a share of the eye's turn, and nothing else of note.
+  const auto left = landmarkMotion(head.mesh, head.landmarks, *rig, {{"look_left", 1.0}});
+  for (const char* name : {"eye_left_1", "eye_left_4", "eye_right_1", "eye_right_4"}) {
+    EXPECT_GT(left.at(name).x(), 0.002) << name;
+    EXPECT_LT(left.at(name).norm(), 0.1) << name;
+  }
+  EXPECT_LT(left.at("mouth_outer_3").norm(), 1e-12);
+  const auto up = landmarkMotion(head.mesh, head.landmarks, *rig, {{"look_up", 1.0}});
+  EXPECT_GT(up.at("eye_left_1").y(), 0.002);
+  // The lower lid rises alone: its side, its lid.
+  const auto raise = landmarkMotion(head.mesh, head.landmarks, *rig, {{"raise_lower_lid_L", 1.0}});
+  EXPECT_GT(raise.at("eye_left_4").y(), 0.005);
+  EXPECT_LT(raise.at("eye_left_1").norm(), 1e-3 * raise.at("eye_left_4").norm() + 1e-12);
+  EXPECT_LT(raise.at("eye_right_4").norm(), 1e-12);
+  const auto widen = landmarkMotion(head.mesh, head.landmarks, *rig, {{"widen_eye_R", 1.0}});
+  EXPECT_GT(widen.at("eye_right_1").y(), 0.005);
+  EXPECT_LT(widen.at("eye_right_4").norm(), 1e-3 * widen.at("eye_right_1").norm() + 1e-12);
+  // The sculptors keep their lids out of the eyeball, even closed over an eye looking down.
+  auto pose = core::evaluatePose(head.mesh.positions, head.mesh.triangles, doc,
+                                 {{"blink_L", 1.0}, {"blink_R", 1.0}, {"look_down", 1.0}, {"raise_lower_lid_L", 1.0}});
+  ASSERT_TRUE(pose.ok()) << pose.error().message;
+  int sculptors = 0;
+  for (const core::PushToSurface& push : doc.push_to_surfaces) {
+    if (push.name.rfind("eyelid_sculptor", 0) != 0) continue;
+    ++sculptors;
+    EXPECT_EQ(push.direction, core::PushDirection::kFromPoint);
+    const Eigen::Vector3d centre = push.surface.center.position;
+    for (const int v : push.members) {
+      EXPECT_GE((pose->positions.row(v).transpose() - centre).norm(), push.surface.radius - 1e-9) << push.name << " " << v;
+      EXPECT_GT((head.mesh.positions.row(v).transpose() - centre).norm(), push.surface.radius) << "inside at rest: " << v;
+    }
+  }
+  EXPECT_EQ(sculptors, 2);
+}
+
+TEST(MuscleRig, AnEyeJointOfTheRigIsAimedWithTheEye) {
+  const auto head = headWithParting();
+  auto plain = core::buildMuscleRig(head.mesh, head.landmarks);
+  ASSERT_TRUE(plain.ok()) << plain.error().message;
+  const auto& locators = plain->components.locators;
+  const Eigen::Vector3d eye = locators[static_cast<std::size_t>(core::indexByName(locators, "eye_centre_L"))].binding.position;
+  core::MuscleRigOptions options;
+  // A joint a little off the placed centre is the eye's; one far off is not.
+  options.joints = {{"LeftEye", eye + Eigen::Vector3d(0.002, -0.001, 0.0)}, {"Head", eye + Eigen::Vector3d(0.0, -0.2, -0.1)}};
+  auto rig = core::buildMuscleRig(head.mesh, head.landmarks, options);
+  ASSERT_TRUE(rig.ok()) << rig.error().message;
+  int joint_aims = 0;
+  for (const core::AimConstraint& aim : rig->components.aim_constraints) {
+    if (!aim.joint) continue;
+    ++joint_aims;
+    EXPECT_EQ(aim.constrained, "LeftEye");
+  }
+  EXPECT_EQ(joint_aims, 1);
+  const auto& moved = rig->components.locators;
+  EXPECT_EQ(moved[static_cast<std::size_t>(core::indexByName(moved, "eye_centre_L"))].binding.position, options.joints.at("LeftEye"));
+  core::PoseOptions joints;
+  joints.joint_positions = joints.joint_rest_positions = options.joints;
+  auto pose = core::evaluatePose(head.mesh.positions, head.mesh.triangles, rig->components, {{"look_left", 1.0}}, joints);
+  ASSERT_TRUE(pose.ok()) << pose.error().message;
+  // 30 degrees to the subject's left: the eye's forward turns that far.
+  auto frame = core::buildFaceFrame(head.mesh, head.landmarks, "head");
+  ASSERT_TRUE(frame.ok());
+  const Eigen::Vector3d forward = pose->joint_aims.at("LeftEye") * frame->forward;
+  EXPECT_NEAR(std::acos(std::clamp(forward.dot(frame->forward), -1.0, 1.0)) * 180.0 / M_PI, 30.0, 1.0);
+  EXPECT_GT(forward.dot(frame->right), 0.4);
 }
 
 TEST(MuscleRig, ScalesWithTheFace) {
