@@ -40,7 +40,8 @@ int runMuscleRig(const MuscleRigArgs& args) {
   options.wire_dropoff = args.wire_dropoff;
   options.expression_gain = args.expression_gain;
   options.label = args.landmarks.filename().string();  // landmark errors name the landmarks file
-  options.joints = core::namedNodePositions(rig);  // an eye joint among them is aimed with the eye rig
+  options.joints = core::namedNodeTransforms(rig);  // eye joints among them are aimed, a jaw joint is the hinge
+  options.joint_weights = core::faceJointWeights(rig);
   auto built = core::buildMuscleRig(rig.mesh, *landmarks, options);
   if (!built) return failWith(built.error());
   const core::ComponentsDocument& doc = built->components;

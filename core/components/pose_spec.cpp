@@ -262,30 +262,55 @@ Status addDrivenAmounts(const Rig& rig, const ComponentsPose& pose, const PoseLa
   return Ok{};
 }
 
-// An open part (lashes, gums: not isSolid) rides on the face's components
-// motion: a piece of it that touches the face (comes within kPartAttachReach
-// of the face's size) is attached by the face vertices it touches there,
-// and each of its vertices moves as its nearest few of those (inverse
+// An open part (lashes: not isSolid) rides on the face's components
+// motion: a piece of it that hangs on the skin (touches it, within
+// kPartAttachReach of the face's size, and lies near it, median distance
+// within kPartHangReach) is attached by the face vertices it touches, and
+// each of its vertices moves as its nearest few of those (inverse
 // distance), so a lash strip closes with its lid as one strip. Solid parts
-// (eyeballs, teeth) and loose pieces move only by their joints.
+// (eyeballs, teeth), loose pieces and pieces deep inside the head that only
+// touch the skin somewhere (gums and tongue in the mouth) move only by their
+// joints.
 constexpr double kPartAttachReach = 0.005;  // of the face's bounding-box diagonal
+constexpr double kPartHangReach = 0.02;
 constexpr int kPartAnchors = 3;
+
+// Per piece: whether it hangs on the face (above), from each vertex's nearest face vertex.
+std::vector<char> piecesOnTheSkin(const MeshPieces& pieces, const std::vector<PointCloudIndex::Neighbour>& nearest,
+                                  double attach, double hang) {
+  std::vector<char> touches(static_cast<std::size_t>(pieces.count), 0);
+  std::vector<std::vector<double>> distances(static_cast<std::size_t>(pieces.count));
+  for (std::size_t v = 0; v < nearest.size(); ++v) {
+    const int piece = pieces.vertex_piece[v];
+    if (piece < 0 || nearest[v].index < 0) continue;
+    if (nearest[v].sq_distance <= attach * attach) touches[static_cast<std::size_t>(piece)] = 1;
+    distances[static_cast<std::size_t>(piece)].push_back(std::sqrt(nearest[v].sq_distance));
+  }
+  std::vector<char> on(static_cast<std::size_t>(pieces.count), 0);
+  for (std::size_t p = 0; p < on.size(); ++p) {
+    std::vector<double>& d = distances[p];
+    if (!touches[p] || d.empty()) continue;
+    std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
+    on[p] = d[d.size() / 2] <= hang ? 1 : 0;
+  }
+  return on;
+}
 
 void moveOpenPartsWithFace(std::vector<RigPart>& parts, const Eigen::MatrixX3d& rest_face,
                            const Eigen::MatrixX3d& displacement) {
   if (parts.empty() || displacement.isZero(0.0)) return;
   const PointCloudIndex face(rest_face);
-  const double reach = kPartAttachReach * boundingBoxDiagonal(rest_face);
+  const double diagonal = boundingBoxDiagonal(rest_face);
+  const double reach = kPartAttachReach * diagonal;
   for (RigPart& part : parts) {
     if (isSolid(part.mesh)) continue;
     const std::vector<PointCloudIndex::Neighbour> nearest = face.nearest(part.mesh.positions);
     const MeshPieces pieces = meshPieces(part.mesh, coincidentVertexRepresentatives(part.mesh.positions));
-    std::vector<char> attached(static_cast<std::size_t>(pieces.count), 0);
-    std::vector<int> anchors;  // face vertices the part touches
+    const std::vector<char> attached = piecesOnTheSkin(pieces, nearest, reach, kPartHangReach * diagonal);
+    std::vector<int> anchors;  // face vertices the part's attached pieces touch
     for (std::size_t v = 0; v < nearest.size(); ++v) {
       const int piece = pieces.vertex_piece[v];
-      if (piece < 0 || nearest[v].index < 0 || nearest[v].sq_distance > reach * reach) continue;
-      attached[static_cast<std::size_t>(piece)] = 1;
+      if (piece < 0 || !attached[static_cast<std::size_t>(piece)] || nearest[v].sq_distance > reach * reach) continue;
       anchors.push_back(nearest[v].index);
     }
     if (anchors.empty()) continue;

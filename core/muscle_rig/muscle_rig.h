@@ -32,9 +32,15 @@ struct MuscleRigOptions {
   double muscle_depth = 0.12;      // muscle origins sit this far (iod) behind the skin: the skull attachment
   double expression_gain = 1.0;    // scales how far each muscle moves the skin at full contraction
   double jaw_open_degrees = 22.0;  // jaw rotation at jaw_open = 1
-  // The rig's named joints at rest, model units: a joint at an eye's centre
-  // (within 0.15 iod of where the eye rig puts it) is aimed with the eye.
-  std::map<std::string, Eigen::Vector3d> joints;
+  // The rig's named joints, world transforms at rest (namedNodeTransforms):
+  // a joint at an eye's centre (within 0.15 iod of where the eye rig puts
+  // it) is aimed with the eye; one at the jaw's hinge (within 0.25 iod) is
+  // the jaw cluster's pivot.
+  std::map<std::string, Eigen::Matrix4d> joints;
+  // The face's skin weights per joint (faceJointWeights): the jaw joint's,
+  // when it has them, are the jaw cluster's weights (the studio's own
+  // skinning of the jaw, smoother than the rig's drawn band).
+  std::map<std::string, Eigen::VectorXd> joint_weights;
   std::string label = "face";      // starts every message (usually the mesh file name)
 };
 

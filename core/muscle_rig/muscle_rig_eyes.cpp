@@ -47,20 +47,6 @@ EyeGeometry eyeGeometry(const FaceFrame& f, int side) {
   return g;
 }
 
-// The joint of `joints` nearest `centre` within kJointReach iod; empty: none.
-std::string eyeJoint(const std::map<std::string, Eigen::Vector3d>& joints, const Eigen::Vector3d& centre, double iod) {
-  std::string best;
-  double best_distance = kJointReach * iod;
-  for (const auto& [name, position] : joints) {
-    const double d = (position - centre).norm();
-    if (d < best_distance) {
-      best_distance = d;
-      best = name;
-    }
-  }
-  return best;
-}
-
 // Lid vertices around one eye, weighted: full between the rims' heights,
 // fading above the upper rim towards the brow and below the lower rim
 // towards the cheek; `upper`/`lower` choose which lids.
@@ -99,8 +85,8 @@ void addEyes(ComponentsDocument& doc, const Mesh& face, const FaceFrame& f, cons
     const std::string x = sideSuffix(s);
     const EyeGeometry g = eyeGeometry(f, s);
     Eigen::Vector3d centre = f.toModel(g.centre_frame) - kCentreBehind * radius * f.forward;
-    const std::string joint = eyeJoint(options.joints, centre, f.iod);
-    if (!joint.empty()) centre = options.joints.at(joint);
+    const std::string joint = nearestJoint(options, centre, kJointReach * f.iod);
+    if (!joint.empty()) centre = options.joints.at(joint).topRightCorner<3, 1>();
     const Eigen::Vector3d aim = centre + kAimDistance * f.iod * f.forward;
     doc.locators.push_back({"eye_centre" + x, Binding::atPosition(centre)});
     doc.locators.push_back({"eye_aim" + x, Binding::atPosition(aim)});

@@ -34,6 +34,10 @@ FaceRegions buildFaceRegions(const Mesh& face, const FaceFrame& frame);
 // Whether frame x lies on `side` (+1 left, -1 right): disjoint halves, so a sided wire's members meet at the midline without overlap.
 inline bool onSide(double x, int side) { return side > 0 ? x >= 0.0 : x < 0.0; }
 
+// The joint of options.joints nearest `point` within `reach` (model units);
+// empty: none.
+std::string nearestJoint(const MuscleRigOptions& options, const Eigen::Vector3d& point, double reach);
+
 inline double smoothStep(double t) {
   t = t < 0.0 ? 0.0 : (t > 1.0 ? 1.0 : t);
   return t * t * (3.0 - 2.0 * t);

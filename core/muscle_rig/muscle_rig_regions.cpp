@@ -23,6 +23,19 @@ std::pair<ClusterChannel, double> rotationChannelAbout(const Eigen::Vector3d& di
 
 }  // namespace
 
+std::string nearestJoint(const MuscleRigOptions& options, const Eigen::Vector3d& point, double reach) {
+  std::string best;
+  double best_distance = reach;
+  for (const auto& [name, transform] : options.joints) {
+    const double d = (transform.topRightCorner<3, 1>() - point).norm();
+    if (d < best_distance) {
+      best_distance = d;
+      best = name;
+    }
+  }
+  return best;
+}
+
 void addTranslateDrives(Control& control, const std::string& cluster, const Eigen::Vector3d& offset, DriveTargetKind kind) {
   const ClusterChannel channels[] = {ClusterChannel::kTranslateX, ClusterChannel::kTranslateY, ClusterChannel::kTranslateZ};
   for (int k = 0; k < 3; ++k) {
@@ -37,11 +50,22 @@ void addJawAndLids(ComponentsDocument& doc, const Mesh& face, const FaceFrame& f
   // between the jaw angles, fading towards the ears and down the neck.
   Cluster jaw;
   jaw.name = "jaw";
-  // The hinge (temporomandibular joint) sits a little below and behind the outline's top.
-  jaw.pivot = Binding::atPosition(0.5 * (f.at("jaw_00") + f.at("jaw_16")) - 0.17 * f.iod * (f.up + f.forward));
+  // The hinge (temporomandibular joint) sits a little below and behind the
+  // outline's top; the rig's jaw joint, when it has one there, is the hinge.
+  // The joint itself is not turned: a face skinned to it would turn twice.
+  Eigen::Vector3d hinge = 0.5 * (f.at("jaw_00") + f.at("jaw_16")) - 0.17 * f.iod * (f.up + f.forward);
+  const std::string jaw_joint = nearestJoint(options, hinge, 0.25 * f.iod);
+  if (!jaw_joint.empty()) hinge = options.joints.at(jaw_joint).topRightCorner<3, 1>();
+  jaw.pivot = Binding::atPosition(hinge);
   const double corner_x = std::max(std::abs(f.toFrame(f.at("mouth_outer_0")).x()), std::abs(f.toFrame(f.at("mouth_outer_6")).x()));
   const double chin_y = f.toFrame(f.at("jaw_08")).y();
-  for (Eigen::Index v = 0; v < face.positions.rows(); ++v) {
+  const auto skinned = options.joint_weights.find(jaw_joint);
+  const bool use_skin = !jaw_joint.empty() && skinned != options.joint_weights.end() &&
+                        skinned->second.size() == face.positions.rows() && skinned->second.maxCoeff() > 0.5;
+  for (Eigen::Index v = 0; use_skin && v < face.positions.rows(); ++v) {
+    if (skinned->second(v) > 1e-3) jaw.members.push_back({static_cast<int>(v), skinned->second(v)});
+  }
+  for (Eigen::Index v = 0; !use_skin && v < face.positions.rows(); ++v) {
     if (regions.upperLip(v)) continue;
     const double x = std::abs(regions.local(v, 0)), y = regions.local(v, 1), z = regions.local(v, 2);
     const double below = regions.mouth.heightAt(regions.local(v, 0)) - y;

@@ -90,15 +90,29 @@ std::vector<Eigen::Matrix4d> nodeWorldTransforms(const std::vector<Node>& nodes)
   return world;
 }
 
-std::map<std::string, Eigen::Vector3d> namedNodePositions(const Rig& rig) {
+std::map<std::string, Eigen::Matrix4d> namedNodeTransforms(const Rig& rig) {
   const std::vector<Eigen::Matrix4d> world = nodeWorldTransforms(rig.nodes);
-  std::map<std::string, Eigen::Vector3d> positions;
+  std::map<std::string, Eigen::Matrix4d> transforms;
   for (std::size_t n = 0; n < rig.nodes.size(); ++n) {
-    if (!rig.nodes[n].name.empty() && static_cast<int>(n) != rig.mesh_node) {
-      positions.emplace(rig.nodes[n].name, world[n].topRightCorner<3, 1>());
+    if (!rig.nodes[n].name.empty() && static_cast<int>(n) != rig.mesh_node) transforms.emplace(rig.nodes[n].name, world[n]);
+  }
+  return transforms;
+}
+
+std::map<std::string, Eigen::VectorXd> faceJointWeights(const Rig& rig) {
+  std::map<std::string, Eigen::VectorXd> columns;
+  if (!rig.skin || rig.weights.cols() != static_cast<Eigen::Index>(rig.skin->joints.size())) return columns;
+  std::vector<Eigen::VectorXd> dense(rig.skin->joints.size(), Eigen::VectorXd::Zero(rig.weights.rows()));
+  for (Eigen::Index v = 0; v < rig.weights.outerSize(); ++v) {
+    for (SkinWeights::InnerIterator it(rig.weights, v); it; ++it) dense[static_cast<std::size_t>(it.col())](v) = it.value();
+  }
+  for (std::size_t j = 0; j < rig.skin->joints.size(); ++j) {
+    const int node = rig.skin->joints[j];
+    if (node >= 0 && static_cast<std::size_t>(node) < rig.nodes.size() && !rig.nodes[static_cast<std::size_t>(node)].name.empty()) {
+      columns[rig.nodes[static_cast<std::size_t>(node)].name] = std::move(dense[j]);
     }
   }
-  return positions;
+  return columns;
 }
 
 }  // namespace core

@@ -136,8 +136,12 @@ void appendVertexCopies(Rig& rig, const std::vector<int>& copy_of);
 // Joint world (global rest) transforms from the nodes' local TRS: #nodes 4x4.
 std::vector<Eigen::Matrix4d> nodeWorldTransforms(const std::vector<Node>& nodes);
 
-// World positions at rest of the rig's named nodes but the face's own node
+// World transforms at rest of the rig's named nodes but the face's own node
 // (its joints and the nodes parts hang from), by name.
-std::map<std::string, Eigen::Vector3d> namedNodePositions(const Rig& rig);
+std::map<std::string, Eigen::Matrix4d> namedNodeTransforms(const Rig& rig);
+
+// The face's skin weight on each named joint of its skin: #V per joint
+// name (none when the face is not skinned).
+std::map<std::string, Eigen::VectorXd> faceJointWeights(const Rig& rig);
 
 }  // namespace core

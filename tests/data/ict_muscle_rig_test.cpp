@@ -54,12 +54,19 @@ TEST(IctMuscleRig, TheEyeballsLookWhereTheGazeGoesAndTheLidsFollow) {
   auto landmarks = core::readLandmarks(data / "ict/source_face.landmarks.json");
   ASSERT_TRUE(full.ok() && landmarks.ok());
   core::MuscleRigOptions options;
-  options.joints = core::namedNodePositions(full->rig);
+  options.joints = core::namedNodeTransforms(full->rig);
+  options.joint_weights = core::faceJointWeights(full->rig);
   auto rig = core::buildMuscleRig(full->rig.mesh, *landmarks, options);
   ASSERT_TRUE(rig.ok()) << rig.error().message;
   int joint_aims = 0;
   for (const core::AimConstraint& aim : rig->components.aim_constraints) joint_aims += aim.joint ? 1 : 0;
   EXPECT_EQ(joint_aims, 2);  // the ICT rig's two eye joints, found by position
+  // The jaw joint is found at the hinge: the jaw cluster pivots on it with the face's own jaw weights.
+  const auto& clusters = rig->components.clusters;
+  const core::Cluster& jaw = clusters[static_cast<std::size_t>(core::indexByName(clusters, "jaw"))];
+  EXPECT_LT((jaw.pivot.position - options.joints.at("jaw").topRightCorner<3, 1>()).norm(), 1e-12);
+  ASSERT_FALSE(jaw.members.empty());
+  for (const core::ClusterMember& m : jaw.members) EXPECT_DOUBLE_EQ(m.weight, options.joint_weights.at("jaw")(m.vertex));
   core::PoseSpec look;
   look.controls = {{"look_left", 1.0}};
   auto rest = core::poseRig(full->rig, &rig->components, {});

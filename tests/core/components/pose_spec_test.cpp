@@ -218,14 +218,15 @@ TEST(PoseRig, PresetMovesTheClusterAndDrivesItsMorphWeight) {
 }
 
 TEST(PoseRig, AnOpenPartTouchingTheFaceRidesOnItsComponentsASolidOneDoesNot) {
-  // A lash-like triangle with one corner on face vertex 1 (which the preset
-  // raises by 0.5) and a closed tetrahedron touching the same vertex.
+  // A lash-like triangle hanging on face vertex 1 (which the preset raises
+  // by 0.5), a closed tetrahedron touching the same vertex, and an open
+  // sheet touching it but reaching far from the face (as gums in a mouth).
   core::Rig rig = quadRig();
   core::RigPart lash;
   lash.name = "lash";
   lash.node = 0;
   lash.mesh.positions.resize(3, 3);
-  lash.mesh.positions << 1.0, 0.0, 0.001, 1.5, 0.0, 0.3, 1.2, 0.3, 0.3;
+  lash.mesh.positions << 1.0, 0.0, 0.001, 1.02, 0.0, 0.02, 1.0, 0.03, 0.02;
   lash.mesh.triangles.resize(1, 3);
   lash.mesh.triangles << 0, 1, 2;
   core::RigPart ball = lash;
@@ -234,15 +235,20 @@ TEST(PoseRig, AnOpenPartTouchingTheFaceRidesOnItsComponentsASolidOneDoesNot) {
   ball.mesh.positions << 1.0, 0.0, 0.001, 1.3, 0.0, 0.3, 1.0, 0.3, 0.3, 1.3, 0.3, 0.6;
   ball.mesh.triangles.resize(4, 3);
   ball.mesh.triangles << 0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3;
+  core::RigPart sheet = lash;
+  sheet.name = "sheet";
+  sheet.mesh.positions << 1.0, 0.0, 0.001, 1.5, 0.0, 0.5, 1.0, 0.5, 0.5;
   rig.parts.push_back(lash);
   rig.parts.push_back(ball);
+  rig.parts.push_back(sheet);
   const core::ComponentsDocument doc = quadComponents();
   auto posed = core::poseRig(rig, &doc, spec(R"({"preset": "up"})"), kLabels);
   ASSERT_TRUE(posed) << posed.error().message;
-  ASSERT_EQ(posed->rig.parts.size(), 3u);
+  ASSERT_EQ(posed->rig.parts.size(), 4u);
   const Eigen::MatrixX3d lash_motion = posed->rig.parts[1].mesh.positions - lash.mesh.positions;
   for (Eigen::Index v = 0; v < 3; ++v) EXPECT_LT((lash_motion.row(v) - Eigen::RowVector3d(0, 0.5, 0)).norm(), 1e-12) << v;
   EXPECT_LT((posed->rig.parts[2].mesh.positions - ball.mesh.positions).norm(), 1e-12);
+  EXPECT_LT((posed->rig.parts[3].mesh.positions - sheet.mesh.positions).norm(), 1e-12);
 }
 
 std::string poseError(const core::ComponentsDocument* doc, const std::string& json, core::Rig rig = quadRig()) {

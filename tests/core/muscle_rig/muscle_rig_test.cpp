@@ -146,7 +146,14 @@ TEST(MuscleRig, AnEyeJointOfTheRigIsAimedWithTheEye) {
   const Eigen::Vector3d eye = locators[static_cast<std::size_t>(core::indexByName(locators, "eye_centre_L"))].binding.position;
   core::MuscleRigOptions options;
   // A joint a little off the placed centre is the eye's; one far off is not.
-  options.joints = {{"LeftEye", eye + Eigen::Vector3d(0.002, -0.001, 0.0)}, {"Head", eye + Eigen::Vector3d(0.0, -0.2, -0.1)}};
+  auto at = [](const Eigen::Vector3d& p) {
+    Eigen::Matrix4d t = Eigen::Matrix4d::Identity();
+    t.topRightCorner<3, 1>() = p;
+    return t;
+  };
+  options.joints = {{"LeftEye", at(eye + Eigen::Vector3d(0.002, -0.001, 0.0))}, {"Head", at(eye + Eigen::Vector3d(0.0, -0.2, -0.1))}};
+  std::map<std::string, Eigen::Vector3d> joint_positions;
+  for (const auto& [name, t] : options.joints) joint_positions[name] = t.topRightCorner<3, 1>();
   auto rig = core::buildMuscleRig(head.mesh, head.landmarks, options);
   ASSERT_TRUE(rig.ok()) << rig.error().message;
   int joint_aims = 0;
@@ -157,9 +164,9 @@ TEST(MuscleRig, AnEyeJointOfTheRigIsAimedWithTheEye) {
   }
   EXPECT_EQ(joint_aims, 1);
   const auto& moved = rig->components.locators;
-  EXPECT_EQ(moved[static_cast<std::size_t>(core::indexByName(moved, "eye_centre_L"))].binding.position, options.joints.at("LeftEye"));
+  EXPECT_EQ(moved[static_cast<std::size_t>(core::indexByName(moved, "eye_centre_L"))].binding.position, joint_positions.at("LeftEye"));
   core::PoseOptions joints;
-  joints.joint_positions = joints.joint_rest_positions = options.joints;
+  joints.joint_positions = joints.joint_rest_positions = joint_positions;
   auto pose = core::evaluatePose(head.mesh.positions, head.mesh.triangles, rig->components, {{"look_left", 1.0}}, joints);
   ASSERT_TRUE(pose.ok()) << pose.error().message;
   // 30 degrees to the subject's left: the eye's forward turns that far.
