@@ -421,9 +421,11 @@ int runPose(const PoseArgs& args) {
   const core::PoseReport& r = posed->report;
   for (const std::string& control : r.clamped_controls) spdlog::warn("control '{}' clamped to its range", control);
   if (auto ok = core::writeRigGlb(posed->rig, args.output); !ok) return fail(ok.error());
-  spdlog::info("pose{}: {} morph weights, {} joints turned, {} aimed; {} of {} face vertices moved; {:.1f} ms",
+  spdlog::info("pose{}: {} morph weights, {} joints turned, {} aimed, {} carried by clusters; {} of {} face vertices "
+               "moved; {:.1f} ms",
                spec->preset.empty() ? "" : " '" + spec->preset + "'", r.morph_weights.size(), r.joint_rotations.size(),
-               r.joint_aims.size(), r.moved_face_vertices, posed->rig.mesh.vertexCount(), msSince(t_start));
+               r.joint_aims.size(), r.carried_joints.size(), r.moved_face_vertices, posed->rig.mesh.vertexCount(),
+               msSince(t_start));
   spdlog::info("wrote {}", args.output.string());
   return 0;
 }

@@ -15,56 +15,74 @@ bool isBakedPreset(const Rig& rig, const std::string& name) {
   return std::find(rig.baked_presets.begin(), rig.baked_presets.end(), name) != rig.baked_presets.end();
 }
 
-// The preset's deltas on the rig's face: the components' motion plus the
-// rig's own shapes it drives.
-Result<MorphTarget> bakePreset(const Rig& rig, const ComponentsDocument& doc, const std::string& name,
-                               BakeReport& report) {
-  auto controls = presetControls(doc, name);
-  if (!controls) return controls.error();
-  auto pose = evaluatePose(rig.mesh.positions, rig.mesh.triangles, doc, *controls, jointPositionOptions(rig.nodes, rig.nodes));
-  if (!pose) return makeError(pose.error().code, "preset '" + name + "': " + pose.error().message);
-  MorphTarget target;
-  target.name = name;
-  target.position_deltas = pose->positions - rig.mesh.positions;
-  for (const auto& [shape, weight] : pose->morph_weights) {
-    if (weight == 0.0) continue;
-    const int t = indexByName(rig.morph_targets, shape);
-    if (t < 0) {
-      return makeError(ErrorCode::kInvalidArgument, "preset '" + name + "' drives morph target '" + shape +
-                                                        "', which the rig does not have" +
-                                                        didYouMean(shape, namesOf(rig.morph_targets), '\''));
-    }
-    if (isBakedPreset(rig, shape)) continue;  // a baked preset is not a shape of the rig's own
-    target.position_deltas += weight * rig.morph_targets[static_cast<std::size_t>(t)].position_deltas;
+// A preset baked: the face's target and, per part, its target when the
+// preset moves it (0 rows when it does not).
+struct BakedPreset {
+  MorphTarget face;
+  std::vector<Eigen::MatrixX3d> parts;
+};
+
+// The preset's pose held at the rest skeleton (poseAtRest) minus the rest.
+Result<BakedPreset> bakePreset(const Rig& rig, const ComponentsDocument& doc, const std::string& name,
+                               const PartRides& rides, BakeReport& report) {
+  if (auto controls = presetControls(doc, name); !controls) return controls.error();
+  PoseSpec spec;
+  spec.preset = name;
+  PoseLabels labels;
+  labels.components = "preset '" + name + "'";
+  auto pose = poseAtRest(rig, &doc, spec, labels, &rides);
+  if (!pose) return pose.error();
+  BakedPreset baked;
+  baked.face.name = name;
+  baked.face.position_deltas = pose->face - rig.mesh.positions;
+  for (std::size_t p = 0; p < rig.parts.size(); ++p) {
+    Eigen::MatrixX3d deltas = pose->parts[p] - rig.parts[p].mesh.positions;
+    const bool had = indexByName(rig.parts[p].morph_targets, name) >= 0;  // baked before: replaced, even by nothing
+    baked.parts.push_back(had || !deltas.isZero(0.0) ? std::move(deltas) : Eigen::MatrixX3d());
   }
-  for (const auto& [joint, rotation] : pose->joint_rotations) {
-    if (!rotation.isZero(0.0)) {
-      report.warnings.push_back("preset '" + name + "' turns joint '" + joint +
-                                "', which a morph target cannot hold: the rotation is not baked");
-    }
-  }
-  for (const auto& [joint, turn] : pose->joint_aims) {
-    if (!turn.isIdentity(1e-12)) {
-      report.warnings.push_back("preset '" + name + "' aims joint '" + joint +
-                                "', which a morph target cannot hold: the aim is not baked");
-    }
-  }
-  for (const std::string& control : pose->clamped_controls) {
+  for (const std::string& control : pose->report.clamped_controls) {
     report.warnings.push_back("preset '" + name + "': control '" + control + "' clamped to its range");
   }
-  return target;
+  return baked;
 }
 
-// A weight channel of the face gets a zero column for each appended target.
-void widenFaceWeightChannels(Rig& rig, Eigen::Index added) {
+// A weight channel of the mesh at `node` gets a zero column for an appended target.
+void widenWeightChannels(Rig& rig, int node) {
+  constexpr Eigen::Index added = 1;
   for (Animation& animation : rig.animations) {
     for (AnimationChannel& channel : animation.channels) {
-      if (channel.path != AnimationPath::kWeights || channel.node != rig.mesh_node) continue;
+      if (channel.path != AnimationPath::kWeights || channel.node != node) continue;
       Eigen::MatrixXd widened = Eigen::MatrixXd::Zero(channel.values.rows(), channel.values.cols() + added);
       widened.leftCols(channel.values.cols()) = channel.values;
       channel.values = std::move(widened);
     }
   }
+}
+
+// Adds `target` to a mesh's targets, or replaces the one of its name;
+// returns whether it was added.
+bool putTarget(std::vector<MorphTarget>& targets, Eigen::VectorXd& default_weights, MorphTarget target) {
+  const int t = indexByName(targets, target.name);
+  if (t >= 0) {
+    targets[static_cast<std::size_t>(t)] = std::move(target);
+    return false;
+  }
+  targets.push_back(std::move(target));
+  const Eigen::Index before = default_weights.size();
+  default_weights.conservativeResize(before + 1);
+  default_weights(before) = 0.0;
+  return true;
+}
+
+// A preset named like a morph target of the rig (face or part) that is not a baked preset.
+Status checkPresetName(const Rig& rig, const std::string& name) {
+  if (isBakedPreset(rig, name)) return Ok{};
+  bool clash = indexByName(rig.morph_targets, name) >= 0;
+  for (const RigPart& part : rig.parts) clash = clash || indexByName(part.morph_targets, name) >= 0;
+  if (!clash) return Ok{};
+  return makeError(ErrorCode::kInvalidArgument, "preset '" + name +
+                                                    "' has the name of a morph target of the rig that is not a "
+                                                    "baked preset; rename the preset or the target");
 }
 
 }  // namespace
@@ -75,35 +93,32 @@ Result<BakeReport> bakePresets(Rig& rig, const ComponentsDocument& doc, const st
     for (const auto& [name, preset] : doc.presets) names.push_back(name);
   }
   BakeReport report;
-  std::vector<MorphTarget> baked;
+  std::vector<BakedPreset> baked;
+  const PartRides rides = preparePartRides(rig);
   for (const std::string& name : names) {
-    if (indexByName(rig.morph_targets, name) >= 0 && !isBakedPreset(rig, name)) {
-      return makeError(ErrorCode::kInvalidArgument, "preset '" + name +
-                                                        "' has the name of a morph target of the rig that is not a "
-                                                        "baked preset; rename the preset or the target");
-    }
-    auto target = bakePreset(rig, doc, name, report);
-    if (!target) return target.error();
-    baked.push_back(std::move(*target));
+    if (auto ok = checkPresetName(rig, name); !ok) return ok.error();
+    auto preset = bakePreset(rig, doc, name, rides, report);
+    if (!preset) return preset.error();
+    baked.push_back(std::move(*preset));
   }
   // Everything evaluated: only now is the rig changed.
-  Eigen::Index added = 0;
-  for (MorphTarget& target : baked) {
-    report.baked.push_back(target.name);
-    const int t = indexByName(rig.morph_targets, target.name);
-    if (t >= 0) {
-      rig.morph_targets[static_cast<std::size_t>(t)] = std::move(target);
-      continue;
+  for (BakedPreset& preset : baked) {
+    const std::string name = preset.face.name;
+    report.baked.push_back(name);
+    if (putTarget(rig.morph_targets, rig.morph_default_weights, std::move(preset.face))) {
+      rig.baked_presets.push_back(name);
+      widenWeightChannels(rig, rig.mesh_node);
     }
-    rig.morph_targets.push_back(std::move(target));
-    rig.baked_presets.push_back(rig.morph_targets.back().name);
-    ++added;
-  }
-  if (added > 0) {
-    const Eigen::Index before = rig.morph_default_weights.size();
-    rig.morph_default_weights.conservativeResize(before + added);
-    rig.morph_default_weights.tail(added).setZero();
-    widenFaceWeightChannels(rig, added);
+    for (std::size_t p = 0; p < rig.parts.size(); ++p) {
+      if (preset.parts[p].rows() == 0) continue;
+      RigPart& part = rig.parts[p];
+      MorphTarget target;
+      target.name = name;
+      target.position_deltas = std::move(preset.parts[p]);
+      if (putTarget(part.morph_targets, part.morph_default_weights, std::move(target))) {
+        widenWeightChannels(rig, part.node);
+      }
+    }
   }
   return report;
 }

@@ -59,6 +59,11 @@ struct ClusterMember {
 // translate/rotate/scale applies at every pose (identity for most clusters);
 // control drives add to its channels; a crease cluster's authored transform
 // is its full crease, scaled by the activation of its trigger muscles.
+// A cluster may carry a joint of the rig (`joint`, JSON "joint"): the joint
+// takes the cluster's turn and its origin moves as the cluster moves that
+// point, so what the joint carries (teeth, child joints) follows the
+// cluster's members; the face itself follows the cluster, not that joint's
+// skinning (poseRig), so a face skinned to the joint is not moved twice.
 struct Cluster {
   std::string name;
   Binding pivot;
@@ -66,9 +71,10 @@ struct Cluster {
   Eigen::Vector3d translate = Eigen::Vector3d::Zero();            // model units
   Eigen::Quaterniond rotate = Eigen::Quaterniond::Identity();     // unit; JSON: quaternion or Euler degrees
   Eigen::Vector3d scale = Eigen::Vector3d::Ones();                // about the pivot, along the model's axes
+  std::string joint{};                                            // a joint (node) name of the rig; empty: none
   bool operator==(const Cluster& o) const {
     return name == o.name && pivot == o.pivot && members == o.members && translate == o.translate &&
-           rotate.coeffs() == o.rotate.coeffs() && scale == o.scale;
+           rotate.coeffs() == o.rotate.coeffs() && scale == o.scale && joint == o.joint;
   }
 };
 

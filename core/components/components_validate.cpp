@@ -235,10 +235,23 @@ Status Checker::checkConstraints() const {
     }
     if (auto ok = checkTargets(where, c.targets); !ok) return ok;
   }
+  std::map<std::string, std::string> carried;  // joint -> the cluster carrying it
+  for (std::size_t i = 0; i < doc_.clusters.size(); ++i) {
+    const Cluster& c = doc_.clusters[i];
+    if (c.joint.empty()) continue;
+    const std::string where = elementLabel("clusters", i, c.name);
+    if (auto [it, fresh] = carried.emplace(c.joint, where); !fresh) {
+      return fail(where, "joint: \"" + c.joint + "\" is already carried by " + it->second);
+    }
+  }
   for (std::size_t i = 0; i < doc_.aim_constraints.size(); ++i) {
     const AimConstraint& c = doc_.aim_constraints[i];
     const std::string where = elementLabel("aim_constraints", i, c.name);
     if (c.joint && c.constrained.empty()) return fail(where, "constrained_joint must be a non-empty name");
+    if (const auto it = carried.find(c.constrained); c.joint && it != carried.end()) {
+      return fail(where, "constrained_joint: \"" + c.constrained + "\" is carried by " + it->second +
+                             " (a joint takes one motion from the components)");
+    }
     if (!c.joint) {
       if (auto ok = checkObject(where, c.constrained); !ok) return ok;
     }

@@ -22,6 +22,9 @@ struct PoseOptions {
   // Joint positions at rest: needed by joint targets of constraints that keep their
   // offset (maintain_offset) and of aim constraints on clusters.
   std::map<std::string, Eigen::Vector3d> joint_rest_positions;
+  // The caller has already run validateComponents on this document against
+  // this mesh (poseRig names its own files in the messages): not run again.
+  bool validated = false;
 };
 
 struct ComponentsPose {

@@ -219,6 +219,33 @@ std::vector<Node> aimedNodes(const std::vector<Node>& rest_nodes, std::vector<No
   return nodes;
 }
 
+// Joints carried by clusters: the cluster's motion C (model frame, about
+// the rest) put where the skeleton has the joint now,
+// world = W_now * W_rest^-1 * C * W_rest, so a part skinned to the joint
+// lands where the face's vertices skinned to it land after the cluster.
+// Local TRS under the parent as posed (rotation and scale by polar
+// decomposition).
+std::vector<Node> carriedNodes(const std::vector<Node>& rest_nodes, std::vector<Node> nodes,
+                               const std::map<std::string, Eigen::Matrix4d>& carried) {
+  if (carried.empty()) return nodes;
+  const std::map<std::string, int> index = nodeIndexByName(nodes);
+  const std::vector<Eigen::Matrix4d> rest_world = nodeWorldTransforms(rest_nodes);
+  for (const auto& [name, motion] : carried) {
+    const auto n = static_cast<std::size_t>(index.at(name));
+    const std::vector<Eigen::Matrix4d> now_world = nodeWorldTransforms(nodes);  // a carried parent has moved
+    const Eigen::Matrix4d world = now_world[n] * rest_world[n].inverse() * motion * rest_world[n];
+    const int parent = nodes[n].parent;
+    const Eigen::Matrix4d parent_world = parent < 0 ? Eigen::Matrix4d::Identity() : now_world[static_cast<std::size_t>(parent)];
+    const Eigen::Affine3d local(parent_world.inverse() * world);
+    Eigen::Matrix3d rotation, scaling;
+    local.computeRotationScaling(&rotation, &scaling);
+    nodes[n].translation = local.translation();
+    nodes[n].rotation = Eigen::Quaterniond(rotation).normalized();
+    nodes[n].scale = scaling.diagonal();
+  }
+  return nodes;
+}
+
 }  // namespace
 
 PoseOptions jointPositionOptions(const std::vector<Node>& rest_nodes, const std::vector<Node>& spec_nodes) {
@@ -296,13 +323,18 @@ std::vector<char> piecesOnTheSkin(const MeshPieces& pieces, const std::vector<Po
   return on;
 }
 
-void moveOpenPartsWithFace(std::vector<RigPart>& parts, const Eigen::MatrixX3d& rest_face,
-                           const Eigen::MatrixX3d& displacement) {
-  if (parts.empty() || displacement.isZero(0.0)) return;
+}  // namespace
+
+PartRides preparePartRides(const Rig& rig) {
+  PartRides rides;
+  rides.parts.resize(rig.parts.size());
+  if (rig.parts.empty()) return rides;
+  const Eigen::MatrixX3d& rest_face = rig.mesh.positions;
   const PointCloudIndex face(rest_face);
   const double diagonal = boundingBoxDiagonal(rest_face);
   const double reach = kPartAttachReach * diagonal;
-  for (RigPart& part : parts) {
+  for (std::size_t p = 0; p < rig.parts.size(); ++p) {
+    const RigPart& part = rig.parts[p];
     if (isSolid(part.mesh)) continue;
     const std::vector<PointCloudIndex::Neighbour> nearest = face.nearest(part.mesh.positions);
     const MeshPieces pieces = meshPieces(part.mesh, coincidentVertexRepresentatives(part.mesh.positions));
@@ -319,26 +351,48 @@ void moveOpenPartsWithFace(std::vector<RigPart>& parts, const Eigen::MatrixX3d& 
     Eigen::MatrixX3d anchor_rest(static_cast<Eigen::Index>(anchors.size()), 3);
     for (std::size_t a = 0; a < anchors.size(); ++a) anchor_rest.row(static_cast<Eigen::Index>(a)) = rest_face.row(anchors[a]);
     const PointCloudIndex anchor_index(anchor_rest);
+    std::vector<Eigen::Triplet<double>> entries;
     for (std::size_t v = 0; v < nearest.size(); ++v) {
       const int piece = pieces.vertex_piece[v];
       if (piece < 0 || !attached[static_cast<std::size_t>(piece)]) continue;
       const auto row = static_cast<Eigen::Index>(v);
-      Eigen::RowVector3d moved = Eigen::RowVector3d::Zero();
+      const auto near = anchor_index.nearest(Eigen::Vector3d(part.mesh.positions.row(row).transpose()), kPartAnchors);
       double total = 0.0;
-      for (const auto& n : anchor_index.nearest(Eigen::Vector3d(part.mesh.positions.row(row).transpose()), kPartAnchors)) {
+      for (const auto& n : near) total += 1.0 / (std::sqrt(n.sq_distance) + 1e-6 * reach);
+      for (const auto& n : near) {
         const double w = 1.0 / (std::sqrt(n.sq_distance) + 1e-6 * reach);
-        moved += w * displacement.row(anchors[static_cast<std::size_t>(n.index)]);
-        total += w;
+        entries.emplace_back(static_cast<int>(v), anchors[static_cast<std::size_t>(n.index)], w / total);
       }
-      part.mesh.positions.row(row) += moved / total;
     }
+    rides.parts[p].resize(part.mesh.positions.rows(), rest_face.rows());
+    rides.parts[p].setFromTriplets(entries.begin(), entries.end());
   }
+  return rides;
 }
 
-// Components on the face: the posed face replaces the rig's rest face;
-// control values and clamped controls and the driven amounts go to `report`.
-Status applyComponents(Rig& rig, const ComponentsDocument& doc, const PoseSpec& spec, const PoseLabels& labels,
-                       PoseReport& report) {
+namespace {
+
+// Per part, its vertices' ride on the face's components `displacement`
+// (#V by 3 of the part, 0 rows for a part that does not ride).
+std::vector<Eigen::MatrixX3d> partRides(const PartRides& rides, const Eigen::MatrixX3d& displacement) {
+  std::vector<Eigen::MatrixX3d> out(rides.parts.size());
+  if (displacement.isZero(0.0)) return out;
+  for (std::size_t p = 0; p < rides.parts.size(); ++p) {
+    if (rides.parts[p].rows() > 0) out[p] = rides.parts[p] * displacement;
+  }
+  return out;
+}
+
+// Components on the face: the posed face (mesh space) and each part's ride
+// on it (partRides); control values and clamped controls and the driven
+// amounts go to `report`.
+struct ComponentsMotion {
+  Eigen::MatrixX3d face;
+  std::vector<Eigen::MatrixX3d> part_rides;
+};
+
+Result<ComponentsMotion> applyComponents(const Rig& rig, const ComponentsDocument& doc, const PoseSpec& spec,
+                                         const PoseLabels& labels, const PartRides* rides, PoseReport& report) {
   const ComponentsMeshCounts counts{rig.mesh.vertexCount(), rig.mesh.triangleCount()};
   if (auto ok = validateComponents(doc, labels.components, counts); !ok) return ok.error();
   auto controls = specControlValues(doc, spec);
@@ -352,15 +406,61 @@ Status applyComponents(Rig& rig, const ComponentsDocument& doc, const PoseSpec& 
                                                         didYouMean(c.constrained, keysOf(nodes)));
     }
   }
-  const PoseOptions options = jointPositionOptions(rig.nodes, rotatedNodes(rig.nodes, spec.joint_rotations));
+  for (std::size_t i = 0; i < doc.clusters.size(); ++i) {
+    const Cluster& c = doc.clusters[i];
+    if (!c.joint.empty() && !nodes.count(c.joint)) {
+      return makeError(ErrorCode::kInvalidArgument, labels.components + ": clusters[" + std::to_string(i) + "] \"" +
+                                                        c.name + "\": joint: the rig has no joint \"" + c.joint + "\"" +
+                                                        didYouMean(c.joint, keysOf(nodes)));
+    }
+  }
+  PoseOptions options = jointPositionOptions(rig.nodes, rotatedNodes(rig.nodes, spec.joint_rotations));
+  options.validated = true;
   auto pose = evaluatePose(rig.mesh.positions, rig.mesh.triangles, doc, *controls, options);
   if (!pose) return makeError(pose.error().code, labels.components + ": " + pose.error().message);
-  if (auto ok = addDrivenAmounts(rig, *pose, labels, report); !ok) return ok;
+  if (auto ok = addDrivenAmounts(rig, *pose, labels, report); !ok) return ok.error();
+  for (const Cluster& c : doc.clusters) {
+    if (!c.joint.empty()) report.carried_joints[c.joint] = pose->cluster_transforms.at(c.name).matrix();
+  }
   report.control_values = pose->control_values;
   report.clamped_controls = pose->clamped_controls;
-  moveOpenPartsWithFace(rig.parts, rig.mesh.positions, pose->positions - rig.mesh.positions);
-  rig.mesh.positions = std::move(pose->positions);
-  return Ok{};
+  ComponentsMotion motion;
+  const Eigen::MatrixX3d displacement = pose->positions - rig.mesh.positions;
+  if (!rig.parts.empty() && !displacement.isZero(0.0)) {
+    motion.part_rides = rides ? partRides(*rides, displacement) : partRides(preparePartRides(rig), displacement);
+  } else {
+    motion.part_rides.resize(rig.parts.size());
+  }
+  motion.face = std::move(pose->positions);
+  return motion;
+}
+
+// What poseRig and poseAtRest share: the components (when given) and the
+// spec's own morph weights and joint rotations in `report`, and the
+// skeleton at the pose.
+struct PoseAmounts {
+  std::optional<ComponentsMotion> components;
+  std::vector<Node> face_nodes;  // rotations and aims: what the face is skinned with
+  std::vector<Node> part_nodes;  // and the joints clusters carry: what everything else is
+};
+
+Result<PoseAmounts> poseAmounts(const Rig& rig, const ComponentsDocument* components, const PoseSpec& spec,
+                                const PoseLabels& labels, const PartRides* rides, PoseReport& report) {
+  if (auto ok = checkSpecNames(rig, components, spec, labels); !ok) return ok.error();
+  PoseAmounts amounts;
+  if (components) {
+    auto motion = applyComponents(rig, *components, spec, labels, rides, report);
+    if (!motion) return motion.error();
+    amounts.components = std::move(*motion);
+  }
+  for (const auto& [name, weight] : spec.morph_weights) report.morph_weights[name] += weight;
+  for (const auto& [name, degrees] : spec.joint_rotations) {
+    auto [it, fresh] = report.joint_rotations.emplace(name, Eigen::Vector3d::Zero());
+    it->second += degrees;
+  }
+  amounts.face_nodes = aimedNodes(rig.nodes, rotatedNodes(rig.nodes, report.joint_rotations), report.joint_aims);
+  amounts.part_nodes = carriedNodes(rig.nodes, amounts.face_nodes, report.carried_joints);
+  return amounts;
 }
 
 // #targets weights: the defaults, with the targets named in `named` set.
@@ -375,9 +475,20 @@ Eigen::VectorXd morphWeightsOf(const std::vector<MorphTarget>& targets, const Ei
   return weights;
 }
 
+// An unskinned mesh at `node` moved with its node's change from rest (in
+// glTF it moves with its node; poseMesh leaves it where it is).
+Eigen::MatrixX3d movedWithNode(Eigen::MatrixX3d positions, int node, const std::vector<Eigen::Matrix4d>& rest_world,
+                               const std::vector<Eigen::Matrix4d>& posed_world) {
+  if (node < 0 || static_cast<std::size_t>(node) >= posed_world.size() ||
+      posed_world[static_cast<std::size_t>(node)] == rest_world[static_cast<std::size_t>(node)]) {
+    return positions;
+  }
+  const Eigen::Matrix4d motion = posed_world[static_cast<std::size_t>(node)] * rest_world[static_cast<std::size_t>(node)].inverse();
+  return (positions * motion.topLeftCorner<3, 3>().transpose()).rowwise() + motion.topRightCorner<3, 1>().transpose();
+}
+
 // #V by 3 world positions of one mesh (the face or partAsRig of a part) at
-// the pose. poseMesh leaves an unskinned mesh where it is; in glTF it moves
-// with its node, so it is moved by its node's change from rest.
+// the pose.
 Eigen::MatrixX3d posedMeshPositions(const Rig& mesh_rig, const std::vector<Node>& posed_nodes,
                                     const std::map<std::string, double>& morph_weights,
                                     const std::vector<Eigen::Matrix4d>& rest_world,
@@ -386,13 +497,32 @@ Eigen::MatrixX3d posedMeshPositions(const Rig& mesh_rig, const std::vector<Node>
   pose.nodes = posed_nodes;
   pose.morph_weights = morphWeightsOf(mesh_rig.morph_targets, mesh_rig.morph_default_weights, morph_weights);
   Eigen::MatrixX3d positions = poseMesh(mesh_rig, pose);
-  const int node = mesh_rig.mesh_node;
-  if (mesh_rig.skin || node < 0 || static_cast<std::size_t>(node) >= posed_world.size() ||
-      posed_world[static_cast<std::size_t>(node)] == rest_world[static_cast<std::size_t>(node)]) {
-    return positions;
+  return mesh_rig.skin ? positions : movedWithNode(std::move(positions), mesh_rig.mesh_node, rest_world, posed_world);
+}
+
+// One mesh of the rig held at the rest skeleton (poseAtRest): `positions`
+// (its rest plus the components' motion) with the named morph weights'
+// deltas added and the skeleton's motion held.
+struct MeshOfRig {
+  const std::optional<Skin>& skin;
+  const SkinWeights& weights;
+  const std::vector<MorphTarget>& targets;
+  int node;
+};
+
+Eigen::MatrixX3d heldAtRest(const MeshOfRig& mesh, Eigen::MatrixX3d positions, const PoseReport& report,
+                            const std::vector<std::string>& baked_presets, const std::vector<Node>& rest_nodes,
+                            const std::vector<Node>& posed_nodes) {
+  for (const MorphTarget& target : mesh.targets) {
+    const auto weight = report.morph_weights.find(target.name);
+    if (weight == report.morph_weights.end() || weight->second == 0.0) continue;
+    if (std::find(baked_presets.begin(), baked_presets.end(), target.name) != baked_presets.end()) continue;
+    positions += weight->second * target.position_deltas;
   }
-  const Eigen::Matrix4d motion = posed_world[static_cast<std::size_t>(node)] * rest_world[static_cast<std::size_t>(node)].inverse();
-  return (positions * motion.topLeftCorner<3, 3>().transpose()).rowwise() + motion.topRightCorner<3, 1>().transpose();
+  if (mesh.skin && mesh.weights.size() > 0) {  // as partAsRig: a part without weights is not skinned
+    return holdSkeletonPose(*mesh.skin, mesh.weights, rest_nodes, posed_nodes, std::move(positions));
+  }
+  return movedWithNode(std::move(positions), mesh.node, nodeWorldTransforms(rest_nodes), nodeWorldTransforms(posed_nodes));
 }
 
 Mesh staticMesh(Mesh mesh, Eigen::MatrixX3d positions) {
@@ -411,24 +541,25 @@ int countMoved(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3d& posed) {
 }  // namespace
 
 Result<PosedRig> poseRig(Rig rig, const ComponentsDocument* components, const PoseSpec& spec, const PoseLabels& labels) {
-  if (auto ok = checkSpecNames(rig, components, spec, labels); !ok) return ok.error();
   PosedRig out;
   PoseReport& report = out.report;
+  auto amounts = poseAmounts(rig, components, spec, labels, nullptr, report);
+  if (!amounts) return amounts.error();
   const Eigen::MatrixX3d rest_face = rig.mesh.positions;
-  if (components) {
-    if (auto ok = applyComponents(rig, *components, spec, labels, report); !ok) return ok.error();
+  if (amounts->components) {
+    rig.mesh.positions = std::move(amounts->components->face);
+    for (std::size_t p = 0; p < rig.parts.size(); ++p) {
+      const Eigen::MatrixX3d& ride = amounts->components->part_rides[p];
+      if (ride.rows() > 0) rig.parts[p].mesh.positions += ride;
+    }
   }
-  for (const auto& [name, weight] : spec.morph_weights) report.morph_weights[name] += weight;
-  for (const auto& [name, degrees] : spec.joint_rotations) {
-    auto [it, fresh] = report.joint_rotations.emplace(name, Eigen::Vector3d::Zero());
-    it->second += degrees;
-  }
-
-  const std::vector<Node> posed_nodes = aimedNodes(rig.nodes, rotatedNodes(rig.nodes, report.joint_rotations), report.joint_aims);
+  const std::vector<Node>& face_nodes = amounts->face_nodes;
+  const std::vector<Node>& posed_nodes = amounts->part_nodes;
   const std::vector<Eigen::Matrix4d> rest_world = nodeWorldTransforms(rig.nodes);
   const std::vector<Eigen::Matrix4d> posed_world = nodeWorldTransforms(posed_nodes);
   Rig& posed = out.rig;
-  posed.mesh = staticMesh(rig.mesh, posedMeshPositions(rig, posed_nodes, report.morph_weights, rest_world, posed_world));
+  posed.mesh = staticMesh(rig.mesh, posedMeshPositions(rig, face_nodes, report.morph_weights, rest_world,
+                                                       nodeWorldTransforms(face_nodes)));
   posed.mesh_name = rig.mesh_name;
   posed.nodes = posed_nodes;
   posed.mesh_node = rig.mesh_node;
@@ -447,6 +578,24 @@ Result<PosedRig> poseRig(Rig rig, const ComponentsDocument* components, const Po
     posed.parts.push_back(std::move(static_part));
   }
   report.moved_face_vertices = countMoved(rest_face, posed.mesh.positions);
+  return out;
+}
+
+Result<RestSpacePose> poseAtRest(const Rig& rig, const ComponentsDocument* components, const PoseSpec& spec,
+                                 const PoseLabels& labels, const PartRides* rides) {
+  RestSpacePose out;
+  auto amounts = poseAmounts(rig, components, spec, labels, rides, out.report);
+  if (!amounts) return amounts.error();
+  const MeshOfRig face{rig.skin, rig.weights, rig.morph_targets, rig.mesh_node};
+  out.face = heldAtRest(face, amounts->components ? amounts->components->face : rig.mesh.positions, out.report,
+                        rig.baked_presets, rig.nodes, amounts->face_nodes);
+  for (std::size_t p = 0; p < rig.parts.size(); ++p) {
+    const RigPart& part = rig.parts[p];
+    Eigen::MatrixX3d positions = part.mesh.positions;
+    if (amounts->components && amounts->components->part_rides[p].rows() > 0) positions += amounts->components->part_rides[p];
+    const MeshOfRig mesh{rig.skin, part.weights, part.morph_targets, part.node};
+    out.parts.push_back(heldAtRest(mesh, std::move(positions), out.report, rig.baked_presets, rig.nodes, amounts->part_nodes));
+  }
   return out;
 }
 

@@ -10,7 +10,9 @@
 //   controls -> evaluatePose on the face's rest positions (core/components/pose.h)
 //   -> the posed face replaces its rest -> morph weights and joint rotations
 //   (given + driven by the controls; an aim-constrained joint takes its aim)
-//   through poseMesh (core/rig/skinning.h), on the face and on every part.
+//   through poseMesh (core/rig/skinning.h), on the face and on every part;
+//   a joint carried by a cluster (Cluster::joint) moves with it for the
+//   parts only: the cluster has already moved the face.
 //   Components move a solid part (eyeball, teeth) only through the joints
 //   they turn; an open part touching the face (lashes) rides on the face's
 //   components motion as well.
@@ -23,6 +25,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/SparseCore>
 
 #include "core/base/error.h"
 #include "core/components/components.h"
@@ -55,6 +58,7 @@ struct PoseReport {
   std::map<std::string, double> morph_weights;              // named by the pose or its controls: the summed weight
   std::map<std::string, Eigen::Vector3d> joint_rotations;   // the same for joints, Euler degrees
   std::map<std::string, Eigen::Matrix3d> joint_aims;         // aim-constrained joints: turn from rest, model frame
+  std::map<std::string, Eigen::Matrix4d> carried_joints;     // joints carried by clusters: the cluster's transform, model frame
   int moved_face_vertices = 0;                              // face vertices off their rest position
 };
 
@@ -79,5 +83,31 @@ struct PosedRig {
 // refuses.
 Result<PosedRig> poseRig(Rig rig, const ComponentsDocument* components, const PoseSpec& spec,
                          const PoseLabels& labels = {});
+
+// The pose held by the rig's meshes alone at the rig's rest skeleton, each
+// in its own (bind) space: what a morph target of the pose holds
+// (bakePresets). Per mesh: rest + the components' motion (the face, a part's
+// ride on it) + the named morph weights times their deltas (a baked
+// preset's own target left out) + the skeleton's motion held by
+// holdSkeletonPose (the face at the rotations and aims; the parts at the
+// joints clusters carry as well); an unskinned mesh takes its node's motion.
+// Errors: as poseRig's.
+// How the rig's open parts ride on its face's components motion (poseRig):
+// per part a #V(part) by #V(face) matrix, rows summing to 1 (0 rows: the
+// part does not ride). Depends only on the rig's rest meshes: prepared once
+// for many poses (bakePresets).
+struct PartRides {
+  std::vector<Eigen::SparseMatrix<double, Eigen::RowMajor>> parts;  // per Rig::parts
+};
+PartRides preparePartRides(const Rig& rig);
+
+struct RestSpacePose {
+  Eigen::MatrixX3d face;                // #V by 3
+  std::vector<Eigen::MatrixX3d> parts;  // per Rig::parts
+  PoseReport report;
+};
+// `rides`: preparePartRides(rig), or nullptr to prepare them here.
+Result<RestSpacePose> poseAtRest(const Rig& rig, const ComponentsDocument* components, const PoseSpec& spec,
+                                 const PoseLabels& labels = {}, const PartRides* rides = nullptr);
 
 }  // namespace core

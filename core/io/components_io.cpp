@@ -243,7 +243,7 @@ void readRigObjects(const Json& doc, ComponentsDocument& out) {
     out.locators.push_back(Locator{text(e, "name", where), binding(required(e, "binding", where), where, "binding")});
   });
   forEach(doc, "clusters", [&](const Json& e, const std::string& where) {
-    checkKeys(e, where, {"name", "pivot", "members", "translate", "rotate_quaternion", "rotate_euler_deg", "scale"});
+    checkKeys(e, where, {"name", "pivot", "members", "translate", "rotate_quaternion", "rotate_euler_deg", "scale", "joint"});
     Cluster c;
     c.name = text(e, "name", where);
     c.pivot = binding(required(e, "pivot", where), where, "pivot");
@@ -263,6 +263,10 @@ void readRigObjects(const Json& doc, ComponentsDocument& out) {
       c.rotate = Eigen::Quaterniond(eulerDegreesToRotation(toVector<3>(e["rotate_euler_deg"], where, "rotate_euler_deg")));
     }
     c.scale = vec3(e, "scale", where, Eigen::Vector3d::Ones());
+    if (e.contains("joint")) {
+      c.joint = text(e, "joint", where);
+      if (c.joint.empty()) fail(where, "joint must be a non-empty name (a joint of the rig)");
+    }
     out.clusters.push_back(std::move(c));
   });
   forEach(doc, "point_constraints", [&](const Json& e, const std::string& where) {
@@ -527,6 +531,7 @@ void writeRigObjects(const ComponentsDocument& doc, OrderedJson& out) {
     j["translate"] = writeVec(c.translate);
     j["rotate_quaternion"] = writeQuaternion(c.rotate);
     j["scale"] = writeVec(c.scale);
+    if (!c.joint.empty()) j["joint"] = c.joint;
     out["clusters"].push_back(std::move(j));
   }
   for (const PointConstraint& c : doc.point_constraints) {

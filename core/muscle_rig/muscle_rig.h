@@ -35,7 +35,8 @@ struct MuscleRigOptions {
   // The rig's named joints, world transforms at rest (namedNodeTransforms):
   // a joint at an eye's centre (within 0.15 iod of where the eye rig puts
   // it) is aimed with the eye; one at the jaw's hinge (within 0.25 iod) is
-  // the jaw cluster's pivot.
+  // the jaw cluster's pivot and is carried by it (what is skinned to it,
+  // lower teeth and gums, opens with the jaw).
   std::map<std::string, Eigen::Matrix4d> joints;
   // The face's skin weights per joint (faceJointWeights): the jaw joint's,
   // when it has them, are the jaw cluster's weights (the studio's own

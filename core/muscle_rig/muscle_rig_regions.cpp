@@ -51,11 +51,13 @@ void addJawAndLids(ComponentsDocument& doc, const Mesh& face, const FaceFrame& f
   Cluster jaw;
   jaw.name = "jaw";
   // The hinge (temporomandibular joint) sits a little below and behind the
-  // outline's top; the rig's jaw joint, when it has one there, is the hinge.
-  // The joint itself is not turned: a face skinned to it would turn twice.
+  // outline's top; the rig's jaw joint, when it has one there, is the hinge,
+  // and the cluster carries it, so the lower teeth and gums skinned to it
+  // open with the face (the face follows the cluster, not the joint).
   Eigen::Vector3d hinge = 0.5 * (f.at("jaw_00") + f.at("jaw_16")) - 0.17 * f.iod * (f.up + f.forward);
   const std::string jaw_joint = nearestJoint(options, hinge, 0.25 * f.iod);
   if (!jaw_joint.empty()) hinge = options.joints.at(jaw_joint).topRightCorner<3, 1>();
+  jaw.joint = jaw_joint;
   jaw.pivot = Binding::atPosition(hinge);
   const double corner_x = std::max(std::abs(f.toFrame(f.at("mouth_outer_0")).x()), std::abs(f.toFrame(f.at("mouth_outer_6")).x()));
   const double chin_y = f.toFrame(f.at("jaw_08")).y();

@@ -100,4 +100,37 @@ Eigen::MatrixX3d poseMesh(const Rig& rig, const Pose& pose) {
   return out;
 }
 
+Eigen::MatrixX3d holdSkeletonPose(const Skin& skin, const SkinWeights& weights, const std::vector<Node>& rest_nodes,
+                                  const std::vector<Node>& posed_nodes, Eigen::MatrixX3d positions) {
+  const std::vector<Eigen::Matrix4d> rest_world = nodeWorldTransforms(rest_nodes);
+  const std::vector<Eigen::Matrix4d> posed_world = nodeWorldTransforms(posed_nodes);
+  const std::size_t count = skin.joints.size();
+  std::vector<Eigen::Matrix4d> rest(count), posed(count);
+  std::vector<char> moved(count, 0);
+  bool any = false;
+  for (std::size_t j = 0; j < count; ++j) {
+    const auto node = static_cast<std::size_t>(skin.joints[j]);
+    rest[j] = rest_world[node] * skin.inverse_bind[j];
+    posed[j] = posed_world[node] * skin.inverse_bind[j];
+    moved[j] = posed_world[node] != rest_world[node] ? 1 : 0;
+    any = any || moved[j];
+  }
+  if (!any) return positions;
+  for (Eigen::Index v = 0; v < positions.rows() && v < weights.rows(); ++v) {
+    Eigen::Matrix4d at_rest = Eigen::Matrix4d::Zero(), at_pose = Eigen::Matrix4d::Zero();
+    bool moves = false;
+    for (SkinWeights::InnerIterator it(weights, v); it; ++it) {
+      const auto j = static_cast<std::size_t>(it.col());
+      at_rest += it.value() * rest[j];
+      at_pose += it.value() * posed[j];
+      moves = moves || (moved[j] && it.value() != 0.0);
+    }
+    if (!moves) continue;
+    const Eigen::Vector4d x(positions(v, 0), positions(v, 1), positions(v, 2), 1.0);
+    const Eigen::Vector4d held = at_rest.fullPivLu().solve(at_pose * x);
+    if (held.allFinite()) positions.row(v) = held.head<3>().transpose();
+  }
+  return positions;
+}
+
 }  // namespace core

@@ -23,4 +23,12 @@ Pose samplePose(const Rig& rig, const Animation& animation, double time);
 // rig has a skin) with M_j = world_j(pose) * inverse_bind_j.
 Eigen::MatrixX3d poseMesh(const Rig& rig, const Pose& pose);
 
+// #V by 3 bind-space positions that, skinned at `rest_nodes`, land where
+// `positions` skinned at `posed_nodes` land: a pose of the skeleton held by
+// the mesh alone, as a morph target holds it. Per vertex p -> B^-1 B' p with
+// B, B' its blended skinning matrices at rest and posed; a vertex none of
+// whose joints moves is kept as it is. `weights`: #V by skin.joints.size().
+Eigen::MatrixX3d holdSkeletonPose(const Skin& skin, const SkinWeights& weights, const std::vector<Node>& rest_nodes,
+                                  const std::vector<Node>& posed_nodes, Eigen::MatrixX3d positions);
+
 }  // namespace core

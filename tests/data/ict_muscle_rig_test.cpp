@@ -12,11 +12,13 @@
 
 #include <gtest/gtest.h>
 
+#include "core/components/bake.h"
 #include "core/components/pose.h"
 #include "core/components/pose_spec.h"
 #include "core/io/landmarks.h"
 #include "core/io/rig_io.h"
 #include "core/muscle_rig/muscle_rig.h"
+#include "core/rig/skinning.h"
 #include "tests/core/muscle_rig/muscle_rig_fixture.h"
 #include "tests/test_support.h"
 
@@ -96,6 +98,93 @@ TEST(IctMuscleRig, TheEyeballsLookWhereTheGazeGoesAndTheLidsFollow) {
   const double lid_motion = posed->rig.mesh.positions(lid, 0) - rest->rig.mesh.positions(lid, 0);
   EXPECT_GT(lid_motion, 0.02);
   EXPECT_LT(lid_motion, 0.5);
+}
+
+TEST(IctMuscleRig, TheLowerTeethOpenWithTheJawTheUpperTeethAndTheFaceDoNotMoveTwice) {
+  RIGPORT_REQUIRE_SHARED_DATA(data);
+  auto full = core::readRig(data / "ict/source_face_full.glb");
+  auto landmarks = core::readLandmarks(data / "ict/source_face.landmarks.json");
+  ASSERT_TRUE(full.ok() && landmarks.ok());
+  ASSERT_TRUE(full->rig.skin.has_value());
+  core::MuscleRigOptions options;
+  options.joints = core::namedNodeTransforms(full->rig);
+  options.joint_weights = core::faceJointWeights(full->rig);
+  auto rig = core::buildMuscleRig(full->rig.mesh, *landmarks, options);
+  ASSERT_TRUE(rig.ok()) << rig.error().message;
+  const auto& clusters = rig->components.clusters;
+  const core::Cluster& jaw = clusters[static_cast<std::size_t>(core::indexByName(clusters, "jaw"))];
+  EXPECT_EQ(jaw.joint, "jaw");  // the cluster carries the rig's jaw joint
+  core::PoseSpec open;
+  open.controls = {{"jaw_open", 1.0}};
+  auto posed = core::poseRig(full->rig, &rig->components, open);
+  ASSERT_TRUE(posed.ok()) << posed.error().message;
+  ASSERT_EQ(posed->report.carried_joints.count("jaw"), 1u);
+  const Eigen::Affine3d motion(posed->report.carried_joints.at("jaw"));
+  // The face is where the components put it: the jaw joint's skinning does not move it again.
+  auto components = core::evaluatePose(full->rig.mesh.positions, full->rig.mesh.triangles, rig->components, open.controls,
+                                       core::jointPositionOptions(full->rig.nodes, full->rig.nodes));
+  ASSERT_TRUE(components.ok()) << components.error().message;
+  EXPECT_LT((posed->rig.mesh.positions - components->positions).cwiseAbs().maxCoeff(), 1e-6);
+  // Teeth: what is skinned to the jaw alone moves as the cluster moves it; what the jaw does not carry stays.
+  const auto& joints = full->rig.skin->joints;
+  const auto jaw_column = std::find_if(joints.begin(), joints.end(),
+                                       [&](int n) { return full->rig.nodes[static_cast<std::size_t>(n)].name == "jaw"; }) - joints.begin();
+  ASSERT_LT(jaw_column, static_cast<std::ptrdiff_t>(joints.size()));
+  int lower = 0, upper = 0;
+  for (std::size_t p = 0; p < full->rig.parts.size(); ++p) {
+    const core::RigPart& part = full->rig.parts[p];
+    if (part.name != "teeth" || part.weights.rows() == 0) continue;
+    const Eigen::MatrixXd weights(part.weights);
+    for (Eigen::Index v = 0; v < part.mesh.positions.rows(); ++v) {
+      const Eigen::Vector3d rest = part.mesh.positions.row(v).transpose();
+      const Eigen::Vector3d now = posed->rig.parts[p].mesh.positions.row(v).transpose();
+      if (weights(v, jaw_column) > 1.0 - 1e-6) {
+        ++lower;
+        EXPECT_LT((now - motion * rest).norm(), 1e-4) << "lower tooth vertex " << v;
+      } else if (weights(v, jaw_column) < 1e-6) {
+        ++upper;
+        EXPECT_LT((now - rest).norm(), 1e-6) << "upper tooth vertex " << v;
+      }
+    }
+  }
+  EXPECT_GT(lower, 100);
+  EXPECT_GT(upper, 100);
+  // And the chin drops by centimetres.
+  const int chin = landmarks->landmarks[static_cast<std::size_t>(landmarks->indexOf("jaw_08"))].vertex;
+  const double chin_drop = full->rig.mesh.positions(chin, 1) - posed->rig.mesh.positions(chin, 1);
+  EXPECT_GT(chin_drop, 1.0);
+
+  // Baked, the parts the presets move get targets of their own: played at the rest skeleton, each mesh
+  // shows what poseRig poses (surprise opens the jaw: teeth and gums; blink closes the lids: lashes).
+  core::Rig baked = full->rig;
+  auto report = core::bakePresets(baked, rig->components, {"surprise", "blink"});
+  ASSERT_TRUE(report.ok()) << report.error().message;
+  for (const std::string preset : {"surprise", "blink"}) {
+    core::PoseSpec spec;
+    spec.preset = preset;
+    auto truth = core::poseRig(full->rig, &rig->components, spec);
+    ASSERT_TRUE(truth.ok()) << truth.error().message;
+    std::vector<std::string> moved;
+    for (std::size_t p = 0; p < baked.parts.size(); ++p) {
+      const core::Rig part = core::partAsRig(baked, baked.parts[p]);
+      const int t = core::indexByName(part.morph_targets, preset);
+      if (t < 0) continue;
+      moved.push_back(part.mesh_name);
+      core::Pose played{baked.nodes, Eigen::VectorXd::Zero(static_cast<Eigen::Index>(part.morph_targets.size()))};
+      played.morph_weights(t) = 1.0;
+      EXPECT_LT((core::poseMesh(part, played) - truth->rig.parts[p].mesh.positions).cwiseAbs().maxCoeff(), 1e-6)
+          << preset << " " << part.mesh_name;
+    }
+    if (preset == "surprise") {
+      EXPECT_NE(std::find(moved.begin(), moved.end(), "teeth"), moved.end()) << preset;
+    } else {
+      EXPECT_NE(std::find_if(moved.begin(), moved.end(), [](const std::string& n) { return n.find("eyelashes") == 0; }),
+                moved.end()) << preset;
+    }
+  }
+  const auto path = rigport_test::makeTempDir("ict_jaw_bake") / "baked.glb";
+  ASSERT_TRUE(core::writeRigGlb(baked, path));
+  EXPECT_GLTF_VALID(path);
 }
 
 // E of a displacement field against the truth (docs/ACCURACY.md).

@@ -115,6 +115,7 @@ TEST(ComponentsIo, ErrorsNameTheComponentAndField) {
 // sculptor pushing along rays from a point.
 constexpr const char* kEyeRig = R"({"format": "rigport.components", "version": 1,
   "locators": [{"name": "aim", "binding": {"position": [0, 1, 5]}}],
+  "clusters": [{"name": "chin", "pivot": {"position": [0, 1, 0]}, "members": [{"vertex": 2}], "joint": "jaw"}],
   "aim_constraints": [{"name": "eye_aim", "constrained_joint": "eye", "targets": [{"locator": "aim"}]}],
   "push_to_surfaces": [{"name": "sculptor", "surface": {"sphere": {"center": {"position": [0, 1, 0]}, "radius": 0.5}},
                         "direction": {"from": {"position": [0, 1, -0.1]}}, "members": [2, 3]}],
@@ -129,6 +130,7 @@ TEST(ComponentsIo, EyeRigPiecesReadWriteAndNameTheirErrors) {
   EXPECT_EQ(doc->push_to_surfaces[0].direction, core::PushDirection::kFromPoint);
   EXPECT_EQ(doc->push_to_surfaces[0].from.position, Eigen::Vector3d(0, 1, -0.1));
   EXPECT_EQ(doc->controls[0].drives[0].kind, core::DriveTargetKind::kLocator);
+  EXPECT_EQ(doc->clusters[0].joint, "jaw");
   auto back = core::parseComponents(core::formatComponents(*doc), "eyes.json");
   ASSERT_TRUE(back) << back.error().message;
   EXPECT_TRUE(*back == *doc);
@@ -141,6 +143,13 @@ TEST(ComponentsIo, EyeRigPiecesReadWriteAndNameTheirErrors) {
               "aim_constraints[0] \"eye_aim\": needs exactly one of \"constrained\" (a locator or cluster) or \"constrained_joint\"");
   expectError(replaced(text, "{\"from\": {\"position\": [0, 1, -0.1]}}", "{\"from\": {\"vertex\": -4}}"),
               "push_to_surfaces[0] \"sculptor\"");
+  expectError(replaced(text, "\"joint\": \"jaw\"", "\"joint\": \"\""),
+              "clusters[0] \"chin\": joint must be a non-empty name");
+  expectError(replaced(text, "\"joint\": \"jaw\"}", "\"joint\": \"jaw\"}, {\"name\": \"chin2\", \"pivot\": {\"vertex\": 0}, "
+                              "\"members\": [], \"joint\": \"jaw\"}"),
+              "clusters[1] \"chin2\": joint: \"jaw\" is already carried by clusters[0] \"chin\"");
+  expectError(replaced(text, "\"constrained_joint\": \"eye\"", "\"constrained_joint\": \"jaw\""),
+              "aim_constraints[0] \"eye_aim\": constrained_joint: \"jaw\" is carried by clusters[0] \"chin\"");
 }
 
 TEST(ComponentsIo, ValidationCatchesCyclesNonFiniteValuesAndDuplicates) {

@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include "core/components/bake.h"
 #include "core/io/components_io.h"
 #include "core/io/rig_io.h"
 #include "core/rig/skinning.h"
@@ -284,6 +285,47 @@ TEST(PoseRig, AnAimedJointTurnsToItsTargetWithWhatItCarries) {
   missing.aim_constraints[0].constrained = "jaww";
   const std::string message = poseError(&missing, "{}");
   EXPECT_TRUE(contains(message, "aim_constraints[0] \"jaw_aim\": the rig has no joint \"jaww\" (did you mean \"jaw\"?)"))
+      << message;
+}
+
+TEST(PoseRig, AJointCarriedByAClusterMovesWhatItCarriesAndTheFaceOnce) {
+  // The chin cluster on vertices 2 and 3, pivot at the jaw joint (0, 1, 0), carries the jaw; "open"
+  // turns it 90 degrees about +X: (x, y, z) from the pivot -> (x, -z, y).
+  auto doc = core::parseComponents(R"({"format": "rigport.components", "version": 1,
+      "clusters": [{"name": "chin", "pivot": {"position": [0, 1, 0]}, "members": [{"vertex": 2}, {"vertex": 3}],
+                    "joint": "jaw"}],
+      "controls": [{"name": "open", "drives": [{"cluster": "chin", "channel": "rotate_x", "gain": 90}]}],
+      "presets": {"open": {"controls": {"open": 1}}}})",
+                                   "quad.components.json");
+  ASSERT_TRUE(doc) << doc.error().message;
+  auto posed = core::poseRig(quadRig(), &*doc, spec(R"({"preset": "open"})"), kLabels);
+  ASSERT_TRUE(posed) << posed.error().message;
+  ASSERT_EQ(posed->report.carried_joints.count("jaw"), 1u);
+  const Eigen::MatrixX3d& p = posed->rig.mesh.positions;
+  // The face's vertices on the jaw turn once (by the cluster), not again by the jaw's skinning.
+  EXPECT_LT((p.row(2) - Eigen::RowVector3d(1.0, 1.0, 1.0)).norm(), 1e-12);
+  EXPECT_LT((p.row(3) - Eigen::RowVector3d(0.0, 1.0, 1.0)).norm(), 1e-12);
+  EXPECT_LT((p.row(0) - quadRig().mesh.positions.row(0)).norm(), 1e-12);
+  // The tooth on the jaw's node turns with the jaw: (0, 1, 0.1) -> (0, 0.9, 0), (0, 1.5, 0.1) -> (0, 0.9, 0.5).
+  const Eigen::MatrixX3d& tooth = posed->rig.parts[0].mesh.positions;
+  EXPECT_LT((tooth.row(0) - Eigen::RowVector3d(0.0, 0.9, 0.0)).norm(), 1e-12);
+  EXPECT_LT((tooth.row(2) - Eigen::RowVector3d(0.0, 0.9, 0.5)).norm(), 1e-12);
+
+  // Baked: the face's target holds the cluster's motion, the tooth gets a target of its own.
+  core::Rig baked = quadRig();
+  auto report = core::bakePresets(baked, *doc);
+  ASSERT_TRUE(report) << report.error().message;
+  EXPECT_LT((baked.morph_targets.back().position_deltas.row(2) - Eigen::RowVector3d(0.0, -1.0, 1.0)).norm(), 1e-12);
+  ASSERT_EQ(baked.parts[0].morph_targets.size(), 2u);
+  EXPECT_EQ(baked.parts[0].morph_targets[1].name, "open");
+  EXPECT_LT((baked.parts[0].morph_targets[1].position_deltas.row(0) - Eigen::RowVector3d(0.0, -0.1, -0.1)).norm(), 1e-12);
+  EXPECT_EQ(baked.parts[0].morph_default_weights.size(), 2);
+
+  // A joint the rig lacks is named.
+  core::ComponentsDocument missing = *doc;
+  missing.clusters[0].joint = "jaww";
+  const std::string message = poseError(&missing, "{}");
+  EXPECT_TRUE(contains(message, "clusters[0] \"chin\": joint: the rig has no joint \"jaww\" (did you mean \"jaw\"?)"))
       << message;
 }
 
