@@ -153,6 +153,14 @@ Result<TargetPositions> targetPositions(const PoseState& s, const std::vector<Co
   return out;
 }
 
+// The turn an aim constraint gives its object (a cluster, a joint) from
+// its rest aim, model frame.
+Eigen::Matrix3d aimTurn(const AimConstraint& c, const Eigen::Vector3d& now, const Eigen::Vector3d& goal,
+                        const Eigen::Vector3d& rest, const Eigen::Vector3d& rest_goal) {
+  return aimRotation(now, goal, c.aim_axis, c.up_axis, c.world_up) *
+         aimRotation(rest, rest_goal, c.aim_axis, c.up_axis, c.world_up).transpose();
+}
+
 // Constraints in dependency order: an object after the locators it targets
 // (validateComponents rejected cycles).
 Status applyConstraints(PoseState& s) {
@@ -205,16 +213,14 @@ Status applyConstraints(PoseState& s) {
       if ((goal - current()).norm() < 1e-12) {
         return makeError(ErrorCode::kInvalidArgument, where + ": the targets' average coincides with \"" + object + "\"");
       }
-      const Eigen::Matrix3d now = aimRotation(current(), goal, c.aim_axis, c.up_axis, c.world_up);
       if (locator >= 0) {
-        s.pose.locator_rotations[object] = now;
+        s.pose.locator_rotations[object] = aimRotation(current(), goal, c.aim_axis, c.up_axis, c.world_up);
       } else {
         const Eigen::Vector3d rest_goal = weightedAverage(targets->rest, targets->weights);
         if ((rest_goal - rest()).norm() < 1e-12) {
           return makeError(ErrorCode::kInvalidArgument, where + ": at rest the targets' average coincides with \"" + object + "\"");
         }
-        const Eigen::Matrix3d at_rest = aimRotation(rest(), rest_goal, c.aim_axis, c.up_axis, c.world_up);
-        s.cluster_aim[static_cast<std::size_t>(cluster)] = now * at_rest.transpose();
+        s.cluster_aim[static_cast<std::size_t>(cluster)] = aimTurn(c, current(), goal, rest(), rest_goal);
       }
     }
     return Ok{};
@@ -246,8 +252,7 @@ Status applyConstraints(PoseState& s) {
     if ((goal - now->second).norm() < 1e-12 || (rest_goal - rest->second).norm() < 1e-12) {
       return makeError(ErrorCode::kInvalidArgument, where + ": the targets' average coincides with joint \"" + c.constrained + "\"");
     }
-    s.pose.joint_aims[c.constrained] = aimRotation(now->second, goal, c.aim_axis, c.up_axis, c.world_up) *
-                                       aimRotation(rest->second, rest_goal, c.aim_axis, c.up_axis, c.world_up).transpose();
+    s.pose.joint_aims[c.constrained] = aimTurn(c, now->second, goal, rest->second, rest_goal);
   }
   return Ok{};
 }

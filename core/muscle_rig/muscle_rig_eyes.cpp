@@ -8,6 +8,7 @@
 // distance of about 90-100 mm), or taken from an eye joint of the rig.
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <numbers>
 
 #include "core/muscle_rig/muscle_rig_parts.h"
@@ -50,7 +51,7 @@ EyeGeometry eyeGeometry(const FaceFrame& f, int side) {
 // Lid vertices around one eye, weighted: full between the rims' heights,
 // fading above the upper rim towards the brow and below the lower rim
 // towards the cheek; `upper`/`lower` choose which lids.
-std::vector<ClusterMember> lidMembers(const FaceRegions& regions, const EyeGeometry& g, bool upper, bool lower, double gain) {
+std::vector<ClusterMember> lidMembers(const FaceRegions& regions, const EyeGeometry& g, bool upper, bool lower) {
   std::vector<ClusterMember> members;
   const Eigen::Vector3d& c = g.centre_frame;
   const double fade_up = std::max(0.7 * (g.brow - g.upper_rim), 1e-6);
@@ -61,7 +62,7 @@ std::vector<ClusterMember> lidMembers(const FaceRegions& regions, const EyeGeome
     if (dx >= 1.0 || z < c.z() - 0.25) continue;
     const bool is_upper = y >= c.y();
     if ((is_upper && !upper) || (!is_upper && !lower)) continue;
-    double w = gain * smoothStep(1.0 - dx);
+    double w = smoothStep(1.0 - dx);
     if (is_upper) {
       if (y > g.upper_rim) w *= smoothStep(1.0 - (y - g.upper_rim) / fade_up);
       if (!lower) w *= smoothStep((y - c.y() + 0.02) / 0.04);  // an upper lid alone keeps off the lower lid
@@ -74,6 +75,15 @@ std::vector<ClusterMember> lidMembers(const FaceRegions& regions, const EyeGeome
   return members;
 }
 
+// `members` with their weights scaled by `gain`, the negligible dropped.
+std::vector<ClusterMember> scaledMembers(const std::vector<ClusterMember>& members, double gain) {
+  std::vector<ClusterMember> out;
+  for (const ClusterMember& m : members) {
+    if (gain * m.weight > 1e-3) out.push_back({m.vertex, gain * m.weight});
+  }
+  return out;
+}
+
 }  // namespace
 
 void addEyes(ComponentsDocument& doc, const Mesh& face, const FaceFrame& f, const FaceRegions& regions,
@@ -81,9 +91,11 @@ void addEyes(ComponentsDocument& doc, const Mesh& face, const FaceFrame& f, cons
   const double radius = kEyeRadius * f.iod;
   Eigen::Vector3d aims_mid = Eigen::Vector3d::Zero();
   std::vector<std::string> aims;
+  std::map<int, EyeGeometry> eyes;  // by side
   for (const int s : {+1, -1}) {
     const std::string x = sideSuffix(s);
-    const EyeGeometry g = eyeGeometry(f, s);
+    const EyeGeometry& g = eyes[s] = eyeGeometry(f, s);
+    const std::vector<ClusterMember> lids = lidMembers(regions, g, true, true);
     Eigen::Vector3d centre = f.toModel(g.centre_frame) - kCentreBehind * radius * f.forward;
     const std::string joint = nearestJoint(options, centre, kJointReach * f.iod);
     if (!joint.empty()) centre = options.joints.at(joint).topRightCorner<3, 1>();
@@ -98,7 +110,7 @@ void addEyes(ComponentsDocument& doc, const Mesh& face, const FaceFrame& f, cons
     Cluster gaze;
     gaze.name = "eye_gaze" + x;
     gaze.pivot = Binding::atPosition(centre);
-    gaze.members = lidMembers(regions, g, true, true, kLidFollow);
+    gaze.members = scaledMembers(lids, kLidFollow);
     const ConstraintTarget target{TargetKind::kLocator, "eye_aim" + x, -1, 1.0};
     if (!gaze.members.empty()) {
       doc.clusters.push_back(gaze);
@@ -110,7 +122,7 @@ void addEyes(ComponentsDocument& doc, const Mesh& face, const FaceFrame& f, cons
     Cluster lower;
     lower.name = "lower_lid" + x;
     lower.pivot = Binding::atPosition(centre);
-    lower.members = lidMembers(regions, g, false, true, 1.0);
+    lower.members = lidMembers(regions, g, false, true);
     if (!lower.members.empty()) {
       doc.clusters.push_back(lower);
       Control raise{"raise_lower_lid" + x, 0.0, 1.0, 0.0, {}};
@@ -136,7 +148,7 @@ void addEyes(ComponentsDocument& doc, const Mesh& face, const FaceFrame& f, cons
     sculptor.surface.radius = sphere;
     sculptor.direction = PushDirection::kFromPoint;
     sculptor.from = Binding::atPosition(centre);
-    for (const ClusterMember& m : lidMembers(regions, g, true, true, 1.0)) {
+    for (const ClusterMember& m : lids) {
       if ((face.positions.row(m.vertex).transpose() - centre).norm() > sphere) sculptor.members.push_back(m.vertex);
     }
     if (!sculptor.members.empty() && sphere > kMinEyeRadius * radius) doc.push_to_surfaces.push_back(sculptor);
@@ -160,7 +172,7 @@ void addEyes(ComponentsDocument& doc, const Mesh& face, const FaceFrame& f, cons
     const double vertical_share = offset.dot(f.up) / vertical;
     for (const int s : {+1, -1}) {
       const std::string lid = std::string("upper_lid") + sideSuffix(s);
-      const EyeGeometry g = eyeGeometry(f, s);
+      const EyeGeometry& g = eyes.at(s);
       if (vertical_share != 0.0 && indexByName(doc.clusters, lid) >= 0) {
         addTranslateDrives(look, lid, kUpperLidFollow * vertical_share * (g.upper_rim - g.lower_rim) * f.iod * f.up);
       }
