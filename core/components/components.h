@@ -212,6 +212,14 @@ struct PushToSurface {
   Eigen::Vector3d vector = Eigen::Vector3d::UnitZ();  // kVector: the push direction
   Binding from;                                       // kFromPoint: where the rays start
   std::vector<int> members;  // empty: all vertices not on the surface itself
+  // A cluster whose transform carries a sphere or ellipsoid (its centre,
+  // axes, `from` and `vector`) from where its bindings put it: an eyelid
+  // sculptor on the cornea turns with the eye's gaze cluster. Empty: none.
+  std::string carried_by{};
+  // A sphere or ellipsoid push whose members never go deeper into it than
+  // they sat at rest (a member inside at rest stays at its rest depth, not
+  // pushed onto the surface): rest is the identity with every member kept.
+  bool keep_rest_depth = false;
   bool operator==(const PushToSurface&) const = default;
 };
 

@@ -417,6 +417,17 @@ Status Checker::checkDeformers() const {
     if (p.direction == PushDirection::kFromPoint) {
       if (auto ok = checkBinding(where, "direction.from", p.from); !ok) return ok;
     }
+    if (p.keep_rest_depth && s.kind == CollisionShapeKind::kTriangles) {
+      return fail(where, "keep_rest_depth: only a sphere or ellipsoid keeps its members' rest depth");
+    }
+    if (!p.carried_by.empty()) {
+      if (s.kind == CollisionShapeKind::kTriangles) {
+        return fail(where, "carried_by: a triangle surface moves with its vertices; only a sphere or ellipsoid is carried");
+      }
+      if (indexByName(doc_.clusters, p.carried_by) < 0) {
+        return unknown(where, "carried_by", "cluster", p.carried_by, cluster_names_);
+      }
+    }
     if (auto ok = checkMembers(where, p.members); !ok) return ok;
   }
   return Ok{};

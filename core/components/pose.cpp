@@ -309,6 +309,24 @@ CurveGeometry curveGeometry(const NurbsCurve& curve, const std::vector<Eigen::Ve
   return g;
 }
 
+// A sphere or ellipsoid push carried by a cluster's transform: its centre
+// and `from` (resolved where they are now) moved by it, its axes and
+// `vector` turned by its rotation (the cluster's scale is not applied to
+// the surface's size).
+PushToSurface carriedPush(const PushToSurface& push, const Eigen::Affine3d& carry, const Eigen::MatrixX3d& positions,
+                          const Eigen::MatrixX3i& triangles) {
+  PushToSurface moved = push;
+  Eigen::Matrix3d turn, scaling;
+  carry.computeRotationScaling(&turn, &scaling);
+  moved.surface.center = Binding::atPosition(carry * resolveBinding(push.surface.center, positions, triangles));
+  moved.surface.rotation = Eigen::Quaterniond(turn * push.surface.rotation.toRotationMatrix()).normalized();
+  if (push.direction == PushDirection::kFromPoint) {
+    moved.from = Binding::atPosition(carry * resolveBinding(push.from, positions, triangles));
+  }
+  moved.vector = turn * push.vector;
+  return moved;
+}
+
 }  // namespace
 
 Result<ComponentsPose> evaluatePose(const Eigen::MatrixX3d& rest_positions, const Eigen::MatrixX3i& triangles,
@@ -363,7 +381,15 @@ Result<ComponentsPose> evaluatePose(const Eigen::MatrixX3d& rest_positions, cons
   }
 
   // -> skull push
-  for (const PushToSurface& push : doc.push_to_surfaces) positions = evaluatePushToSurface(positions, triangles, push);
+  for (const PushToSurface& push : doc.push_to_surfaces) {
+    const Eigen::VectorXd levels = push.keep_rest_depth ? surfaceLevels(rest_positions, triangles, push) : Eigen::VectorXd();
+    if (push.carried_by.empty()) {
+      positions = evaluatePushToSurface(positions, triangles, push, levels);
+    } else {
+      const Eigen::Affine3d& carry = s.cluster_final[static_cast<std::size_t>(indexByName(doc.clusters, push.carried_by))];
+      positions = evaluatePushToSurface(positions, triangles, carriedPush(push, carry, positions, triangles), levels);
+    }
+  }
 
   if (!positions.allFinite()) return makeError(ErrorCode::kInvalidArgument, "components: the pose is not finite");
   s.pose.positions = std::move(positions);

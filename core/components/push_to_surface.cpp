@@ -83,6 +83,23 @@ double rayExit(const Eigen::MatrixX3d& positions, const TriangleSurface& s, cons
   return best;
 }
 
+// A sphere's or ellipsoid's frame, where it is the unit sphere.
+struct UnitFrame {
+  Eigen::Vector3d center;
+  Eigen::Matrix3d rotation;
+  Eigen::Vector3d radii;
+  Eigen::Vector3d toUnit(const Eigen::Vector3d& p) const { return (rotation.transpose() * (p - center)).cwiseQuotient(radii); }
+  Eigen::Vector3d toUnitDirection(const Eigen::Vector3d& d) const { return (rotation.transpose() * d).cwiseQuotient(radii); }
+  Eigen::Vector3d fromUnit(const Eigen::Vector3d& q) const { return center + rotation * q.cwiseProduct(radii); }
+};
+
+UnitFrame unitFrame(const CollisionShape& shape, const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles) {
+  const bool sphere = shape.kind == CollisionShapeKind::kSphere;
+  return UnitFrame{resolveBinding(shape.center, positions, triangles),
+                   sphere ? Eigen::Matrix3d::Identity() : shape.rotation.toRotationMatrix(),
+                   sphere ? Eigen::Vector3d::Constant(shape.radius) : shape.radii};
+}
+
 // The exit t > 0 of p + t d from the unit sphere (|p| < 1).
 double unitSphereExit(const Eigen::Vector3d& p, const Eigen::Vector3d& d) {
   const double a = d.squaredNorm(), b = p.dot(d), c = p.squaredNorm() - 1.0;
@@ -92,7 +109,7 @@ double unitSphereExit(const Eigen::Vector3d& p, const Eigen::Vector3d& d) {
 }  // namespace
 
 Eigen::MatrixX3d evaluatePushToSurface(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles,
-                                       const PushToSurface& push) {
+                                       const PushToSurface& push, const Eigen::VectorXd& levels) {
   Eigen::MatrixX3d out = positions;
   const CollisionShape& shape = push.surface;
   std::vector<int> members = push.members;
@@ -130,32 +147,45 @@ Eigen::MatrixX3d evaluatePushToSurface(const Eigen::MatrixX3d& positions, const 
     }
     return out;
   }
-  // Sphere and ellipsoid, in the frame where the shape is the unit sphere.
-  const Eigen::Vector3d center = resolveBinding(shape.center, positions, triangles);
-  const Eigen::Matrix3d rotation =
-      shape.kind == CollisionShapeKind::kSphere ? Eigen::Matrix3d::Identity() : shape.rotation.toRotationMatrix();
-  const Eigen::Vector3d radii = shape.kind == CollisionShapeKind::kSphere ? Eigen::Vector3d::Constant(shape.radius) : shape.radii;
-  auto toUnit = [&](const Eigen::Vector3d& p) { return Eigen::Vector3d((rotation.transpose() * (p - center)).cwiseQuotient(radii)); };
-  auto fromUnit = [&](const Eigen::Vector3d& q) { return Eigen::Vector3d(center + rotation * q.cwiseProduct(radii)); };
-  const Eigen::Vector3d unit_direction = (rotation.transpose() * direction).cwiseQuotient(radii);
+  // Sphere and ellipsoid, in the frame where the shape is the unit sphere;
+  // a vertex with a level L < 1 is pushed onto |q| = L (the exit t of a ray
+  // from the sphere of radius L is the unit sphere's for q / L, d / L).
+  const UnitFrame frame = unitFrame(shape, positions, triangles);
+  const Eigen::Vector3d unit_direction = frame.toUnitDirection(direction);
   for (int v : members) {
-    const Eigen::Vector3d q = toUnit(positions.row(v).transpose());
+    const double level = levels.size() > v ? std::max(levels(v), 1e-9) : 1.0;
+    const Eigen::Vector3d q = frame.toUnit(positions.row(v).transpose()) / level;
     const double r = q.norm();
     if (r >= 1.0) continue;
     if (push.direction == PushDirection::kVector) {
-      out.row(v) = fromUnit(q + unitSphereExit(q, unit_direction) * unit_direction).transpose();
+      const Eigen::Vector3d d = unit_direction / level;
+      out.row(v) = frame.fromUnit(level * (q + unitSphereExit(q, d) * d)).transpose();
     } else if (push.direction == PushDirection::kFromPoint) {
       Eigen::Vector3d ray;
       if (!rayThrough(positions.row(v).transpose(), ray)) continue;
-      const Eigen::Vector3d unit_ray = (rotation.transpose() * ray).cwiseQuotient(radii);
-      out.row(v) = fromUnit(q + unitSphereExit(q, unit_ray) * unit_ray).transpose();
+      const Eigen::Vector3d d = frame.toUnitDirection(ray) / level;
+      out.row(v) = frame.fromUnit(level * (q + unitSphereExit(q, d) * d)).transpose();
     } else {
       // At the very centre every direction is closest: take the push vector's.
       const Eigen::Vector3d radial = r > 1e-12 ? Eigen::Vector3d(q / r) : unit_direction.normalized();
-      out.row(v) = fromUnit(radial).transpose();
+      out.row(v) = frame.fromUnit(level * radial).transpose();
     }
   }
   return out;
+}
+
+Eigen::VectorXd surfaceLevels(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles,
+                              const PushToSurface& push) {
+  Eigen::VectorXd levels = Eigen::VectorXd::Ones(positions.rows());
+  if (push.surface.kind == CollisionShapeKind::kTriangles) return levels;
+  const UnitFrame frame = unitFrame(push.surface, positions, triangles);
+  auto level = [&](Eigen::Index v) { levels(v) = std::min(1.0, frame.toUnit(positions.row(v).transpose()).norm()); };
+  if (push.members.empty()) {
+    for (Eigen::Index v = 0; v < positions.rows(); ++v) level(v);
+  } else {
+    for (const int v : push.members) level(v);
+  }
+  return levels;
 }
 
 }  // namespace core

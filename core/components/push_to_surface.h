@@ -18,8 +18,16 @@ namespace core {
 //   kVector:  along push.vector to where it leaves the surface.
 //   kFromPoint: along the ray from push.from through it, to where it leaves
 //             the surface (a vertex at push.from stays).
-// Returns #V by 3.
+// `levels` (sphere and ellipsoid; empty: all 1): per vertex, the level set
+// of the shape's unit-sphere frame it is pushed onto instead, |q| = level
+// (surfaceLevels of the rest: keep_rest_depth). Returns #V by 3.
 Eigen::MatrixX3d evaluatePushToSurface(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles,
-                                       const PushToSurface& push);
+                                       const PushToSurface& push, const Eigen::VectorXd& levels = {});
+
+// Sphere and ellipsoid: #V levels, each member's |q| in the shape's
+// unit-sphere frame, at most 1 (1 outside, and for non-members): how deep
+// it sits.
+Eigen::VectorXd surfaceLevels(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3i& triangles,
+                              const PushToSurface& push);
 
 }  // namespace core

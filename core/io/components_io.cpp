@@ -331,7 +331,7 @@ void readCurvesAndDeformers(const Json& doc, ComponentsDocument& out) {
     out.lattices.push_back(std::move(l));
   });
   forEach(doc, "push_to_surfaces", [&](const Json& e, const std::string& where) {
-    checkKeys(e, where, {"name", "surface", "direction", "members"});
+    checkKeys(e, where, {"name", "surface", "direction", "members", "carried_by", "keep_rest_depth"});
     PushToSurface p;
     p.name = text(e, "name", where);
     const Json& s = required(e, "surface", where);
@@ -377,6 +377,11 @@ void readCurvesAndDeformers(const Json& doc, ComponentsDocument& out) {
       }
     }
     p.members = integers(e, "members", where);
+    if (e.contains("carried_by")) {
+      p.carried_by = text(e, "carried_by", where);
+      if (p.carried_by.empty()) fail(where, "carried_by must be a non-empty name (a cluster)");
+    }
+    p.keep_rest_depth = boolean(e, "keep_rest_depth", where, false);
     out.push_to_surfaces.push_back(std::move(p));
   });
 }
@@ -586,8 +591,11 @@ void writeCurvesAndDeformers(const ComponentsDocument& doc, OrderedJson& out) {
     OrderedJson direction = p.direction == PushDirection::kClosest  ? OrderedJson("closest")
                             : p.direction == PushDirection::kVector ? writeVec(p.vector)
                                                                      : OrderedJson{{"from", writeBinding(p.from)}};
-    out["push_to_surfaces"].push_back(OrderedJson{{"name", p.name}, {"surface", std::move(surface)},
-                                                  {"direction", std::move(direction)}, {"members", writeArray(p.members)}});
+    OrderedJson j{{"name", p.name}, {"surface", std::move(surface)}, {"direction", std::move(direction)},
+                  {"members", writeArray(p.members)}};
+    if (!p.carried_by.empty()) j["carried_by"] = p.carried_by;
+    if (p.keep_rest_depth) j["keep_rest_depth"] = true;
+    out["push_to_surfaces"].push_back(std::move(j));
   }
 }
 

@@ -27,6 +27,12 @@ constexpr double kJointReach = 0.15;     // iod: an eye joint this close to the 
 // wrong: no sculptor then.
 constexpr double kMinEyeRadius = 0.5;
 constexpr double kSculptorShare = 0.97;  // of the lid margins' distance: the lids' thickness off the eyeball
+constexpr double kSculptorReach = 1.6;   // of the lid margins' distance: the sculptors' members around the eye
+// The cornea, in eyeball radii: a sphere this far in front of the eye's
+// centre, of this radius (its apex 1.1 radii out; human and ICT eyes both
+// bulge ~10% past the sclera).
+constexpr double kCorneaOffset = 0.6;
+constexpr double kCorneaRadius = 0.5;
 
 struct EyeGeometry {
   Eigen::Vector3d centre_frame;  // the lid opening's centre, frame coordinates
@@ -135,8 +141,9 @@ void addEyes(ComponentsDocument& doc, const Mesh& face, const FaceFrame& f, cons
     // lids turn about the eye's centre, so only the cornea's bulge is in
     // the way); here the lids slide, so the sphere is the eyeball the lid
     // margins rest on (their four landmarks' distance from the centre).
-    // Its deformation set: the lid vertices outside it at rest (rest =
-    // identity; the corners, nearer the centre, are left alone).
+    // Its deformation set: the face around the eye (lids and corners), each
+    // vertex kept no deeper than it sits at rest (rest = identity; the ICT
+    // lids' inner sheet rests inside the eyeball).
     const std::string eye = s > 0 ? "eye_left_" : "eye_right_";
     double margin = 0.0;
     for (const char* k : {"1", "2", "4", "5"}) margin += 0.25 * (f.at(eye + k) - centre).norm();
@@ -148,10 +155,35 @@ void addEyes(ComponentsDocument& doc, const Mesh& face, const FaceFrame& f, cons
     sculptor.surface.radius = sphere;
     sculptor.direction = PushDirection::kFromPoint;
     sculptor.from = Binding::atPosition(centre);
-    for (const ClusterMember& m : lids) {
-      if ((face.positions.row(m.vertex).transpose() - centre).norm() > sphere) sculptor.members.push_back(m.vertex);
+    sculptor.keep_rest_depth = true;
+    for (Eigen::Index v = 0; v < face.positions.rows(); ++v) {  // lids, corners and all around: rest depth kept
+      if ((face.positions.row(v).transpose() - centre).norm() < kSculptorReach * margin) sculptor.members.push_back(static_cast<int>(v));
     }
     if (!sculptor.members.empty() && sphere > kMinEyeRadius * radius) doc.push_to_surfaces.push_back(sculptor);
+
+    // Cornea sculptor: the cornea's bulge turns with the eye, under the
+    // lids and corners; a sphere on it carried by the gaze cluster (whose
+    // transform is the eye's full turn) pushes the lid vertices it reaches
+    // back out along rays from its centre. Deformation set: the
+    // eyeball sculptor's.
+    if (gaze.members.empty() || sphere <= kMinEyeRadius * radius) continue;
+    // The eye looks out through its lid opening at rest: the cornea lies on
+    // the line from the centre through the opening's centre (the face's
+    // forward when the centre was placed from it; a rig's eye joint may sit
+    // off that line, and the face's forward may tilt by some degrees).
+    const Eigen::Vector3d look = (f.toModel(g.centre_frame) - centre).normalized();
+    const Eigen::Vector3d cornea_centre = centre + kCorneaOffset * margin * look;
+    PushToSurface cornea;
+    cornea.name = "cornea_sculptor" + x;
+    cornea.surface.kind = CollisionShapeKind::kSphere;
+    cornea.surface.center = Binding::atPosition(cornea_centre);
+    cornea.surface.radius = kCorneaRadius * margin;
+    cornea.direction = PushDirection::kFromPoint;
+    cornea.from = Binding::atPosition(cornea_centre);
+    cornea.carried_by = gaze.name;
+    cornea.keep_rest_depth = true;
+    cornea.members = sculptor.members;
+    doc.push_to_surfaces.push_back(cornea);
   }
   // Both aims are children of one gaze locator (the paper's larger control shape).
   doc.locators.push_back({"eyes_aim", Binding::atPosition(aims_mid)});

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include "core/components/pose.h"
+#include "core/io/components_io.h"
 #include "tests/test_support.h"
 
 namespace {
@@ -96,6 +98,64 @@ TEST(PushToSurface, TriangleSurfaceOfMeshVertices) {
   const Eigen::MatrixX3d along = core::evaluatePushToSurface(positions, ico.triangles, p);
   EXPECT_NEAR(along(n, 1), 0.1, 1e-12);
   EXPECT_GT(along(n, 0), 0.98);
+}
+
+TEST(PushToSurface, KeepingRestDepthAMemberInsideAtRestGoesNoDeeper) {
+  // Unit sphere at the origin. (0.5, 0, 0) rests at level 0.5 and, moved in
+  // to (0.2, 0, 0), goes back to 0.5; (2, 0, 0) rests outside and, moved to
+  // (0.3, 0, 0), goes onto the surface.
+  core::PushToSurface p = sphere(1.0);
+  p.surface.center = core::Binding::atPosition(Eigen::Vector3d::Zero());
+  p.keep_rest_depth = true;
+  Eigen::MatrixX3d rest(2, 3), posed(2, 3);
+  rest << 0.5, 0.0, 0.0, 2.0, 0.0, 0.0;
+  posed << 0.2, 0.0, 0.0, 0.3, 0.0, 0.0;
+  const Eigen::VectorXd levels = core::surfaceLevels(rest, Eigen::MatrixX3i(0, 3), p);
+  EXPECT_NEAR(levels(0), 0.5, 1e-12);
+  EXPECT_EQ(levels(1), 1.0);
+  EXPECT_LT((core::evaluatePushToSurface(rest, Eigen::MatrixX3i(0, 3), p, levels) - rest).norm(), 1e-12);  // rest: identity
+  const Eigen::MatrixX3d out = core::evaluatePushToSurface(posed, Eigen::MatrixX3i(0, 3), p, levels);
+  EXPECT_LT((out.row(0) - Eigen::RowVector3d(0.5, 0.0, 0.0)).norm(), 1e-12);
+  EXPECT_LT((out.row(1) - Eigen::RowVector3d(1.0, 0.0, 0.0)).norm(), 1e-12);
+}
+
+TEST(PushToSurface, CarriedByAClusterTheSurfaceAndItsRaysMoveWithIt) {
+  // The cluster "eye" moves 1 along +X at turn = 1, carrying the unit
+  // sphere and its rays' start from the origin to (1, 0, 0): vertex 1 at
+  // (1.5, 0, 0), outside at rest, is then inside and leaves along the ray
+  // from (1, 0, 0) at (2, 0, 0). Vertex 0 is the cluster's member only.
+  auto doc = core::parseComponents(R"({"format": "rigport.components", "version": 1,
+      "clusters": [{"name": "eye", "pivot": {"position": [0, 0, 0]}, "members": [{"vertex": 0}]}],
+      "push_to_surfaces": [{"name": "cornea", "surface": {"sphere": {"center": {"position": [0, 0, 0]}, "radius": 1}},
+                            "direction": {"from": {"position": [0, 0, 0]}}, "members": [1], "carried_by": "eye",
+                            "keep_rest_depth": true}],
+      "controls": [{"name": "turn", "drives": [{"cluster": "eye", "channel": "translate_x", "gain": 1}]}]})",
+                                   "eye.json");
+  ASSERT_TRUE(doc) << doc.error().message;
+  Eigen::MatrixX3d rest(2, 3);
+  rest << 0.0, 3.0, 0.0, 1.5, 0.0, 0.0;
+  auto at_rest = core::evaluatePose(rest, Eigen::MatrixX3i(0, 3), *doc, {});
+  ASSERT_TRUE(at_rest) << at_rest.error().message;
+  EXPECT_LT((at_rest->positions - rest).norm(), 1e-12);
+  auto turned = core::evaluatePose(rest, Eigen::MatrixX3i(0, 3), *doc, {{"turn", 1.0}});
+  ASSERT_TRUE(turned) << turned.error().message;
+  EXPECT_LT((turned->positions.row(1) - Eigen::RowVector3d(2.0, 0.0, 0.0)).norm(), 1e-12);
+  EXPECT_LT((turned->positions.row(0) - Eigen::RowVector3d(1.0, 3.0, 0.0)).norm(), 1e-12);
+
+  // A cluster the document lacks, and a triangle surface carried, are named.
+  core::ComponentsDocument bad = *doc;
+  bad.push_to_surfaces[0].carried_by = "eey";
+  auto unknown = core::validate(bad, 2);
+  ASSERT_FALSE(unknown);
+  EXPECT_NE(unknown.error().message.find("carried_by: unknown cluster \"eey\" (did you mean \"eye\"?)"), std::string::npos)
+      << unknown.error().message;
+  bad = *doc;
+  bad.push_to_surfaces[0].surface.kind = core::CollisionShapeKind::kTriangles;
+  bad.push_to_surfaces[0].surface.triangles = {Eigen::Vector3i(0, 1, 0)};
+  auto triangles = core::validate(bad, 2);
+  ASSERT_FALSE(triangles);
+  EXPECT_NE(triangles.error().message.find("keep_rest_depth: only a sphere or ellipsoid"), std::string::npos)
+      << triangles.error().message;
 }
 
 }  // namespace
