@@ -48,11 +48,10 @@ Result<BakedPreset> bakePreset(const Rig& rig, const ComponentsDocument& doc, co
 
 // A weight channel of the mesh at `node` gets a zero column for an appended target.
 void widenWeightChannels(Rig& rig, int node) {
-  constexpr Eigen::Index added = 1;
   for (Animation& animation : rig.animations) {
     for (AnimationChannel& channel : animation.channels) {
       if (channel.path != AnimationPath::kWeights || channel.node != node) continue;
-      Eigen::MatrixXd widened = Eigen::MatrixXd::Zero(channel.values.rows(), channel.values.cols() + added);
+      Eigen::MatrixXd widened = Eigen::MatrixXd::Zero(channel.values.rows(), channel.values.cols() + 1);
       widened.leftCols(channel.values.cols()) = channel.values;
       channel.values = std::move(widened);
     }

@@ -356,12 +356,15 @@ PartRides preparePartRides(const Rig& rig) {
       const int piece = pieces.vertex_piece[v];
       if (piece < 0 || !attached[static_cast<std::size_t>(piece)]) continue;
       const auto row = static_cast<Eigen::Index>(v);
-      const auto near = anchor_index.nearest(Eigen::Vector3d(part.mesh.positions.row(row).transpose()), kPartAnchors);
+      const std::size_t first = entries.size();
       double total = 0.0;
-      for (const auto& n : near) total += 1.0 / (std::sqrt(n.sq_distance) + 1e-6 * reach);
-      for (const auto& n : near) {
+      for (const auto& n : anchor_index.nearest(Eigen::Vector3d(part.mesh.positions.row(row).transpose()), kPartAnchors)) {
         const double w = 1.0 / (std::sqrt(n.sq_distance) + 1e-6 * reach);
-        entries.emplace_back(static_cast<int>(v), anchors[static_cast<std::size_t>(n.index)], w / total);
+        entries.emplace_back(static_cast<int>(v), anchors[static_cast<std::size_t>(n.index)], w);
+        total += w;
+      }
+      for (std::size_t e = first; e < entries.size(); ++e) {
+        entries[e] = Eigen::Triplet<double>(entries[e].row(), entries[e].col(), entries[e].value() / total);
       }
     }
     rides.parts[p].resize(part.mesh.positions.rows(), rest_face.rows());
@@ -397,21 +400,22 @@ Result<ComponentsMotion> applyComponents(const Rig& rig, const ComponentsDocumen
   if (auto ok = validateComponents(doc, labels.components, counts); !ok) return ok.error();
   auto controls = specControlValues(doc, spec);
   if (!controls) return makeError(controls.error().code, labels.components + ": " + controls.error().message);
+  // Joints the document names (aimed, carried) must be the rig's.
   const std::map<std::string, int> nodes = nodeIndexByName(rig.nodes);
+  auto missingJoint = [&](const std::string& where, const std::string& joint) {
+    return makeError(ErrorCode::kInvalidArgument, labels.components + ": " + where + "the rig has no joint \"" + joint +
+                                                      "\"" + didYouMean(joint, keysOf(nodes)));
+  };
   for (std::size_t i = 0; i < doc.aim_constraints.size(); ++i) {
     const AimConstraint& c = doc.aim_constraints[i];
     if (c.joint && !nodes.count(c.constrained)) {
-      return makeError(ErrorCode::kInvalidArgument, labels.components + ": aim_constraints[" + std::to_string(i) + "] \"" +
-                                                        c.name + "\": the rig has no joint \"" + c.constrained + "\"" +
-                                                        didYouMean(c.constrained, keysOf(nodes)));
+      return missingJoint("aim_constraints[" + std::to_string(i) + "] \"" + c.name + "\": ", c.constrained);
     }
   }
   for (std::size_t i = 0; i < doc.clusters.size(); ++i) {
     const Cluster& c = doc.clusters[i];
     if (!c.joint.empty() && !nodes.count(c.joint)) {
-      return makeError(ErrorCode::kInvalidArgument, labels.components + ": clusters[" + std::to_string(i) + "] \"" +
-                                                        c.name + "\": joint: the rig has no joint \"" + c.joint + "\"" +
-                                                        didYouMean(c.joint, keysOf(nodes)));
+      return missingJoint("clusters[" + std::to_string(i) + "] \"" + c.name + "\": joint: ", c.joint);
     }
   }
   PoseOptions options = jointPositionOptions(rig.nodes, rotatedNodes(rig.nodes, spec.joint_rotations));
