@@ -73,7 +73,6 @@ struct SharedRun {
   nlohmann::json spec;
   std::map<std::string, std::filesystem::path> files;
   Clock::time_point deadline;
-  std::atomic<int> next_job{0};
   std::atomic<int> done{0}, ok{0}, bad{0};
   std::mutex log_mutex;
   int problems_logged = 0;  // the first few problems are logged in full
@@ -84,7 +83,9 @@ void logProblem(SharedRun& run, const std::string& what, const api::Problem& pro
   if (run.problems_logged++ < 5) spdlog::warn("bench: {}: {}", what, describeProblem(problem));
 }
 
-void runWorker(SharedRun& run, WorkerTally& tally, const std::string& server) {
+// Each client runs its own share of the jobs (not a shared counter), so the
+// jobs spread over several services as the clients do, whichever is faster.
+void runWorker(SharedRun& run, WorkerTally& tally, const std::string& server, int jobs) {
   RemoteOptions options;
   options.server_url = server;
   options.api_key = run.args->api_key;
@@ -96,9 +97,8 @@ void runWorker(SharedRun& run, WorkerTally& tally, const std::string& server) {
   };
   RemoteClient client(options);
   const auto poll = std::chrono::milliseconds(std::max(1, run.args->poll_ms));
-  for (;;) {
+  for (int job = 0; job < jobs; ++job) {
     if (Clock::now() >= run.deadline) return;
-    if (run.next_job.fetch_add(1) >= run.args->jobs) return;
     const auto t0 = Clock::now();
     bool succeeded = false;
     bool timed_out = false;
@@ -206,8 +206,9 @@ int runBench(const BenchArgs& args) {
   std::vector<std::thread> threads;
   threads.reserve(tallies.size());
   for (std::size_t i = 0; i < tallies.size(); ++i) {
-    threads.emplace_back([&run, &tally = tallies[i], &server = servers[i % servers.size()]] {
-      runWorker(run, tally, server);
+    const int share = args.jobs / args.concurrency + (static_cast<int>(i) < args.jobs % args.concurrency ? 1 : 0);
+    threads.emplace_back([&run, &tally = tallies[i], &server = servers[i % servers.size()], share] {
+      runWorker(run, tally, server, share);
     });
   }
 

@@ -448,7 +448,7 @@ RemoteCommands::RemoteCommands(CLI::App& app, CLI::App& transfer, CLI::App& fit)
   BenchArgs& b = s.bench_args;
   s.bench = app.add_subcommand("bench", "Load the service: C client threads run N transfer jobs; JSON summary last on stdout");
   addConnectionOptions(s.bench, s.connections[s.bench], true);
-  s.bench->add_option("--concurrency", b.concurrency, "Client threads")->check(CLI::Range(1, 1024))->capture_default_str();
+  s.bench->add_option("--concurrency", b.concurrency, "Client threads; the jobs are split evenly among them, the threads round-robin over the --server URLs")->check(CLI::Range(1, 1024))->capture_default_str();
   s.bench->add_option("--jobs", b.jobs, "Jobs in total")->check(CLI::Range(1, 1'000'000))->capture_default_str();
   s.bench->add_option("--source", b.source, "Source rig (GLB)")->required()->check(CLI::ExistingFile);
   s.bench->add_option("--source-landmarks", b.source_landmarks, "Source landmarks JSON")->required()->check(CLI::ExistingFile);
