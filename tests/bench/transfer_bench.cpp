@@ -15,6 +15,7 @@
 #include "core/geometry/mesh.h"
 #include "core/io/mesh_io.h"
 #include "core/io/rig_io.h"
+#include "core/muscle_rig/muscle_rig.h"
 #include "core/synthetic/synthetic_rig.h"
 #include "core/transfer/transfer.h"
 #include "tests/test_support.h"
@@ -104,6 +105,37 @@ void BM_TransferPrepared(benchmark::State& state) {
   state.SetLabel(c.name + ", " + std::to_string(state.range(0)) + " thread(s)");
 }
 BENCHMARK(BM_TransferPrepared)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
+
+// The same transfer with the reference muscle rig's components document
+// (core/muscle_rig, built on the source face) carried to the target: what the
+// components add to a rig transfer (docs/COMPONENTS.md), on one thread.
+// Compare with BM_TransferPrepared/1 of the same run; components_ms is the
+// report's own time for that step.
+void BM_TransferWithMuscleRigComponents(benchmark::State& state) {
+  static const core::PreparedRig prepared = [] {
+    const Case& c = benchCase();
+    const core::ScopedThreadCount prepare_threads(1);
+    core::PreparedRig out = std::move(*core::prepareRig(c.rig, c.landmarks, "source"));
+    if (auto muscle_rig = core::buildMuscleRig(c.rig.mesh, c.landmarks)) out.components = std::move(muscle_rig->components);
+    return out;
+  }();
+  const Case& c = benchCase();
+  core::TransferOptions options;
+  const core::ScopedThreadCount options_threads(1);
+  double components = 0;
+  for (auto _ : state) {
+    auto r = core::transferRig(prepared, c.target, c.target_landmarks, "target", options);
+    if (!r || !r->components) {
+      state.SkipWithError(r ? "no components document (the muscle rig could not be built on the source)"
+                            : r.error().message.c_str());
+      return;
+    }
+    components += r->report.components_ms;
+  }
+  state.counters["components_ms"] = components / static_cast<double>(state.iterations());
+  state.SetLabel(c.name + ", muscle rig components, 1 thread");
+}
+BENCHMARK(BM_TransferWithMuscleRigComponents)->Unit(benchmark::kMillisecond);
 
 // Each triangle split into four at its edge midpoints (shared midpoints
 // merged): the surface is unchanged, the vertex count roughly quadruples.
