@@ -392,7 +392,24 @@ std::vector<Eigen::MatrixX3d> partRides(const PartRides& rides, const Eigen::Mat
 struct ComponentsMotion {
   Eigen::MatrixX3d face;
   std::vector<Eigen::MatrixX3d> part_rides;
+  // Per part, its vertices that ride (1), when clusters carry joints: they
+  // follow the face's components motion, so, like the face, they are skinned
+  // without the carried joints' motion (empty: none ride, or nothing carried).
+  std::vector<std::vector<char>> riding;
 };
+
+std::vector<std::vector<char>> ridingVertices(const PartRides& rides) {
+  std::vector<std::vector<char>> out(rides.parts.size());
+  for (std::size_t p = 0; p < rides.parts.size(); ++p) {
+    const auto& ride = rides.parts[p];
+    if (ride.rows() == 0) continue;
+    out[p].assign(static_cast<std::size_t>(ride.rows()), 0);
+    for (Eigen::Index v = 0; v < ride.outerSize(); ++v) {
+      out[p][static_cast<std::size_t>(v)] = Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator(ride, v) ? 1 : 0;
+    }
+  }
+  return out;
+}
 
 Result<ComponentsMotion> applyComponents(const Rig& rig, const ComponentsDocument& doc, const PoseSpec& spec,
                                          const PoseLabels& labels, const PartRides* rides, PoseReport& report) {
@@ -429,14 +446,28 @@ Result<ComponentsMotion> applyComponents(const Rig& rig, const ComponentsDocumen
   report.control_values = pose->control_values;
   report.clamped_controls = pose->clamped_controls;
   ComponentsMotion motion;
+  motion.part_rides.resize(rig.parts.size());
   const Eigen::MatrixX3d displacement = pose->positions - rig.mesh.positions;
-  if (!rig.parts.empty() && !displacement.isZero(0.0)) {
-    motion.part_rides = rides ? partRides(*rides, displacement) : partRides(preparePartRides(rig), displacement);
-  } else {
-    motion.part_rides.resize(rig.parts.size());
+  const bool moved = !displacement.isZero(0.0), carried = !report.carried_joints.empty();
+  if (!rig.parts.empty() && (moved || carried)) {
+    std::optional<PartRides> prepared;
+    if (!rides) prepared = preparePartRides(rig);
+    const PartRides& part_rides = rides ? *rides : *prepared;
+    if (moved) motion.part_rides = partRides(part_rides, displacement);
+    if (carried) motion.riding = ridingVertices(part_rides);
   }
   motion.face = std::move(pose->positions);
   return motion;
+}
+
+// A part posed with the joints clusters carry (`carried`), its riding
+// vertices' rows taken from `with_face` (posed as the face is), so that a
+// vertex on the skin (stubble skinned to a carried jaw) moves once.
+Eigen::MatrixX3d rideOnce(Eigen::MatrixX3d carried, const Eigen::MatrixX3d& with_face, const std::vector<char>& riding) {
+  for (std::size_t v = 0; v < riding.size(); ++v) {
+    if (riding[v]) carried.row(static_cast<Eigen::Index>(v)) = with_face.row(static_cast<Eigen::Index>(v));
+  }
+  return carried;
 }
 
 // What poseRig and poseAtRest share: the components (when given) and the
@@ -465,6 +496,14 @@ Result<PoseAmounts> poseAmounts(const Rig& rig, const ComponentsDocument* compon
   amounts.face_nodes = aimedNodes(rig.nodes, rotatedNodes(rig.nodes, report.joint_rotations), report.joint_aims);
   amounts.part_nodes = carriedNodes(rig.nodes, amounts.face_nodes, report.carried_joints);
   return amounts;
+}
+
+// Part p's riding vertices when some ride and clusters carry joints, else null.
+const std::vector<char>* ridingOf(const PoseAmounts& amounts, std::size_t p) {
+  if (!amounts.components || amounts.components->riding.size() <= p || amounts.components->riding[p].empty()) {
+    return nullptr;
+  }
+  return &amounts.components->riding[p];
 }
 
 // #targets weights: the defaults, with the targets named in `named` set.
@@ -561,9 +600,9 @@ Result<PosedRig> poseRig(Rig rig, const ComponentsDocument* components, const Po
   const std::vector<Node>& posed_nodes = amounts->part_nodes;
   const std::vector<Eigen::Matrix4d> rest_world = nodeWorldTransforms(rig.nodes);
   const std::vector<Eigen::Matrix4d> posed_world = nodeWorldTransforms(posed_nodes);
+  const std::vector<Eigen::Matrix4d> face_world = nodeWorldTransforms(face_nodes);
   Rig& posed = out.rig;
-  posed.mesh = staticMesh(rig.mesh, posedMeshPositions(rig, face_nodes, report.morph_weights, rest_world,
-                                                       nodeWorldTransforms(face_nodes)));
+  posed.mesh = staticMesh(rig.mesh, posedMeshPositions(rig, face_nodes, report.morph_weights, rest_world, face_world));
   posed.mesh_name = rig.mesh_name;
   posed.nodes = posed_nodes;
   posed.mesh_node = rig.mesh_node;
@@ -571,12 +610,18 @@ Result<PosedRig> poseRig(Rig rig, const ComponentsDocument* components, const Po
   posed.materials = std::move(rig.materials);
   posed.images = std::move(rig.images);
   posed.triangle_materials = std::move(rig.triangle_materials);
-  for (const RigPart& part : rig.parts) {
+  for (std::size_t p = 0; p < rig.parts.size(); ++p) {
+    const RigPart& part = rig.parts[p];
+    const Rig part_rig = partAsRig(rig, part);
+    Eigen::MatrixX3d positions = posedMeshPositions(part_rig, posed_nodes, report.morph_weights, rest_world, posed_world);
+    if (const std::vector<char>* riding = ridingOf(*amounts, p)) {
+      positions = rideOnce(std::move(positions),
+                           posedMeshPositions(part_rig, face_nodes, report.morph_weights, rest_world, face_world), *riding);
+    }
     RigPart static_part;
     static_part.name = part.name;
     static_part.node = part.node;
-    static_part.mesh = staticMesh(part.mesh, posedMeshPositions(partAsRig(rig, part), posed_nodes,
-                                                                report.morph_weights, rest_world, posed_world));
+    static_part.mesh = staticMesh(part.mesh, std::move(positions));
     static_part.attributes = part.attributes;
     static_part.triangle_materials = part.triangle_materials;
     posed.parts.push_back(std::move(static_part));
@@ -598,7 +643,14 @@ Result<RestSpacePose> poseAtRest(const Rig& rig, const ComponentsDocument* compo
     Eigen::MatrixX3d positions = part.mesh.positions;
     if (amounts->components && amounts->components->part_rides[p].rows() > 0) positions += amounts->components->part_rides[p];
     const MeshOfRig mesh{rig.skin, part.weights, part.morph_targets, part.node};
-    out.parts.push_back(heldAtRest(mesh, std::move(positions), out.report, rig.baked_presets, rig.nodes, amounts->part_nodes));
+    const std::vector<char>* riding = ridingOf(*amounts, p);
+    Eigen::MatrixX3d held = heldAtRest(mesh, positions, out.report, rig.baked_presets, rig.nodes, amounts->part_nodes);
+    if (riding) {
+      held = rideOnce(std::move(held),
+                      heldAtRest(mesh, std::move(positions), out.report, rig.baked_presets, rig.nodes, amounts->face_nodes),
+                      *riding);
+    }
+    out.parts.push_back(std::move(held));
   }
   return out;
 }

@@ -78,7 +78,9 @@ struct PosedRig {
 // nullptr when the rig has none (then the spec may hold no preset or
 // controls). Morph weights name the face's or a part's targets; each mesh's
 // targets of that name take the weight (the others keep their defaults).
-// An unskinned mesh follows its node, as in glTF. Errors: unknown names
+// An unskinned mesh follows its node, as in glTF. A part's vertices that
+// ride on the face's components (PartRides) move with the face, not again
+// with a joint a cluster carries (as the face). Errors: unknown names
 // ("did you mean"), a document that does not fit the face, what evaluatePose
 // refuses.
 Result<PosedRig> poseRig(Rig rig, const ComponentsDocument* components, const PoseSpec& spec,
@@ -89,8 +91,9 @@ Result<PosedRig> poseRig(Rig rig, const ComponentsDocument* components, const Po
 // (bakePresets). Per mesh: rest + the components' motion (the face, a part's
 // ride on it) + the named morph weights times their deltas (a baked
 // preset's own target left out) + the skeleton's motion held by
-// holdSkeletonPose (the face at the rotations and aims; the parts at the
-// joints clusters carry as well); an unskinned mesh takes its node's motion.
+// holdSkeletonPose (the face and the parts' riding vertices at the rotations
+// and aims; the rest of the parts at the joints clusters carry as well); an
+// unskinned mesh takes its node's motion.
 // Errors: as poseRig's.
 // How the rig's open parts ride on its face's components motion (poseRig):
 // per part a #V(part) by #V(face) matrix, rows summing to 1 (0 rows: the

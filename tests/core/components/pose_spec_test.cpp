@@ -4,6 +4,7 @@
 // output is static, and unknown names are refused with "did you mean".
 #include "core/components/pose_spec.h"
 
+#include <array>
 #include <cmath>
 
 #include <gtest/gtest.h>
@@ -218,18 +219,23 @@ TEST(PoseRig, PresetMovesTheClusterAndDrivesItsMorphWeight) {
   EXPECT_DOUBLE_EQ(posed->report.morph_weights.at("jawOpen"), 0.5);
 }
 
+// A part of one triangle (corners x, y, z row by row) on `node`, unskinned.
+core::RigPart trianglePart(const std::string& name, int node, const std::array<double, 9>& corners) {
+  core::RigPart part;
+  part.name = name;
+  part.node = node;
+  part.mesh.positions = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(corners.data());
+  part.mesh.triangles.resize(1, 3);
+  part.mesh.triangles << 0, 1, 2;
+  return part;
+}
+
 TEST(PoseRig, AnOpenPartTouchingTheFaceRidesOnItsComponentsASolidOneDoesNot) {
   // A lash-like triangle hanging on face vertex 1 (which the preset raises
   // by 0.5), a closed tetrahedron touching the same vertex, and an open
   // sheet touching it but reaching far from the face (as gums in a mouth).
   core::Rig rig = quadRig();
-  core::RigPart lash;
-  lash.name = "lash";
-  lash.node = 0;
-  lash.mesh.positions.resize(3, 3);
-  lash.mesh.positions << 1.0, 0.0, 0.001, 1.02, 0.0, 0.02, 1.0, 0.03, 0.02;
-  lash.mesh.triangles.resize(1, 3);
-  lash.mesh.triangles << 0, 1, 2;
+  core::RigPart lash = trianglePart("lash", 0, {1.0, 0.0, 0.001, 1.02, 0.0, 0.02, 1.0, 0.03, 0.02});
   core::RigPart ball = lash;
   ball.name = "ball";
   ball.mesh.positions.resize(4, 3);
@@ -310,6 +316,37 @@ TEST(PoseRig, AJointCarriedByAClusterMovesWhatItCarriesAndTheFaceOnce) {
   const Eigen::MatrixX3d& tooth = posed->rig.parts[0].mesh.positions;
   EXPECT_LT((tooth.row(0) - Eigen::RowVector3d(0.0, 0.9, 0.0)).norm(), 1e-12);
   EXPECT_LT((tooth.row(2) - Eigen::RowVector3d(0.0, 0.9, 0.5)).norm(), 1e-12);
+
+  // Stubble on the chin around vertex 2, on the jaw's node or skinned to the jaw, rides on the face's
+  // motion there, (0, -1, 1), and is not turned again by the carried jaw.
+  core::Rig stubbly = quadRig();
+  const core::RigPart on_node = trianglePart("stubble_on_node", 1, {1.0, 2.0, 0.001, 0.99, 2.0, 0.002, 1.0, 1.99, 0.002});
+  core::RigPart skinned = on_node;
+  skinned.name = "stubble_skinned";
+  skinned.weights.resize(3, 2);
+  for (int v = 0; v < 3; ++v) skinned.weights.insert(v, 1) = 1.0;
+  skinned.weights.makeCompressed();
+  stubbly.parts.push_back(on_node);
+  stubbly.parts.push_back(skinned);
+  auto stubble = core::poseRig(stubbly, &*doc, spec(R"({"preset": "open"})"), kLabels);
+  ASSERT_TRUE(stubble) << stubble.error().message;
+  const Eigen::RowVector3d chin_motion(0.0, -1.0, 1.0);
+  for (std::size_t s = 1; s < 3; ++s) {
+    const Eigen::MatrixX3d motion = stubble->rig.parts[s].mesh.positions - stubbly.parts[s].mesh.positions;
+    for (Eigen::Index v = 0; v < 3; ++v) {
+      EXPECT_LT((motion.row(v) - chin_motion).norm(), 1e-12) << stubbly.parts[s].name << " vertex " << v;
+    }
+  }
+  // ... and so baked (held at the rest skeleton: the ride alone).
+  auto stubbly_report = core::bakePresets(stubbly, *doc);
+  ASSERT_TRUE(stubbly_report) << stubbly_report.error().message;
+  for (std::size_t s = 1; s < 3; ++s) {
+    ASSERT_EQ(stubbly.parts[s].morph_targets.size(), 1u) << stubbly.parts[s].name;
+    const Eigen::MatrixX3d& deltas = stubbly.parts[s].morph_targets[0].position_deltas;
+    for (Eigen::Index v = 0; v < 3; ++v) {
+      EXPECT_LT((deltas.row(v) - chin_motion).norm(), 1e-12) << stubbly.parts[s].name << " vertex " << v;
+    }
+  }
 
   // Baked: the face's target holds the cluster's motion, the tooth gets a target of its own.
   core::Rig baked = quadRig();
