@@ -44,8 +44,9 @@ class ApiKeys {
 // Failed authentications per client address: past `max_per_minute` in the
 // last minute, the address is refused (429 auth-throttled, every request that
 // needs a key) until a minute after its last counted failure, so keys cannot
-// be guessed at speed. 0 turns it off. Behind a proxy every client has the
-// proxy's address: raise it or turn it off there.
+// be guessed at speed. 0 turns it off. Behind a load balancer the client is
+// the one its X-Forwarded-For names when it is a trusted proxy
+// (server/client_address.h); otherwise every client has its address.
 class AuthFailureLimit {
  public:
   explicit AuthFailureLimit(int max_per_minute) : max_per_minute_(max_per_minute) {}

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace server {
 
@@ -57,6 +58,10 @@ struct ServerConfig {
   int max_uploads_per_tenant = 8;              // ... of one tenant (a busy pipeline overlaps its uploads)
   int max_uploads_per_client = 10;             // ... from one client address
   int max_auth_failures_per_minute = 120;      // per client address, then 429 for a minute (0 = no limit)
+  // Load balancers whose X-Forwarded-For names the client (addresses or CIDR
+  // blocks; server/client_address.h): the per-client limits and the access
+  // log then see the client behind them.
+  std::vector<std::string> trusted_proxies;
   int max_concurrent_waits = 8;                // long-polls (GET /v1/jobs/{id}?wait_ms) waiting at once
   int queue_capacity = 256;                    // queued jobs; beyond -> 429
   int retry_after_s = 1;                       // Retry-After of a 429

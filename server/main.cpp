@@ -39,6 +39,10 @@ int main(int argc, char** argv) {
   app.add_option("--max-auth-failures-per-minute", config.max_auth_failures_per_minute,
                  "Failed authentications a client address may make per minute before it is refused for a minute (0 = no limit)")
       ->check(CLI::NonNegativeNumber)->capture_default_str();
+  app.add_option("--trusted-proxy", config.trusted_proxies,
+                 "A load balancer (address or CIDR block) whose X-Forwarded-For names the client address for the "
+                 "per-client limits and the log; repeat it or separate by commas")
+      ->delimiter(',');
   app.add_option("--max-uploads-per-tenant", config.max_uploads_per_tenant, "Uploads one tenant may send at once")
       ->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--max-uploads-per-client", config.max_uploads_per_client, "Uploads one client address may send at once")

@@ -47,6 +47,7 @@ struct RequestLogContext {
   std::chrono::steady_clock::time_point start;
   std::string request_id;
   std::string tenant;
+  std::string client;  // the client's address (behind a trusted proxy, the one it names)
 };
 thread_local RequestLogContext t_request;
 
@@ -54,7 +55,7 @@ thread_local RequestLogContext t_request;
 // often, 429) problem sent.
 std::optional<std::string> authenticate(const Request& req, Response& res, const RouteContext& ctx) {
   if (ctx.keys.enabled()) {
-    if (const int wait_s = ctx.auth_failures.blockedFor(req.remote_addr); wait_s > 0) {
+    if (const int wait_s = ctx.auth_failures.blockedFor(t_request.client); wait_s > 0) {
       res.set_header("Retry-After", std::to_string(wait_s));
       sendProblem(res, api::makeProblem(api::WireError::kAuthThrottled,
                                         "too many failed authentications from this address; retry in " +
@@ -65,9 +66,9 @@ std::optional<std::string> authenticate(const Request& req, Response& res, const
   }
   auto tenant = ctx.keys.tenantFor(req.get_header_value("Authorization"));
   if (!tenant) {
-    const bool blocks = ctx.auth_failures.recordFailure(req.remote_addr);
+    const bool blocks = ctx.auth_failures.recordFailure(t_request.client);
     ctx.log.warn(blocks ? "auth_blocked" : "auth_failed",
-                 {{"client", req.remote_addr}, {"method", req.method}, {"path", req.path},
+                 {{"client", t_request.client}, {"method", req.method}, {"path", req.path},
                   {"reason", req.has_header("Authorization") ? "unknown key" : "no key"}});
     res.set_header("WWW-Authenticate", "Bearer");
     sendProblem(res,
@@ -176,7 +177,7 @@ std::optional<ReceivedUpload> receiveUpload(const Request& req, Response& res, c
                                             RouteContext& ctx) {
   auto tenant = authenticate(req, res, ctx);
   if (!tenant || !storageWritable(req, res, ctx)) return std::nullopt;
-  auto slot = ctx.uploads.acquire(*tenant, req.remote_addr);
+  auto slot = ctx.uploads.acquire(*tenant, t_request.client);
   if (!slot) {
     res.set_header("Connection", "close");  // the body is left unread
     sendProblem(res, api::makeProblem(api::WireError::kTooManyUploads, slot.error() + "; retry later", req.path), ctx);
@@ -576,7 +577,7 @@ void registerRoutes(httplib::Server& http, RouteContext& ctx) {
     ctx.log.error("unhandled_exception", {{"path", req.path}, {"detail", what}});
     sendProblem(res, api::makeProblem(api::WireError::kInternal, "internal error while serving " + req.path, req.path), ctx);
   });
-  http.set_pre_routing_handler([](const Request& req, Response& res) {
+  http.set_pre_routing_handler([&ctx](const Request& req, Response& res) {
     // A proxy's request id is kept (so its log and ours match) when it is a
     // plain token; otherwise the service makes one.
     std::string id = req.get_header_value("X-Request-Id");
@@ -584,7 +585,11 @@ void registerRoutes(httplib::Server& http, RouteContext& ctx) {
       return std::isalnum(c) || c == '-' || c == '_' || c == '.';
     });
     if (!plain) id = secureRandomHex(8).value_or("");
-    t_request = {std::chrono::steady_clock::now(), std::move(id), ""};
+    std::string forwarded_for;
+    for (std::size_t i = 0; i < req.get_header_value_count("X-Forwarded-For"); ++i) {
+      forwarded_for += (i > 0 ? "," : "") + req.get_header_value("X-Forwarded-For", i);
+    }
+    t_request = {std::chrono::steady_clock::now(), std::move(id), "", ctx.proxies.clientOf(req.remote_addr, forwarded_for)};
     res.set_header("X-Request-Id", t_request.request_id);
     return httplib::Server::HandlerResponse::Unhandled;
   });
@@ -596,7 +601,7 @@ void registerRoutes(httplib::Server& http, RouteContext& ctx) {
     ctx.metrics.countRequest(req.method, route, res.status);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_request.start).count();
     const nlohmann::json line = {{"request_id", t_request.request_id}, {"method", req.method}, {"route", route},
-                                 {"status", res.status}, {"tenant", t_request.tenant}, {"client", req.remote_addr},
+                                 {"status", res.status}, {"tenant", t_request.tenant}, {"client", t_request.client},
                                  {"bytes_in", std::strtoull(req.get_header_value("Content-Length").c_str(), nullptr, 10)}, {"bytes_out", res.body.size()},
                                  {"ms", std::round(ms * 10) / 10}};
     if (res.status >= 500) {

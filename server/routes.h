@@ -11,6 +11,7 @@
 #include "api/http.h"
 
 #include "server/auth.h"
+#include "server/client_address.h"
 #include "server/config.h"
 #include "server/jobs.h"
 #include "server/json_log.h"
@@ -32,6 +33,7 @@ struct RouteContext {
   Metrics& metrics;
   JsonLog log;
   std::atomic<bool>& ready;                 // /readyz, and 503 on /v1 while false
+  const TrustedProxies& proxies;            // whose X-Forwarded-For names the client address
   AuthFailureLimit& auth_failures;          // per client address
   UploadSlots& uploads;                     // per service, tenant and client address
   // Uploads hold it shared from adopting blobs until their row is committed;

@@ -33,6 +33,8 @@ core::Result<std::unique_ptr<Service>> Service::create(const ServerConfig& confi
                                ") must leave " + std::to_string(kReservedHttpThreads) + " of the " +
                                std::to_string(config.http_threads) + " HTTP threads free");
   }
+  auto proxies = TrustedProxies::parse(config.trusted_proxies);
+  if (!proxies) return proxies.error();
   std::shared_ptr<const TlsContext> tls;
   if (config.tls_certificate_file.empty() != config.tls_private_key_file.empty()) {
     return core::makeError(core::ErrorCode::kInvalidArgument,
@@ -46,7 +48,7 @@ core::Result<std::unique_ptr<Service>> Service::create(const ServerConfig& confi
   auto store = MetadataStore::open(config.store.empty() ? (config.data_dir / "rigport.sqlite").string() : config.store);
   if (!store) return store.error();
   return std::unique_ptr<Service>(
-      new Service(config, std::move(keys), std::move(*store), std::move(tls), JsonLog(std::move(logger))));
+      new Service(config, std::move(keys), std::move(*proxies), std::move(*store), std::move(tls), JsonLog(std::move(logger))));
 }
 
 namespace {
@@ -68,10 +70,11 @@ HttpLimits httpLimits(const ServerConfig& config) {
 
 }  // namespace
 
-Service::Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<MetadataStore> store,
+Service::Service(const ServerConfig& config, ApiKeys keys, TrustedProxies proxies, std::unique_ptr<MetadataStore> store,
                  std::shared_ptr<const TlsContext> tls, JsonLog log)
     : config_(config),
       keys_(std::move(keys)),
+      proxies_(std::move(proxies)),
       log_(std::move(log)),
       store_(std::move(store)),
       blobs_(config.blob_dir.empty() ? config.data_dir / "blobs" : config.blob_dir),
@@ -81,7 +84,7 @@ Service::Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<Metad
       retention_(*store_, blobs_, blob_collection_, metrics_, config_, log_),
       auth_failures_(config.max_auth_failures_per_minute),
       uploads_(config.max_concurrent_uploads, config.max_uploads_per_tenant, config.max_uploads_per_client),
-      routes_{config_, keys_, *store_, blobs_, caches_, jobs_, metrics_, log_, ready_, auth_failures_, uploads_, blob_collection_, storage_},
+      routes_{config_, keys_, *store_, blobs_, caches_, jobs_, metrics_, log_, ready_, proxies_, auth_failures_, uploads_, blob_collection_, storage_},
       http_(httpLimits(config), std::move(tls),
             [this](const std::string& event, const std::string& client, const std::string& detail) {
               log_.info(event, {{"client", client}, {"detail", detail}});

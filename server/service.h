@@ -45,11 +45,12 @@ class Service {
   int port() const { return port_; }
 
  private:
-  Service(const ServerConfig& config, ApiKeys keys, std::unique_ptr<MetadataStore> store,
+  Service(const ServerConfig& config, ApiKeys keys, TrustedProxies proxies, std::unique_ptr<MetadataStore> store,
           std::shared_ptr<const TlsContext> tls, JsonLog log);
 
   ServerConfig config_;
   ApiKeys keys_;
+  TrustedProxies proxies_;
   JsonLog log_;
   std::unique_ptr<MetadataStore> store_;
   BlobStore blobs_;

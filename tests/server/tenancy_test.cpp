@@ -187,6 +187,50 @@ TEST(Tenancy, RepeatedFailedAuthenticationsAreThrottled) {
   EXPECT_EQ(get(*alice, "/healthz").status, 200) << "probes need no key and are never refused";
 }
 
+// Behind a trusted load balancer the limit is per client it names in
+// X-Forwarded-For: one guessing client is refused, another through the same
+// balancer is not. From a peer not trusted, the header is ignored: a guesser
+// cannot dodge the limit by naming a new address each time.
+TEST(Tenancy, AuthFailuresAreCountedPerClientBehindATrustedProxy) {
+  const auto dir = makeTempDir("auth_proxy");
+  server::ServerConfig config = testConfig(dir / "data");
+  config.max_auth_failures_per_minute = 3;
+  auto behind = [](InProcessService& service, const std::string& key, const std::string& forwarded_for) {
+    auto client = service.client(key);
+    client->set_default_headers({{"X-Forwarded-For", forwarded_for}});
+    return client;
+  };
+  {
+    config.trusted_proxies = {"10.0.0.0/8", "127.0.0.1"};
+    InProcessService service(config, twoTenants());
+    // The guesser wrote an address of its own to the left of the one the proxies appended.
+    auto guesser = behind(service, "key-guess", "198.51.100.7, 203.0.113.5, 10.1.2.3");
+    for (int i = 0; i < 4; ++i) EXPECT_EQ(get(*guesser, "/v1/rigs").status, 401) << "failure " << i + 1;
+    EXPECT_EQ(get(*guesser, "/v1/rigs").status, 429);
+    EXPECT_EQ(get(*behind(service, "key-alice", "203.0.113.5"), "/v1/rigs").status, 429) << "the guesser's address";
+    EXPECT_EQ(get(*behind(service, "key-alice", "198.51.100.7"), "/v1/rigs").status, 200)
+        << "the address the guesser wrote itself is not the one counted";
+    EXPECT_EQ(get(*behind(service, "key-alice", "203.0.113.6"), "/v1/rigs").status, 200) << "another client";
+  }
+  config.trusted_proxies.clear();
+  InProcessService service(config, twoTenants());
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_EQ(get(*behind(service, "key-guess", "203.0.113." + std::to_string(i)), "/v1/rigs").status, 401) << i;
+  }
+  EXPECT_EQ(get(*behind(service, "key-alice", "203.0.113.9"), "/v1/rigs").status, 429);
+}
+
+// A trusted proxy that is not an address is refused at start, named.
+TEST(Tenancy, AMalformedTrustedProxyIsRefusedAtStart) {
+  const auto dir = makeTempDir("auth_proxy_bad");
+  server::ServerConfig config = testConfig(dir / "data");
+  config.trusted_proxies = {"10.0.0.0/8", "nginx.local"};
+  auto service = server::Service::create(config, twoTenants(), nullptr);
+  ASSERT_FALSE(service.ok());
+  EXPECT_NE(service.error().message.find("--trusted-proxy \"nginx.local\": not an IPv4 or IPv6 address"),
+            std::string::npos) << service.error().message;
+}
+
 // With keys on, /metrics needs one (any tenant's) unless made public.
 TEST(Tenancy, MetricsNeedAKeyUnlessPublic) {
   const auto dir = makeTempDir("metrics_key");
