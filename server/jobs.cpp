@@ -112,37 +112,23 @@ api::Result<std::pair<JobRecord, bool>> JobManager::submit(const JobRecord& job)
   {
     std::lock_guard lock(mutex_);
     if (stopping_) return api::makeProblem(api::WireError::kNotReady, "the service is shutting down", "/v1/jobs");
-    ++reserved_;  // holds a slot while the queue is counted and the row committed
   }
-  const auto releaseSlot = [&] {
-    std::lock_guard lock(mutex_);
-    --reserved_;
-  };
-  const auto unavailable = [&](const std::string& where, const core::Error& error) {
-    releaseSlot();
-    storage_.reportFault(where, error.message);
+  // The capacity is checked by the store, in the transaction that inserts
+  // (every replica's submissions counted).
+  auto admitted = store_.admitJob(job, config_.queue_capacity);
+  if (!admitted) {
+    storage_.reportFault("job_submit", admitted.error().message);
     return api::makeProblem(api::WireError::kStorageUnavailable, "the job could not be stored: the service's storage "
                             "does not take writes now; nothing was accepted, submit it again", "/v1/jobs");
-  };
-  auto queued = store_.queuedJobs();
-  if (!queued) return unavailable("job_submit", queued.error());
-  int reserved = 0;
-  {
-    std::lock_guard lock(mutex_);
-    reserved = reserved_ - 1;
   }
-  if (*queued + reserved >= config_.queue_capacity) {
-    releaseSlot();
+  if (admitted->queue_full) {
     return api::makeProblem(api::WireError::kQueueFull,
                             "the job queue is full (" + std::to_string(config_.queue_capacity) +
                                 " jobs waiting); retry after " + std::to_string(config_.retry_after_s) + " s",
                             "/v1/jobs");
   }
-  auto inserted = store_.insertJob(job);
-  if (!inserted) return unavailable("job_submit", inserted.error());
-  releaseSlot();
-  if (inserted->second) wakeWorkers(1);
-  return std::move(*inserted);
+  if (admitted->inserted) wakeWorkers(1);
+  return std::pair{std::move(admitted->job), admitted->inserted};
 }
 
 api::Result<JobRecord> JobManager::cancel(const std::string& tenant, const std::string& id) {

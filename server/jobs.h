@@ -139,7 +139,6 @@ class JobManager {
   int waiters_ = 0;                                          // requests in waitUntilSettled
   int hints_ = 0;                                            // jobs known queued for idle workers
   int worker_count_ = 0;                                     // set by start()
-  int reserved_ = 0;                                         // submissions between capacity check and commit
   std::map<std::string, std::shared_ptr<Running>> running_;  // by job id
   std::vector<std::pair<std::string, int>> give_back_;       // (id, attempt) to requeue once the store answers
   std::map<std::string, int> storage_faults_;                // storage faults per job since its last finish

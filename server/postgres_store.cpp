@@ -46,6 +46,9 @@ constexpr long long kSchemaLockKey = 0x72696770'6f7274LL;
 constexpr const char* kListenSql = "LISTEN rigport_jobs_queued";
 constexpr const char* kNotifySql = "SELECT pg_notify('rigport_jobs_queued', '')";
 
+// pg_advisory_xact_lock key of job admission against the queue capacity ("rigqueue").
+constexpr long long kQueueAdmissionLockKey = 0x72696771'75657565LL;
+
 // Session advisory lock key of the blob collection ("rigblob").
 constexpr long long kBlobCollectionLockKey = 0x72696762'6c6f62LL;
 
@@ -301,18 +304,32 @@ class PostgresMetadataStore final : public MetadataStore {
     return r->affected() > 0;
   }
 
-  core::Result<std::pair<JobRecord, bool>> insertJob(const JobRecord& job) override {
+  core::Result<JobAdmission> admitJob(const JobRecord& job, std::int64_t queue_capacity) override {
     std::lock_guard lock(mutex_);
     if (job.id.empty()) return makeError(ErrorCode::kInvalidArgument, "job id is empty");
     if (!job.idempotency_key.empty()) {
       auto existing = jobByIdempotencyKey(job.tenant, job.idempotency_key);
       if (!existing) return existing.error();
-      if (*existing) return std::pair{std::move(**existing), false};
+      if (*existing) return JobAdmission{std::move(**existing), false, false};
     }
     JobRecord stored = job;
     if (stored.created_ms == 0) stored.created_ms = nowMs();
     PgTransaction tx(*c_);
     if (auto ok = tx.begin(); !ok) return ok.error();
+    if (queue_capacity > 0) {
+      // Admissions of every replica one at a time until commit: the count
+      // cannot grow between this look and the insert (claims only shrink it).
+      if (auto r = c_->exec("SELECT pg_advisory_xact_lock($1)", {p(kQueueAdmissionLockKey)}, "cannot lock job admission");
+          !r) {
+        return r.error();
+      }
+      auto queued = c_->exec(kQueuedJobsSql, {}, "cannot count queued jobs");
+      if (!queued) return queued.error();
+      if (PgRow{queued->get(), 0}.int64(0) >= queue_capacity) {
+        tx.rollback();
+        return JobAdmission{job, false, true};
+      }
+    }
     auto inserted = c_->exec(
         "INSERT INTO jobs (id, tenant, kind, rig, spec_json, inputs_json, input_names_json, idempotency_key, status, "
         "stage, attempts, cache_hit, error_json, result_blob, diagnostics_blob, timings_json, created_ms, started_ms, "
@@ -331,7 +348,7 @@ class PostgresMetadataStore final : public MetadataStore {
         // Another replica stored the same key between our look-up and insert.
         auto existing = jobByIdempotencyKey(job.tenant, job.idempotency_key);
         if (!existing) return existing.error();
-        if (*existing) return std::pair{std::move(**existing), false};
+        if (*existing) return JobAdmission{std::move(**existing), false, false};
       }
       if (duplicate) {
         return makeError(ErrorCode::kInvalidArgument,
@@ -348,7 +365,7 @@ class PostgresMetadataStore final : public MetadataStore {
     // Delivered at commit, to every replica LISTENing.
     if (auto r = c_->exec(kNotifySql, {}, "cannot announce job " + stored.id); !r) return r.error();
     if (auto ok = tx.commit(); !ok) return ok.error();
-    return std::pair{std::move(stored), true};
+    return JobAdmission{std::move(stored), true, false};
   }
 
   std::optional<JobRecord> getJob(const std::string& tenant, const std::string& id) override {

@@ -177,7 +177,7 @@ class SqliteMetadataStore final : public MetadataStore {
   std::optional<RigRecord> getRig(const std::string& tenant, const std::string& id) override;
   std::vector<RigRecord> listRigs(const std::string& tenant) override;
   bool deleteRig(const std::string& tenant, const std::string& id) override;
-  core::Result<std::pair<JobRecord, bool>> insertJob(const JobRecord& job) override;
+  core::Result<JobAdmission> admitJob(const JobRecord& job, std::int64_t queue_capacity) override;
   std::optional<JobRecord> getJob(const std::string& tenant, const std::string& id) override;
   std::vector<JobRecord> listJobs(const JobListQuery& query) override;
   std::vector<JobRecord> unfinishedJobs() override;
@@ -384,7 +384,7 @@ core::Result<std::optional<JobRecord>> loadJob(SqliteConnection& c, const std::s
 
 }  // namespace
 
-core::Result<std::pair<JobRecord, bool>> SqliteMetadataStore::insertJob(const JobRecord& job) {
+core::Result<JobAdmission> SqliteMetadataStore::admitJob(const JobRecord& job, std::int64_t queue_capacity) {
   std::lock_guard lock(mutex_);
   Connection& c = *connection_;
   if (job.id.empty()) return makeError(ErrorCode::kInvalidArgument, "job id is empty");
@@ -401,8 +401,14 @@ core::Result<std::pair<JobRecord, bool>> SqliteMetadataStore::insertJob(const Jo
     Stmt s(*stmt);
     s.bind(1, job.tenant).bind(2, job.idempotency_key);
     const int rc = s.step();
-    if (rc == SQLITE_ROW) return std::pair{readJob(s), false};
+    if (rc == SQLITE_ROW) return JobAdmission{readJob(s), false, false};
     if (rc != SQLITE_DONE) return c.error("cannot look up idempotency key");
+  }
+  if (queue_capacity > 0) {  // in the write transaction: no other insert in between
+    auto queued = selectRows<std::int64_t>(
+        c, kQueuedJobsSql, [](Stmt&) {}, [](const Stmt& s) { return s.int64(0); }, "cannot count queued jobs");
+    if (!queued) return queued.error();
+    if (!queued->empty() && queued->front() >= queue_capacity) return JobAdmission{job, false, true};
   }
 
   JobRecord stored = job;
@@ -439,7 +445,7 @@ core::Result<std::pair<JobRecord, bool>> SqliteMetadataStore::insertJob(const Jo
     if (s.step() != SQLITE_DONE) return c.error("cannot insert input " + field + " of job " + stored.id);
   }
   if (auto st = tx.commit(); !st) return st.error();
-  return std::pair{std::move(stored), true};
+  return JobAdmission{std::move(stored), true, false};
 }
 
 std::optional<JobRecord> SqliteMetadataStore::getJob(const std::string& tenant, const std::string& id) {

@@ -108,6 +108,13 @@ struct LeaseRenewal {
 };
 enum class LeaseState { kHeld, kCancelRequested, kLost };
 
+// What admitJob did with a job.
+struct JobAdmission {
+  JobRecord job;            // as stored, or the job its idempotency key already names
+  bool inserted = false;    // false: that existing job, or the queue was full
+  bool queue_full = false;  // refused: nothing stored
+};
+
 struct JobListQuery {
   std::string tenant;
   std::optional<api::JobStatus> status;
@@ -156,10 +163,20 @@ class MetadataStore {
   virtual bool deleteRig(const std::string& tenant, const std::string& id) = 0;  // false when absent
 
   // Inserts a queued job. When idempotency_key is set and (tenant, key) exists,
-  // returns that job and false instead.
+  // returns that job, not inserted, instead. With queue_capacity > 0 a new
+  // job is refused (queue_full, nothing stored) when that many jobs, of all
+  // tenants, are queued: counted and inserted in one transaction that every
+  // process on the store serialises (PostgreSQL: an advisory transaction
+  // lock), so replicas admitting at once never overshoot it.
   // The record is stored as given, except created_ms 0 = now; the returned
   // record carries the assigned sequence. A duplicate id is kInvalidArgument.
-  virtual core::Result<std::pair<JobRecord, bool>> insertJob(const JobRecord& job) = 0;
+  virtual core::Result<JobAdmission> admitJob(const JobRecord& job, std::int64_t queue_capacity) = 0;
+  // admitJob without a capacity: the job and whether it was inserted.
+  core::Result<std::pair<JobRecord, bool>> insertJob(const JobRecord& job) {
+    auto admitted = admitJob(job, 0);
+    if (!admitted) return admitted.error();
+    return std::pair{std::move(admitted->job), admitted->inserted};
+  }
   virtual std::optional<JobRecord> getJob(const std::string& tenant, const std::string& id) = 0;
   virtual std::vector<JobRecord> listJobs(const JobListQuery& query) = 0;
   // Queued or running jobs, oldest first (recovery after a restart).

@@ -679,6 +679,66 @@ TEST_P(MetadataStoreContract, ConcurrentClaimersNeverClaimOneJobTwice) {
   for (const auto& [id, n] : claims) EXPECT_EQ(n, 1) << id << " claimed " << n << " times";
   EXPECT_EQ(stores[0]->countJobsByStatus()[JobStatus::kRunning], kJobs);
 }
+
+// Admission against the queue capacity: a job past it is refused and nothing
+// is stored; a replay of an idempotency key is answered even when full; and
+// processes admitting at once (stores of their own) never overshoot it.
+TEST_P(MetadataStoreContract, AdmissionNeverOvershootsTheQueueCapacity) {
+  const std::string location = freshLocation();
+  {
+    auto store = openStore(location);
+    ASSERT_TRUE(store);
+    ASSERT_TRUE(store->admitJob(makeJob("acme", "a1", "key-a1"), 2)->inserted);
+    ASSERT_TRUE(store->admitJob(makeJob("globex", "g1"), 2)->inserted);
+    auto full = store->admitJob(makeJob("acme", "a2"), 2);
+    ASSERT_TRUE(full.ok()) << full.error().message;
+    EXPECT_TRUE(full->queue_full);
+    EXPECT_FALSE(full->inserted);
+    EXPECT_FALSE(store->getJob("acme", "a2").has_value()) << "a refused job is not stored";
+    auto replay = store->admitJob(makeJob("acme", "a3", "key-a1"), 2);
+    ASSERT_TRUE(replay.ok()) << replay.error().message;
+    EXPECT_FALSE(replay->queue_full) << "a replay is answered whatever the queue holds";
+    EXPECT_EQ(replay->job.id, "a1");
+    ASSERT_TRUE(store->claimNextJob("worker", 30'000)->has_value());  // a claim frees a place
+    EXPECT_TRUE(store->admitJob(makeJob("acme", "a4"), 2)->inserted);
+    EXPECT_TRUE(store->admitJob(makeJob("acme", "a5"), 2)->queue_full);
+    EXPECT_TRUE(store->admitJob(makeJob("acme", "a6"), 0)->inserted) << "0: no capacity";
+  }
+  // Rounds of eight stores admitting at the same instant into a queue with
+  // room for three: each round admits exactly three.
+  const std::string shared = freshLocation();
+  constexpr int kStores = 8, kRounds = 25, kCapacity = 3;
+  std::vector<std::unique_ptr<MetadataStore>> stores;
+  for (int i = 0; i < kStores; ++i) {
+    stores.push_back(openStore(shared));
+    ASSERT_TRUE(stores.back());
+  }
+  for (int round = 0; round < kRounds; ++round) {
+    std::atomic<int> admitted{0}, refused{0}, failures{0}, ready{0};
+    std::vector<std::thread> threads;
+    for (int t = 0; t < kStores; ++t) {
+      threads.emplace_back([&, t] {
+        ++ready;
+        while (ready.load() < kStores) std::this_thread::yield();
+        auto r = stores[static_cast<std::size_t>(t)]->admitJob(
+            makeJob("acme", "r" + std::to_string(round) + "-" + std::to_string(t)), kCapacity);
+        if (!r) {
+          ++failures;
+        } else if (r->queue_full) {
+          ++refused;
+        } else {
+          ++admitted;
+        }
+      });
+    }
+    for (auto& th : threads) th.join();
+    ASSERT_EQ(failures.load(), 0) << "round " << round;
+    ASSERT_EQ(admitted.load(), kCapacity) << "round " << round;
+    ASSERT_EQ(refused.load(), kStores - kCapacity) << "round " << round;
+    for (int k = 0; k < kCapacity; ++k) ASSERT_TRUE(stores[0]->claimNextJob("worker", 30'000)->has_value());
+  }
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------
