@@ -4,6 +4,9 @@
 
 #include <cstring>
 #include <optional>
+#include <string_view>
+
+#include "core/base/text.h"
 
 namespace server {
 namespace {
@@ -31,12 +34,6 @@ bool isMappedV4(const std::array<unsigned char, 16>& a) {
     if (a[static_cast<std::size_t>(i)] != 0) return false;
   }
   return a[10] == 0xff && a[11] == 0xff;
-}
-
-std::string trimmed(const std::string& s, std::size_t from, std::size_t to) {
-  while (from < to && (s[from] == ' ' || s[from] == '\t')) ++from;
-  while (to > from && (s[to - 1] == ' ' || s[to - 1] == '\t')) --to;
-  return s.substr(from, to - from);
 }
 
 }  // namespace
@@ -90,7 +87,7 @@ std::string TrustedProxies::clientOf(const std::string& peer, const std::string&
   while (end > 0) {
     const std::size_t comma = forwarded_for.rfind(',', end - 1);
     const std::size_t begin = comma == std::string::npos ? 0 : comma + 1;
-    const std::string hop = trimmed(forwarded_for, begin, end);
+    const std::string hop(core::trim(std::string_view(forwarded_for).substr(begin, end - begin)));
     // Something a trusted proxy would not write: the last trusted hop is all we know.
     if (!parseAddress(hop)) return client;
     client = hop;

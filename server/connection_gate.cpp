@@ -15,6 +15,7 @@
 #include <tuple>
 
 #include "api/error_codes.h"
+#include "core/base/text.h"
 #include "api/json.h"
 
 namespace server {
@@ -29,12 +30,6 @@ Clock::time_point after(double seconds) {
 bool equalsIgnoreCase(std::string_view a, std::string_view b) {
   return a.size() == b.size() &&
          std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) { return std::tolower(x) == std::tolower(y); });
-}
-
-std::string_view trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t')) s.remove_suffix(1);
-  return s;
 }
 
 // What the door needs to know of a complete request head.
@@ -75,7 +70,7 @@ api::Result<Head> parseHead(std::string_view head) {
     const std::size_t colon = line.find(':');
     if (colon == std::string_view::npos) continue;  // httplib judges the rest of the head
     const std::string_view name = line.substr(0, colon);
-    const std::string_view value = trim(line.substr(colon + 1));
+    const std::string_view value = core::trim(line.substr(colon + 1));
     if (equalsIgnoreCase(name, "Content-Length")) {
       std::size_t length = 0;
       const auto [end, ec] = std::from_chars(value.data(), value.data() + value.size(), length);

@@ -13,6 +13,7 @@
 
 #include <Eigen/SVD>
 
+#include "core/base/text.h"
 #include "core/io/mesh_io.h"
 #include "core/geometry/similarity.h"
 
@@ -41,12 +42,6 @@ std::vector<Line> splitLines(std::string_view text) {
     }
   }
   return lines;
-}
-
-std::string_view trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t')) s.remove_suffix(1);
-  return s;
 }
 
 bool isBlank(std::string_view s) { return trim(s).empty(); }
